@@ -1,0 +1,101 @@
+"""The scene's parse tree: the background start node, objects derived from it, supports.
+
+Node attributes follow the paper's equations 12 and 17: area A, center (x, y), the depth
+label and mean depth, and for sequences v_radial and time to collision.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+__all__ = ["Motion", "Node", "Relation", "SceneTree"]
+
+
+@dataclass(frozen=True)
+class Motion:
+    """Dynamic attributes of one object across frames (paper, equation 17).
+
+    Attributes
+    ----------
+    track_id : int
+        Stable identity across frames.
+    v_radial : float or None
+        Radial velocity: mm/s when the frame period is known, else mm/frame. Positive
+        means receding. None until the queue holds two valid entries.
+    ttc : float or None
+        Time to collision (s, or frames when no period is known) for approaching objects;
+        None for receding or still ones.
+    status : str
+        ``visible``, ``entering``, ``leaving`` or ``occluded``.
+    per_frame : bool
+        True when ``v_radial`` is in mm/frame (no frame period known).
+    """
+
+    track_id: int
+    v_radial: float | None = None
+    ttc: float | None = None
+    status: str = "visible"
+    per_frame: bool = False
+
+
+@dataclass(frozen=True)
+class Node:
+    """One node of the parse tree.
+
+    The root has kind ``Bkg`` and id 0. Every other node is a terminal ``o_<label>``
+    carrying its object's attributes; objects standing on a support are its children.
+    """
+
+    id: int
+    kind: str
+    label: int
+    depth: float
+    area: int
+    center: tuple[float, float]
+    v_radial: float | None = None
+    ttc: float | None = None
+    status: str | None = None
+    parts: tuple[int, ...] = ()
+    children: tuple[Node, ...] = ()
+
+
+@dataclass(frozen=True)
+class Relation:
+    """A horizontal link between two siblings: ``a <relation> b``.
+
+    ``relation`` is one of ``left_of``, ``right_of``, ``above``, ``below``,
+    ``in_front_of``, ``occludes``.
+    """
+
+    a: int
+    relation: str
+    b: int
+
+
+@dataclass(frozen=True)
+class SceneTree:
+    """A parsed scene: its root node and the horizontal relations between siblings."""
+
+    root: Node
+    relations: tuple[Relation, ...] = ()
+
+    def nodes(self) -> list[Node]:
+        """All nodes but the root, depth-first in child order."""
+        out: list[Node] = []
+        stack = list(reversed(self.root.children))
+        while stack:
+            n = stack.pop()
+            out.append(n)
+            stack.extend(reversed(n.children))
+        return out
+
+    def parent_of(self) -> dict[int, int]:
+        """Map node id to its parent's id (0 for the root's children)."""
+        out: dict[int, int] = {}
+        stack = [self.root]
+        while stack:
+            n = stack.pop()
+            for c in n.children:
+                out[c.id] = n.id
+                stack.append(c)
+        return out

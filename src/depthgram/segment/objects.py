@@ -1,0 +1,117 @@
+"""What segmentation produces: objects with their attributes, and the label map.
+
+These are plain frozen dataclasses so that every later stage (grammar, tracker, actions,
+sound, views) can take them without knowing how they were found.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+
+__all__ = ["KINDS", "Histogram", "SceneObject", "Segmentation"]
+
+#: Object kinds. ``object``: a segment facing the sensor; ``floor``, ``wall``, ``ceiling``:
+#: oblique surfaces found by slicing; ``compound``: other runs of successive depth labels
+#: joined into one super-object; ``part``: one slice segment of a compound object.
+KINDS = ("object", "floor", "wall", "ceiling", "compound", "part")
+
+
+@dataclass(frozen=True)
+class SceneObject:
+    """One salient object of a depth frame (a terminal ``o_<label>`` of the grammar).
+
+    Attributes
+    ----------
+    id : int
+        Object id, >= 1; the value of its pixels in :attr:`Segmentation.labels`.
+    kind : str
+        One of :data:`KINDS`.
+    label : int
+        Depth label: index of the histogram band (peak) the object belongs to, from 0 nearest.
+        For a compound object, the label of its nearest part.
+    depth : float
+        Mean depth (mm) over the object's valid pixels.
+    depth_std : float
+        Standard deviation of depth (mm) over those pixels.
+    area : int
+        Area in pixels (valid pixels only).
+    area_fraction : float
+        ``area`` as a fraction of the frame's pixel count.
+    center : tuple of float
+        Image center (x, y) in pixels: the mean column and row.
+    bbox : tuple of int
+        Bounding box (x0, y0, x1, y1), inclusive pixel coordinates.
+    centroid_mm : tuple of float or None
+        3-D centroid (X, Y, Z) in mm in the camera frame, when intrinsics are known.
+    area_mm2 : float or None
+        Metric area (mm^2) of the surface seen, when intrinsics are known: each pixel counts
+        ``(Z / fx) * (Z / fy)``.
+    parts : tuple of SceneObject
+        For compound objects, the slice segments it was joined from (kind ``part``), with
+        successive depth labels; empty otherwise.
+    """
+
+    id: int
+    kind: str
+    label: int
+    depth: float
+    depth_std: float
+    area: int
+    area_fraction: float
+    center: tuple[float, float]
+    bbox: tuple[int, int, int, int]
+    centroid_mm: tuple[float, float, float] | None = None
+    area_mm2: float | None = None
+    parts: tuple[SceneObject, ...] = ()
+
+
+@dataclass(frozen=True, eq=False)
+class Histogram:
+    """The global depth histogram with its peaks and cuts, kept for plots and reports.
+
+    Attributes
+    ----------
+    edges : ndarray of float, shape (B + 1,)
+        Bin edges (mm).
+    counts : ndarray of int, shape (B,)
+        Pixel counts per bin.
+    peaks : ndarray of float
+        Depth (mm) of each peak, nearest first.
+    cuts : ndarray of float
+        Depth (mm) of each threshold: band ``k`` spans ``cuts[k-1] .. cuts[k]``.
+    """
+
+    edges: NDArray[np.float64]
+    counts: NDArray[np.int64]
+    peaks: NDArray[np.float64]
+    cuts: NDArray[np.float64]
+
+
+@dataclass(frozen=True, eq=False)
+class Segmentation:
+    """Result of segmenting one frame.
+
+    Attributes
+    ----------
+    labels : ndarray of int32, shape (H, W)
+        Object id per pixel; 0 = background, too small, or invalid.
+    objects : tuple of SceneObject
+        The objects, in id order.
+    histogram : Histogram or None
+        The global histogram used, for plots.
+    method : str
+        Which method produced it (``threshold``, ``slices``, ``region``).
+    """
+
+    labels: NDArray[np.int32]
+    objects: tuple[SceneObject, ...]
+    histogram: Histogram | None = None
+    method: str = "threshold"
+    extras: dict[str, object] = field(default_factory=dict)
+
+    def by_id(self) -> dict[int, SceneObject]:
+        """Objects keyed by id."""
+        return {o.id: o for o in self.objects}
