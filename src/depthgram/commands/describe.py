@@ -1,0 +1,69 @@
+"""depthgram describe: one JSON line (or one sentence) per frame."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+from depthgram.commands._common import (
+    add_config_arguments,
+    add_source_arguments,
+    load_config,
+    open_input,
+    progress,
+    source_len,
+)
+
+NAME = "describe"
+HELP = "describe every frame: objects, tree, sentence, motion (JSON lines or text)"
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    add_source_arguments(p)
+    add_config_arguments(p)
+    p.add_argument("--json", default=None, metavar="OUT.jsonl", help="write JSON lines here (default: stdout)")
+    p.add_argument("--format", choices=["json", "text"], default="json",
+                   help="json: one JSON line per frame; text: one sentence per frame")
+    p.add_argument("--labels-dir", default=None, metavar="DIR",
+                   help="write a 16-bit PNG label map per frame (pixel = object id)")
+    p.add_argument("--no-track", action="store_true", help="treat frames as unrelated stills (no range flow)")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+
+
+def label_file_name(frame_name: str, index: int) -> str:
+    """Label map file name, after the input frame's file when it has one."""
+    stem = Path(frame_name).stem if frame_name and ":" not in frame_name else ""
+    return f"{stem or f'{index:06d}'}.png"
+
+
+def run(args: argparse.Namespace) -> int:
+    import cv2
+
+    from depthgram.errors import InputError
+    from depthgram.pipeline import Pipeline
+
+    src = open_input(args)
+    pipe = Pipeline(load_config(args), track=not args.no_track)
+    labels_dir = Path(args.labels_dir) if args.labels_dir else None
+    if labels_dir is not None:
+        labels_dir.mkdir(parents=True, exist_ok=True)
+    out = open(args.json, "w", encoding="utf-8") if args.json else sys.stdout
+    try:
+        for result in progress(pipe.run(src), total=source_len(src), desc=NAME, quiet=args.quiet):
+            if args.format == "text":
+                out.write(result.sentence + "\n")
+            else:
+                out.write(json.dumps(result.to_record()) + "\n")
+            if labels_dir is not None:
+                labels = result.segmentation.labels
+                if labels.max(initial=0) > 65535:
+                    raise InputError(f"{result.frame.name}: more than 65535 object ids; cannot write 16-bit PNG")
+                path = labels_dir / label_file_name(result.frame.name, result.frame.index)
+                if not cv2.imwrite(str(path), labels.astype("uint16")):
+                    raise InputError(f"{path}: could not write the label map")
+    finally:
+        if out is not sys.stdout:
+            out.close()
+    return 0

@@ -1,0 +1,70 @@
+"""depthgram run: play a recording through the pipeline as a live sensor would deliver it."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+
+from depthgram.commands._common import (
+    add_config_arguments,
+    add_source_arguments,
+    load_config,
+    open_input,
+    progress,
+    source_len,
+)
+
+NAME = "run"
+HELP = "play a recording at its frame rate (or --fast) and report per-frame latency and dropped frames"
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    add_source_arguments(p)
+    add_config_arguments(p)
+    p.add_argument("--fast", action="store_true", help="as fast as possible instead of the recording's rate")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.add_argument("--print", dest="print_sentences", action="store_true", help="print each frame's sentence")
+
+
+def run(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from depthgram.pipeline import Pipeline
+
+    src = open_input(args)
+    pipe = Pipeline(load_config(args))
+    fps = getattr(src, "fps", None) or args.fps
+    period = None if args.fast or not fps else 1.0 / fps
+    latencies: list[float] = []
+    dropped = 0
+    first_time: float | None = None
+    start = time.perf_counter()
+    for i, frame in enumerate(progress(src, total=source_len(src), desc=NAME, quiet=args.quiet)):
+        if period is not None:
+            # A live sensor does not wait: a frame whose slot has passed while we were busy is lost.
+            t_frame = frame.time_s if frame.time_s is not None else i * period
+            if first_time is None:
+                first_time = t_frame
+            due = start + (t_frame - first_time)
+            now = time.perf_counter()
+            if now > due + period:
+                dropped += 1
+                continue
+            if now < due:
+                time.sleep(due - now)
+        result = pipe.process(frame)
+        latencies.append(result.latency_s)
+        if args.print_sentences:
+            print(result.sentence)
+    wall = time.perf_counter() - start
+    n = len(latencies)
+    if n == 0:
+        print("no frame processed", file=sys.stderr)
+        return 1
+    lat = np.asarray(latencies) * 1e3
+    mode = "as fast as possible" if period is None else f"at {1.0 / period:.1f} frames/s"
+    print(f"{n + dropped} frames played {mode} in {wall:.2f} s: {n} processed, {dropped} dropped")
+    print(f"latency per frame: median {np.median(lat):.2f} ms, p95 {np.percentile(lat, 95):.2f} ms, "
+          f"max {lat.max():.2f} ms; throughput {n / wall:.1f} frames/s")
+    return 0

@@ -1,0 +1,295 @@
+"""The one path from frame to scene: segmentation, tree, tracks, plan (and sound on request).
+
+The command line, the Python API, the batch runner and the viewer all run this code with the
+same :class:`Config`, which loads from and saves to TOML.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+import tomllib
+from collections.abc import Iterable, Iterator, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from depthgram.act import ActConfig, Plan
+from depthgram.act import plan as plan_scene
+from depthgram.dynamics import Tracker, TrackerConfig
+from depthgram.errors import InputError
+from depthgram.frame import Frame
+from depthgram.scene import TreeConfig, build_tree, to_sentence, tree_to_dict
+from depthgram.scene.tree import Motion, SceneTree
+from depthgram.segment import SegmentConfig, segment
+from depthgram.segment.objects import SceneObject, Segmentation
+from depthgram.sound import SoundMapping
+
+__all__ = ["Config", "Pipeline", "SceneResult"]
+
+_SECTIONS: dict[str, type] = {
+    "segment": SegmentConfig,
+    "tree": TreeConfig,
+    "tracker": TrackerConfig,
+    "act": ActConfig,
+    "sound": SoundMapping,
+}
+
+
+@dataclass(frozen=True)
+class Config:
+    """Every stage's settings in one place; see each section's class for units and meaning.
+
+    Sections: ``segment`` (:class:`depthgram.segment.SegmentConfig`), ``tree``
+    (:class:`depthgram.scene.TreeConfig`), ``tracker`` (:class:`depthgram.dynamics.TrackerConfig`),
+    ``act`` (:class:`depthgram.act.ActConfig`), ``sound`` (:class:`depthgram.sound.SoundMapping`).
+    """
+
+    segment: SegmentConfig = field(default_factory=SegmentConfig)
+    tree: TreeConfig = field(default_factory=TreeConfig)
+    tracker: TrackerConfig = field(default_factory=TrackerConfig)
+    act: ActConfig = field(default_factory=ActConfig)
+    sound: SoundMapping = field(default_factory=SoundMapping)
+
+    def to_dict(self) -> dict[str, dict[str, Any]]:
+        """Plain nested dict (TOML-ready: no None values)."""
+        out: dict[str, dict[str, Any]] = {}
+        for name in _SECTIONS:
+            section = dataclasses.asdict(getattr(self, name))
+            out[name] = {k: _toml_value(v) for k, v in section.items() if v is not None}
+        return out
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any], *, where: str = "config") -> Config:
+        """Build from a nested dict; unknown sections or keys are errors, not silently dropped."""
+        unknown = set(data) - set(_SECTIONS)
+        if unknown:
+            raise InputError(f"{where}: unknown section(s) {sorted(unknown)}; expected {sorted(_SECTIONS)}")
+        kwargs: dict[str, Any] = {}
+        for name, klass in _SECTIONS.items():
+            values = data.get(name, {})
+            if not isinstance(values, Mapping):
+                raise InputError(f"{where}: [{name}] must be a table of settings")
+            kwargs[name] = _build_section(klass, values, f"{where} [{name}]")
+        return cls(**kwargs)
+
+    @classmethod
+    def load(cls, path: str | Path) -> Config:
+        """Read a TOML file written by :meth:`save` or by hand (missing keys keep their defaults)."""
+        p = Path(path)
+        try:
+            data = tomllib.loads(p.read_text(encoding="utf-8"))
+        except FileNotFoundError:
+            raise InputError(f"{p}: config file not found") from None
+        except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+            raise InputError(f"{p}: not valid TOML: {exc}") from None
+        return cls.from_dict(data, where=str(p))
+
+    def dumps(self) -> str:
+        """The configuration as TOML text."""
+        import tomli_w
+
+        return tomli_w.dumps(self.to_dict())
+
+    def save(self, path: str | Path) -> None:
+        """Write the configuration as TOML."""
+        Path(path).write_text(self.dumps(), encoding="utf-8")
+
+    def replace(self, **sections: Mapping[str, Any]) -> Config:
+        """A copy with some settings changed, e.g. ``cfg.replace(segment={"min_area": 50})``."""
+        data = self.to_dict()
+        for name, values in sections.items():
+            if name not in _SECTIONS:
+                raise InputError(f"unknown config section {name!r}; expected {sorted(_SECTIONS)}")
+            data[name] = {**data[name], **dict(values)}
+        return Config.from_dict(data)
+
+
+def _toml_value(v: Any) -> Any:
+    if isinstance(v, tuple):
+        return [_toml_value(x) for x in v]
+    if isinstance(v, dict):
+        return {k: _toml_value(x) for k, x in v.items() if x is not None}
+    return v
+
+
+def _build_section(klass: type, values: Mapping[str, Any], where: str) -> Any:
+    fields = {f.name: f for f in dataclasses.fields(klass)}
+    unknown = set(values) - set(fields)
+    if unknown:
+        raise InputError(f"{where}: unknown setting(s) {sorted(unknown)}; known: {sorted(fields)}")
+    default = klass()
+    kwargs: dict[str, Any] = {}
+    for k, v in values.items():
+        # TOML has arrays, not tuples: give tuple-typed fields their tuple back.
+        if isinstance(v, list) and isinstance(getattr(default, k), tuple):
+            v = tuple(tuple(x) if isinstance(x, list) else x for x in v)
+        kwargs[k] = v
+    try:
+        return klass(**kwargs)
+    except InputError as exc:
+        raise InputError(f"{where}: {exc}") from None
+    except (TypeError, ValueError) as exc:
+        raise InputError(f"{where}: {exc}") from None
+
+
+@dataclass(frozen=True, eq=False)
+class SceneResult:
+    """Everything the pipeline knows about one frame.
+
+    Object ids are track ids when the pipeline tracks (sequences), so the same object keeps
+    its id, and its pixel value in ``segmentation.labels``, from frame to frame.
+    """
+
+    frame: Frame
+    segmentation: Segmentation
+    tree: SceneTree
+    motions: Mapping[int, Motion]
+    occluded: tuple[tuple[SceneObject, Motion], ...]
+    plan: Plan
+    latency_s: float
+
+    @property
+    def sentence(self) -> str:
+        """The scene as one sentence of the grammar."""
+        return to_sentence(self.tree)
+
+    def to_record(self) -> dict[str, Any]:
+        """The JSON line of ``depthgram describe``."""
+        f = self.frame
+        tree = tree_to_dict(self.tree)
+        nodes = {n["id"]: n for n in tree["nodes"]}
+        objects = [
+            _object_record(o, nodes.get(o.id, {}), self.motions.get(o.id)) for o in self.segmentation.objects
+        ]
+        occluded = [_object_record(o, {}, m) for o, m in self.occluded]
+        return {
+            "frame": f.index,
+            "time_s": f.time_s,
+            "source": f.name,
+            "size": list(f.size),
+            "unit": "mm",
+            "objects": objects,
+            "occluded": occluded,
+            "relations": tree["relations"],
+            "sentence": self.sentence,
+        }
+
+
+def _clean(v: float | None, nd: int = 2) -> float | None:
+    if v is None or not math.isfinite(v):
+        return None
+    return round(float(v), nd)
+
+
+def _object_record(o: SceneObject, node: Mapping[str, Any], m: Motion | None) -> dict[str, Any]:
+    rec: dict[str, Any] = {
+        "id": o.id,
+        "kind": o.kind,
+        "label": o.label,
+        "depth": _clean(o.depth, 1),
+        "depth_std": _clean(o.depth_std, 1),
+        "area": o.area,
+        "area_fraction": _clean(o.area_fraction, 5),
+        "center": [_clean(o.center[0]), _clean(o.center[1])],
+        "bbox": list(o.bbox),
+        "centroid_mm": None if o.centroid_mm is None else [_clean(c, 1) for c in o.centroid_mm],
+        "area_mm2": _clean(o.area_mm2, 0),
+        "parent": node.get("parent"),
+        "children": node.get("children", []),
+        "parts": [
+            {"label": p.label, "depth": _clean(p.depth, 1), "area": p.area, "center": [_clean(c) for c in p.center]}
+            for p in o.parts
+        ],
+    }
+    if m is not None:
+        rec["v_radial"] = _clean(m.v_radial)
+        rec["v_unit"] = "mm/frame" if m.per_frame else "mm/s"
+        rec["ttc"] = _clean(m.ttc, 3)
+        rec["status"] = m.status
+    return rec
+
+
+class Pipeline:
+    """Frame in, scene out.
+
+    Parameters
+    ----------
+    config : Config, optional
+        All stage settings; defaults when omitted.
+    track : bool
+        Track objects across frames (range flow). Off for unrelated still images, so that
+        ids restart at 1 and no velocity is read between different scenes.
+
+    Examples
+    --------
+    >>> from depthgram import Pipeline, read
+    >>> pipe = Pipeline()
+    >>> for result in pipe.run(read("sim:approach?frames=10")):  # doctest: +SKIP
+    ...     print(result.sentence)
+    """
+
+    def __init__(self, config: Config | None = None, *, track: bool = True) -> None:
+        self.config = config or Config()
+        self.track = track
+        self._tracker = Tracker(self.config.tracker)
+
+    def reset(self) -> None:
+        """Forget all tracks (start of a new recording)."""
+        self._tracker = Tracker(self.config.tracker)
+
+    def process(self, frame: Frame) -> SceneResult:
+        """Segment one frame, build its tree, update tracks and plan actions."""
+        t0 = time.perf_counter()
+        cfg = self.config
+        seg = segment(frame.depth, valid=frame.valid, intrinsics=frame.intrinsics, config=cfg.segment)
+        motions: dict[int, Motion] = {}
+        occluded: tuple[tuple[SceneObject, Motion], ...] = ()
+        if self.track:
+            update = self._tracker.update(seg.objects, frame.time_s, frame.size)
+            seg = _relabel(seg, {oid: m.track_id for oid, m in update.motions.items()})
+            motions = {m.track_id: m for m in update.motions.values()}
+            occluded = tuple(
+                (dataclasses.replace(t.last, id=t.id), _occluded_motion(t)) for t in update.occluded
+            )
+        tree = build_tree(seg.objects, frame.size, motion=motions or None, config=cfg.tree, labels=seg.labels)
+        action_plan = plan_scene(tree, frame, config=cfg.act)
+        return SceneResult(
+            frame=frame,
+            segmentation=seg,
+            tree=tree,
+            motions=motions,
+            occluded=occluded,
+            plan=action_plan,
+            latency_s=time.perf_counter() - t0,
+        )
+
+    def run(self, frames: Iterable[Frame]) -> Iterator[SceneResult]:
+        """Process frames one at a time (memory stays flat however long the recording)."""
+        for frame in frames:
+            yield self.process(frame)
+
+
+def _occluded_motion(track: Any) -> Motion:
+    m = getattr(track, "motion", None)
+    if isinstance(m, Motion):
+        return dataclasses.replace(m, status="occluded")
+    return Motion(track_id=int(track.id), status="occluded")
+
+
+def _relabel(seg: Segmentation, new_ids: Mapping[int, int]) -> Segmentation:
+    """Give objects (and their pixels) their track ids."""
+    if not new_ids or all(k == v for k, v in new_ids.items()):
+        return seg
+    top = max(max(new_ids), int(seg.labels.max(initial=0)))
+    lut: NDArray[np.int32] = np.zeros(top + 1, np.int32)
+    for old, new in new_ids.items():
+        lut[old] = new
+    objects = tuple(
+        sorted((dataclasses.replace(o, id=new_ids.get(o.id, o.id)) for o in seg.objects), key=lambda o: o.id)
+    )
+    return dataclasses.replace(seg, labels=lut[seg.labels], objects=objects)

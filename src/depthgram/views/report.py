@@ -1,0 +1,140 @@
+"""The HTML report: pictures of chosen frames, their trees and sentences, and the tracks over time."""
+
+from __future__ import annotations
+
+import html
+import json
+from collections.abc import Iterable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from depthgram.pipeline import SceneResult
+
+__all__ = ["ReportWriter"]
+
+
+@dataclass
+class _Series:
+    times: list[float] = field(default_factory=list)
+    depth: dict[int, list[float | None]] = field(default_factory=dict)
+    v: dict[int, list[float | None]] = field(default_factory=dict)
+    per_frame: bool = False
+
+
+class ReportWriter:
+    """Collects results frame by frame and writes ``index.html`` with its pictures.
+
+    Only the pictured frames' images and the per-track series (a few numbers per frame) are
+    kept, so a long recording does not fill memory.
+
+    Parameters
+    ----------
+    out_dir : Path
+        Folder to write into (created).
+    every : int
+        Picture every ``every``-th frame (frame 0 always).
+    max_pictures : int
+        At most this many pictured frames.
+    """
+
+    def __init__(self, out_dir: str | Path, *, every: int = 1, max_pictures: int = 8) -> None:
+        self.out = Path(out_dir)
+        self.out.mkdir(parents=True, exist_ok=True)
+        self.every = max(1, every)
+        self.max_pictures = max_pictures
+        self._sections: list[str] = []
+        self._series = _Series()
+        self._n = 0
+        self._source = ""
+
+    def add(self, result: SceneResult) -> None:
+        """Take one frame's result: picture it if chosen, extend the track series."""
+        from depthgram.views.pictures import draw_histogram, draw_overlay
+        from depthgram.views.tree_plot import draw_tree
+
+        f = result.frame
+        self._source = self._source or f.name.split("#")[0]
+        k = self._n
+        self._n += 1
+        self._extend_series(result)
+        if k % self.every or len(self._sections) >= self.max_pictures:
+            return
+        stem = f"frame{f.index:06d}"
+        draw_overlay(f, result.segmentation, self.out / f"{stem}_objects.png", motions=result.motions)
+        pics = [f"{stem}_objects.png"]
+        if result.segmentation.histogram is not None:
+            draw_histogram(result.segmentation.histogram, self.out / f"{stem}_histogram.png")
+            pics.append(f"{stem}_histogram.png")
+        draw_tree(result.tree, self.out / f"{stem}_tree.png")
+        pics.append(f"{stem}_tree.png")
+        rows = "".join(
+            f"<tr><td>{o['id']}</td><td>{o['kind']}</td><td>o_{o['label']}</td><td>{o['depth']}</td>"
+            f"<td>{o['area']}</td><td>({o['center'][0]}, {o['center'][1]})</td><td>{o['parent']}</td>"
+            f"<td>{o.get('v_radial')}</td><td>{o.get('ttc')}</td><td>{o.get('status', '')}</td></tr>"
+            for o in result.to_record()["objects"]
+        )
+        imgs = "".join(f'<img src="{p}" alt="{p}">' for p in pics)
+        self._sections.append(
+            f"<section><h2>frame {f.index} <small>{html.escape(f.name)}"
+            f"{'' if f.time_s is None else f', t = {f.time_s:.3f} s'}</small></h2>"
+            f"<p class=sentence><code>{html.escape(result.sentence)}</code></p><div class=pics>{imgs}</div>"
+            "<table><tr><th>id</th><th>kind</th><th>label</th><th>depth mm</th><th>area px</th>"
+            "<th>center</th><th>parent</th><th>v_radial</th><th>ttc s</th><th>status</th></tr>"
+            f"{rows}</table></section>"
+        )
+
+    def _extend_series(self, result: SceneResult) -> None:
+        s = self._series
+        f = result.frame
+        i = len(s.times)
+        s.times.append(f.time_s if f.time_s is not None else float(f.index))
+        for o in result.segmentation.objects:
+            m = result.motions.get(o.id)
+            d = s.depth.setdefault(o.id, [None] * i)
+            v = s.v.setdefault(o.id, [None] * i)
+            d.append(o.depth)
+            v.append(None if m is None else m.v_radial)
+            if m is not None and m.per_frame:
+                s.per_frame = True
+        for lst in (*s.depth.values(), *s.v.values()):
+            if len(lst) < i + 1:
+                lst.append(None)
+
+    def add_all(self, results: Iterable[SceneResult]) -> None:
+        """Take every result of an iterable."""
+        for r in results:
+            self.add(r)
+
+    def finish(self) -> Path:
+        """Write the track plot (sequences) and ``index.html``; return the page's path."""
+        from depthgram.views.pictures import draw_tracks
+
+        extra = ""
+        s = self._series
+        if len(s.times) > 1 and s.depth:
+            # Only tracks seen in at least three frames: one-frame flickers would bury the plot.
+            keep = {k: v for k, v in s.depth.items() if sum(x is not None for x in v) >= 3}
+            draw_tracks(
+                s.times, keep, {k: s.v[k] for k in keep}, self.out / "tracks.png",
+                time_unit="frame" if s.per_frame else "s", v_unit="mm/frame" if s.per_frame else "mm/s",
+            )
+            extra = '<section><h2>tracks</h2><img src="tracks.png" alt="tracks"></section>'
+        (self.out / "series.json").write_text(
+            json.dumps({"times": s.times, "depth": s.depth, "v_radial": s.v}), encoding="utf-8"
+        )
+        page = (
+            "<!doctype html><html><head><meta charset=utf-8><title>depthgram report</title><style>"
+            "body{font-family:sans-serif;margin:1.5em;max-width:1400px}img{max-width:100%;margin:4px;"
+            "border:1px solid #ccc}.pics{display:flex;flex-wrap:wrap;align-items:flex-start}"
+            ".pics img{max-width:48%}table{border-collapse:collapse;font-size:13px}td,th{border:1px solid #ccc;"
+            "padding:2px 6px}.sentence code{white-space:pre-wrap;background:#f4f4f4;display:block;padding:6px}"
+            "</style></head><body>"
+            f"<h1>depthgram report</h1><p>source: <code>{html.escape(self._source)}</code>, "
+            f"{self._n} frames processed, {len(self._sections)} pictured.</p>"
+            f"{extra}{''.join(self._sections)}</body></html>"
+        )
+        index = self.out / "index.html"
+        index.write_text(page, encoding="utf-8")
+        return index
