@@ -1,0 +1,58 @@
+"""depthgram bench: run the stage benchmarks in benchmarks/ and print their tables."""
+
+from __future__ import annotations
+
+import argparse
+import importlib.util
+import sys
+from pathlib import Path
+
+NAME = "bench"
+HELP = "run the benchmarks (speed per stage and resolution, Table 1 accuracy, tracking, sound)"
+
+#: Benchmark name -> script in benchmarks/ (each defines main(argv) -> int).
+SUITES = {
+    "pipeline": "bench_pipeline.py",
+    "segmentation": "bench_segmentation.py",
+    "table1": "table1.py",
+    "scene": "bench_scene.py",
+    "tracking": "bench_tracking.py",
+    "sound": "bench_sound.py",
+}
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("suites", nargs="*", default=[], metavar="SUITE",
+                   help=f"which benchmarks: {', '.join(SUITES)} (default: all)")
+    p.add_argument("--quick", action="store_true", help="fewer repetitions (a rough figure in seconds)")
+
+
+def benchmarks_dir() -> Path:
+    """The benchmarks/ folder of the source checkout."""
+    return Path(__file__).resolve().parents[3] / "benchmarks"
+
+
+def run(args: argparse.Namespace) -> int:
+    from depthgram.errors import InputError
+
+    unknown = [s for s in args.suites if s not in SUITES]
+    if unknown:
+        raise InputError(f"unknown benchmark(s) {unknown}; choose from {', '.join(SUITES)}")
+    folder = benchmarks_dir()
+    if not folder.is_dir():
+        raise InputError(f"benchmarks folder not found at {folder}: run from a source checkout of depthgram")
+    status = 0
+    for name in args.suites or list(SUITES):
+        path = folder / SUITES[name]
+        if not path.is_file():
+            print(f"== {name}: {path.name} missing, skipped", file=sys.stderr)
+            status = 1
+            continue
+        spec = importlib.util.spec_from_file_location(f"depthgram_bench_{name}", path)
+        if spec is None or spec.loader is None:
+            raise InputError(f"{path}: cannot load benchmark")
+        mod = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(mod)
+        print(f"\n== {name} ({path.name})", flush=True)
+        status |= int(mod.main(["--quick"] if args.quick else []) or 0)
+    return status
