@@ -29,7 +29,7 @@ from depthgram.segment import SegmentConfig, segment
 from depthgram.segment.objects import SceneObject, Segmentation
 from depthgram.sound import SoundMapping
 
-__all__ = ["Config", "Pipeline", "SceneResult"]
+__all__ = ["Config", "Pipeline", "SceneResult", "describe"]
 
 _SECTIONS: dict[str, type] = {
     "segment": SegmentConfig,
@@ -293,3 +293,19 @@ def _relabel(seg: Segmentation, new_ids: Mapping[int, int]) -> Segmentation:
         sorted((dataclasses.replace(o, id=new_ids.get(o.id, o.id)) for o in seg.objects), key=lambda o: o.id)
     )
     return dataclasses.replace(seg, labels=lut[seg.labels], objects=objects)
+
+
+def describe(
+    depth_mm: Any,
+    *,
+    intrinsics: Any = None,
+    config: Config | None = None,
+) -> SceneResult:
+    """Describe one depth image (mm; 0 or NaN invalid): objects, tree, sentence and plan.
+
+    A convenience for a single still; use :class:`Pipeline` for sequences (range flow).
+    """
+    from depthgram.frame import make_frame
+
+    frame = make_frame(depth_mm, intrinsics=intrinsics, name="array")
+    return Pipeline(config, track=False).process(frame)
