@@ -1,0 +1,145 @@
+"""One table: frames/s per stage and per resolution, the bincount floor, region growing, memory.
+
+Run: ``.venv/bin/python benchmarks/bench_pipeline.py`` or ``depthgram bench pipeline``.
+Every stage is timed on one core on the simulator's ``table`` scene at each resolution.
+"""
+
+from __future__ import annotations
+
+import argparse
+import gc
+import platform
+import resource
+import time
+from collections.abc import Callable, Sequence
+from typing import Any
+
+import numpy as np
+
+SIZES = ((176, 132), (640, 480), (1280, 720))
+
+
+def _best_time(fn: Callable[[], Any], *, budget_s: float, min_reps: int = 3) -> float:
+    """Best per-call time (s) over repeated calls within a time budget: the least disturbed run."""
+    fn()  # warm-up (caches, numba, lazy imports)
+    best = float("inf")
+    reps = 0
+    t_end = time.perf_counter() + budget_s
+    while reps < min_reps or time.perf_counter() < t_end:
+        t0 = time.perf_counter()
+        fn()
+        best = min(best, time.perf_counter() - t0)
+        reps += 1
+    return best
+
+
+def _rss_mb() -> float:
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+
+
+def stage_rows(*, quick: bool = False) -> list[dict[str, Any]]:
+    """Time each stage at each resolution; one row per (size, stage)."""
+    from depthgram.act import plan
+    from depthgram.dynamics import Tracker
+    from depthgram.scene import build_tree, to_sentence
+    from depthgram.segment import SegmentConfig, region_grow, segment
+    from depthgram.sensor import simulate
+    from depthgram.sound import Sonifier, SoundMapping
+
+    budget = 0.3 if quick else 1.5
+    rows: list[dict[str, Any]] = []
+    for w, h in SIZES:
+        sim = next(iter(simulate("table", 1, size=(w, h), seed=0)))
+        f = sim.frame
+        d, v, k = f.depth, f.valid, f.intrinsics
+        bins = np.minimum((d / 10.0).astype(np.int64), 1023)
+        floor = _best_time(lambda bins=bins: np.bincount(bins.ravel(), minlength=1024), budget_s=budget)
+        seg = segment(d, valid=v, intrinsics=k)
+        tree = build_tree(seg.objects, (w, h))
+        tracker = Tracker()
+        tracker.update(seg.objects, 0.0, (w, h))
+        clock = iter(range(1, 10**9))
+        sonifier = Sonifier(SoundMapping(), 22050, (w, h))
+        timings: dict[str, float] = {
+            "segment (threshold)": _best_time(
+                lambda d=d, v=v, k=k: segment(d, valid=v, intrinsics=k, config=SegmentConfig(method="threshold")),
+                budget_s=budget,
+            ),
+            "segment (slices)": _best_time(
+                lambda d=d, v=v, k=k: segment(d, valid=v, intrinsics=k, config=SegmentConfig(method="slices")),
+                budget_s=budget,
+            ),
+            "region growing": _best_time(lambda d=d, v=v, k=k: region_grow(d, valid=v, intrinsics=k), budget_s=budget),
+            "tree + sentence": _best_time(
+                lambda seg=seg, w=w, h=h: to_sentence(build_tree(seg.objects, (w, h))), budget_s=budget
+            ),
+            "tracker update": _best_time(
+                lambda seg=seg, tracker=tracker, clock=clock, w=w, h=h: tracker.update(
+                    seg.objects, next(clock) / 30.0, (w, h)
+                ),
+                budget_s=budget,
+            ),
+            "plan": _best_time(lambda tree=tree, f=f: plan(tree, f), budget_s=budget),
+            "sound (1 frame)": _best_time(
+                lambda tree=tree, s=sonifier: s.push(tree, 1 / 30.0), budget_s=budget
+            ),
+        }
+        base = timings["segment (threshold)"]
+        for stage, t in timings.items():
+            rows.append({
+                "size": f"{w}x{h}",
+                "stage": stage,
+                "ms": t * 1e3,
+                "fps": 1.0 / t,
+                "x_bincount": t / floor,
+                "x_threshold": t / base,
+                "objects": len(seg.objects),
+            })
+        rows.append({"size": f"{w}x{h}", "stage": "bincount floor", "ms": floor * 1e3, "fps": 1 / floor,
+                     "x_bincount": 1.0, "x_threshold": floor / base, "objects": len(seg.objects)})
+    return rows
+
+
+def memory_row(frames: int) -> dict[str, Any]:
+    """Peak RSS before and after streaming ``frames`` 640x480 frames through the whole pipeline."""
+    from depthgram.pipeline import Pipeline
+    from depthgram.sensor import simulate
+
+    pipe = Pipeline()
+    gc.collect()
+    before = _rss_mb()
+    n = 0
+    half_rss = before
+    for sim in simulate("crossing", frames, size=(640, 480), seed=1):
+        pipe.process(sim.frame)
+        n += 1
+        if n == frames // 2:
+            half_rss = _rss_mb()
+    after = _rss_mb()
+    stream_gb = frames * 640 * 480 * 2 / 1e9
+    return {"frames": n, "stream_gb_as_uint16": stream_gb, "rss_start_mb": before, "rss_half_mb": half_rss,
+            "rss_end_mb": after}
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__)
+    ap.add_argument("--quick", action="store_true", help="shorter timing budget")
+    ap.add_argument("--memory-frames", type=int, default=None, help="frames for the memory check")
+    a = ap.parse_args(argv)
+    print(f"machine: {platform.machine()} {platform.processor() or ''}, Python {platform.python_version()}, "
+          f"numpy {np.__version__}; one process, best of repeated runs")
+    rows = stage_rows(quick=a.quick)
+    print(f"{'size':>9} | {'stage':<20} | {'ms/frame':>9} | {'frames/s':>9} | {'x bincount':>10} | {'x threshold':>11}")
+    print("-" * 84)
+    for r in rows:
+        print(f"{r['size']:>9} | {r['stage']:<20} | {r['ms']:9.3f} | {r['fps']:9.0f} | {r['x_bincount']:10.1f} | "
+              f"{r['x_threshold']:11.2f}")
+    m = memory_row(a.memory_frames or (60 if a.quick else 300))
+    print(f"\nmemory: streamed {m['frames']} frames of 640x480 ({m['stream_gb_as_uint16']:.2f} GB as uint16) through "
+          f"the pipeline; peak RSS {m['rss_start_mb']:.0f} MB at start, {m['rss_half_mb']:.0f} MB half-way, "
+          f"{m['rss_end_mb']:.0f} MB at the end")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
