@@ -1,0 +1,89 @@
+"""Reading one stored image file as its raw samples (PNG, PGM, TIFF, ``.npy``, ``.npz``)."""
+
+from __future__ import annotations
+
+import zipfile
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+
+from depthgram.errors import InputError
+
+__all__ = ["IMAGE_SUFFIXES", "npz_pick", "read_image"]
+
+#: File suffixes read as depth frames. JPEG is left out on purpose: lossy compression destroys depth.
+IMAGE_SUFFIXES = frozenset({".png", ".pgm", ".tif", ".tiff", ".npy", ".npz"})
+
+
+def npz_pick(names: list[str], shapes: dict[str, tuple[int, ...]], key: str | None, where: str) -> str:
+    """Name of the array to read from an ``.npz``: ``key``, else the first 2-D or 3-D array."""
+    if key is not None:
+        if key not in names:
+            raise InputError(f"{where}: no array named {key!r} in the .npz (it holds {', '.join(names) or 'none'})")
+        return key
+    for n in names:
+        if len(shapes[n]) in (2, 3):
+            return n
+    listing = ", ".join(f"{n} {shapes[n]}" for n in names) or "no arrays"
+    raise InputError(f"{where}: no 2-D image or 3-D stack in the .npz ({listing})")
+
+
+def _read_npz(path: Path, key: str | None, where: str) -> NDArray[np.generic]:
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            names = list(z.files)
+            shapes = {n: tuple(z[n].shape) for n in names}
+            return np.asarray(z[npz_pick(names, shapes, key, where)])
+    except (ValueError, OSError, zipfile.BadZipFile, EOFError) as exc:
+        raise InputError(f"{where}: cannot read the .npz ({exc})") from None
+
+
+def read_image(path: Path, *, key: str | None = None, where: str | None = None) -> NDArray[np.generic]:
+    """Raw samples of one image file, exactly as stored (no unit conversion).
+
+    Parameters
+    ----------
+    path : Path
+        A PNG/PGM (OpenCV), TIFF (tifffile), ``.npy`` or ``.npz`` file.
+    key : str, optional
+        Array name in an ``.npz``; default the first 2-D or 3-D array.
+    where : str, optional
+        How to name the file in errors (default: the path).
+
+    Raises
+    ------
+    InputError
+        Missing, unreadable, truncated or object-dtype file.
+    """
+    where = where or str(path)
+    if not path.is_file():
+        raise InputError(f"{where}: no such file")
+    suffix = path.suffix.lower()
+    if suffix == ".npy":
+        try:
+            return np.load(path, mmap_mode="r", allow_pickle=False)
+        except (ValueError, OSError, EOFError) as exc:
+            raise InputError(f"{where}: cannot read the .npy ({exc})") from None
+    if suffix == ".npz":
+        return _read_npz(path, key, where)
+    if suffix in (".tif", ".tiff"):
+        import tifffile
+
+        try:
+            return np.asarray(tifffile.imread(path))
+        except Exception as exc:  # tifffile raises many unrelated types for bad files
+            raise InputError(f"{where}: cannot read the TIFF (truncated or not a TIFF?): {exc}") from None
+    import cv2
+
+    # imdecode over a bytes buffer, not imread: it handles non-ASCII paths and lets a
+    # truncated file be told apart from a missing one.
+    buf = np.fromfile(path, dtype=np.uint8)
+    try:
+        img = cv2.imdecode(buf, cv2.IMREAD_UNCHANGED) if buf.size else None
+    except cv2.error:
+        img = None
+    if img is None:
+        raise InputError(f"{where}: cannot decode the image (truncated, empty or not an image file)")
+    # A colour image comes back (H, W, 3) and is refused later with a message saying so.
+    return img

@@ -1,0 +1,167 @@
+"""From a spec (path, glob, bag, ``sim:`` scene) to the matching :class:`Source`."""
+
+from __future__ import annotations
+
+import glob
+import os
+import re
+from collections.abc import Iterator, Sequence
+from pathlib import Path
+from urllib.parse import parse_qs
+
+import numpy as np
+
+from depthgram.errors import InputError
+from depthgram.frame import Frame, Intrinsics
+from depthgram.sources.bag import BAG_SUFFIXES, BagSource
+from depthgram.sources.base import Source
+from depthgram.sources.config import SourceConfig
+from depthgram.sources.files import FilesSource, list_frames
+from depthgram.sources.images import IMAGE_SUFFIXES
+from depthgram.sources.sidecars import find_sidecar
+from depthgram.sources.sim import SimSource, parse_sim_spec, scene_names
+from depthgram.sources.stack import NpyStackSource, NpzStackSource, npz_member_header
+
+__all__ = ["open_source", "read"]
+
+_GLOB_CHARS = re.compile(r"[*?\[]")
+_SCENE_NAME = re.compile(r"^[A-Za-z][\w-]*(\?.*)?$")
+
+
+def _split_query(text: str) -> tuple[str, dict[str, str]]:
+    # "frames.npz?key=depth": only when the text itself is not an existing path.
+    base, _, query = text.partition("?")
+    if not query or not Path(base).exists():
+        return text, {}
+    return base, {k: v[-1] for k, v in parse_qs(query).items()}
+
+
+def open_source(
+    spec: str | os.PathLike[str],
+    *,
+    scale_mm: float | None = None,
+    invalid: Sequence[float] = (),
+    fps: float | None = None,
+    timestamps: str | os.PathLike[str] | None = None,
+    depth_range_mm: tuple[float, float] | None = None,
+    encoding: str = "auto",
+    topic: str | None = None,
+    intrinsics: Intrinsics | None = None,
+    key: str | None = None,
+) -> Source:
+    """Open any depth source; nothing is read beyond headers and sidecars until iteration.
+
+    Parameters
+    ----------
+    spec : str or path
+        - an image file: 16-bit PNG (mm), 8-bit PNG (paper's 0-255 over ``depth_range_mm``),
+          TIFF, PGM, ``.npy``, ``.npz`` (``file.npz?key=NAME`` or ``key=`` picks the array);
+          a 3-D (N, H, W) ``.npy``/``.npz`` array is a sequence;
+        - a folder of frames (natural order; a ``depth/`` subfolder is read instead when
+          present; files named ``*depth*`` are preferred over the others) or a glob;
+        - a ROS 1 ``.bag``, a ROS 2 bag folder (``metadata.yaml``), ``.mcap`` or ``.db3``;
+        - ``sim:SCENE?frames=30&size=176x132&seed=0&fps=30``, or a bare scene name when no
+          file of that name exists.
+    scale_mm : float, optional
+        Millimetres per raw unit (default 1 for integer images, 1000 for float: metres).
+    invalid : sequence of float
+        Raw values meaning no reading (65535 in uint16 images is always invalid).
+    fps : float, optional
+        Frame rate (frames/s); overrides ``camera.json``. Ignored for times when timestamps exist.
+    timestamps : path, optional
+        Timestamps file (s); default ``timestamps.txt`` beside the frames, when present.
+    depth_range_mm : (float, float), optional
+        (near, far) in mm: range of 8-bit codes, else the valid range.
+    encoding : str
+        ``auto``, ``raw``, ``8bit``, ``sun`` (SUN RGB-D) or ``kinect-disparity`` (NYU raw).
+    topic : str, optional
+        Bag topic; required when a bag has several depth-like Image topics.
+    intrinsics : Intrinsics, optional
+        Overrides any sidecar (``camera.json``, ``camera_params.json``, ``camera-intrinsics.txt``
+        in the folder or its parent).
+    key : str, optional
+        Array name in an ``.npz``.
+
+    Returns
+    -------
+    Source
+
+    Raises
+    ------
+    InputError
+        Missing path, empty folder, glob matching nothing, bad options.
+    """
+    text = os.fspath(spec)
+    if text.startswith("sim:"):
+        return SimSource(parse_sim_spec(text, fps), name=text, intrinsics=intrinsics)
+    text_path, query = _split_query(text)
+    key = key if key is not None else query.get("key")
+    cfg = SourceConfig(
+        scale_mm=scale_mm, invalid=tuple(invalid), fps=fps,
+        timestamps=os.fspath(timestamps) if timestamps is not None else None,
+        depth_range_mm=depth_range_mm, encoding=encoding, topic=topic, key=key,
+    )
+    path = Path(text_path)
+    if path.is_dir():
+        if (path / "metadata.yaml").is_file():
+            return BagSource(path, cfg, name=text, intrinsics=intrinsics, fps=fps)
+        folder = path / "depth" if (path / "depth").is_dir() else path
+        return _files(list_frames(folder), cfg, text, "folder", folder, intrinsics)
+    if path.is_file():
+        suffix = path.suffix.lower()
+        if suffix in BAG_SUFFIXES:
+            return BagSource(path, cfg, name=text, intrinsics=intrinsics, fps=fps)
+        side = find_sidecar(path.parent)
+        intr = intrinsics or side.intrinsics
+        rate = fps or side.fps
+        if suffix == ".npy" and _npy_ndim(path) == 3:
+            return NpyStackSource(path, cfg, name=text, intrinsics=intr, fps=rate)
+        if suffix == ".npz" and len(npz_member_header(path, key)[1]) == 3:
+            return NpzStackSource(path, cfg, name=text, intrinsics=intr, fps=rate)
+        return _files([path], cfg, text, "file", path.parent, intrinsics)
+    if _GLOB_CHARS.search(text):
+        matches = [Path(p) for p in glob.glob(text)]
+        matches = [p for p in matches if p.is_file() and p.suffix.lower() in IMAGE_SUFFIXES]
+        if not matches:
+            raise InputError(f"{text}: the pattern matches no depth frame files")
+        from depthgram.sources.sidecars import natural_key
+
+        matches.sort(key=lambda p: natural_key(str(p)))
+        return _files(matches, cfg, text, "glob", matches[0].parent, intrinsics)
+    if _SCENE_NAME.match(text) and _is_scene(text.partition("?")[0]):
+        return SimSource(parse_sim_spec(text, fps), name=f"sim:{text}", intrinsics=intrinsics)
+    raise InputError(f"{text}: no such file or folder")
+
+
+def _is_scene(name: str) -> bool:
+    return name in scene_names()
+
+
+def _npy_ndim(path: Path) -> int:
+    try:
+        return int(np.load(path, mmap_mode="r", allow_pickle=False).ndim)
+    except (ValueError, OSError, EOFError) as exc:
+        raise InputError(f"{path}: cannot read the .npy ({exc})") from None
+
+
+def _files(paths: list[Path], cfg: SourceConfig, name: str, kind: str, folder: Path,
+           intrinsics: Intrinsics | None) -> FilesSource:
+    side = find_sidecar(folder, folder.parent)
+    if cfg.depth_range_mm is None and side.depth_range_mm is not None:
+        cfg = SourceConfig(**{**cfg.__dict__, "depth_range_mm": side.depth_range_mm})
+    if cfg.timestamps is None and kind != "file":
+        for cand in (folder / "timestamps.txt", folder.parent / "timestamps.txt"):
+            if cand.is_file():
+                cfg = SourceConfig(**{**cfg.__dict__, "timestamps": str(cand)})
+                break
+    return FilesSource(
+        paths, cfg, name=name, kind=kind, intrinsics=intrinsics or side.intrinsics, fps=cfg.fps or side.fps,
+    )
+
+
+def read(spec: str | os.PathLike[str], **options: object) -> Iterator[Frame]:
+    """Yield the frames of any source one at a time (see :func:`open_source` for ``options``).
+
+    Memory stays at about one frame however long the recording.
+    """
+    yield from open_source(spec, **options)  # type: ignore[arg-type]
