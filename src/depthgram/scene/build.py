@@ -1,0 +1,318 @@
+"""Build the scene's parse tree from segmented objects: who stands on what, and sibling relations.
+
+The paper derives every object directly from the start node ``Bkg`` and outlines a
+multi-level tree "for scenes with clusters of objects supported by a basic object like a
+table" (section 5). Here an object is a child of the object it rests on: its bottom edge
+lies on the support's image extent, and its mean depth matches the support's depth at the
+contact row. Floors, walls and ceilings are children of ``Bkg``.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+from numpy.typing import NDArray
+
+from depthgram.errors import InputError
+from depthgram.scene.sentence import ROOT_KIND, ROOT_LABEL
+from depthgram.scene.tree import Motion, Node, Relation, SceneTree
+
+if TYPE_CHECKING:  # only the type: the scene stage must import even while segment changes
+    from depthgram.segment.objects import SceneObject
+
+__all__ = ["TreeConfig", "build_tree", "support_depth_at"]
+
+#: Kinds that never rest on another object: they are the room's own surfaces.
+_SURFACES = ("floor", "wall", "ceiling")
+_SQRT12 = math.sqrt(12.0)
+
+
+@dataclass(frozen=True)
+class TreeConfig:
+    """How supports and relations are decided.
+
+    Parameters
+    ----------
+    depth_tolerance_mm : float
+        Largest difference (mm) between an object's mean depth and its support's estimated
+        depth at the object's bottom row, for support depths where the relative term is smaller.
+    depth_tolerance_rel : float
+        The same tolerance as a fraction of the support's depth at that row (ToF and stereo
+        errors grow with depth).
+    contact_px : int
+        Margin (px) around the support's bounding box within which the object's bottom edge
+        may lie, and how many rows below the bottom edge are looked at in the label map.
+    min_contact : float
+        With a label map: smallest fraction (0..1) of the object's bottom-edge columns whose
+        pixels just below belong to the support.
+    relation_gap_mm : float
+        Depth difference (mm) above which one sibling is ``in_front_of`` / ``occludes`` another.
+    relations : bool
+        Derive horizontal relations between siblings.
+    """
+
+    depth_tolerance_mm: float = 250.0
+    depth_tolerance_rel: float = 0.15
+    contact_px: int = 4
+    min_contact: float = 0.2
+    relation_gap_mm: float = 100.0
+    relations: bool = True
+
+    def __post_init__(self) -> None:
+        checks = [
+            ("depth_tolerance_mm", 0.0 <= self.depth_tolerance_mm <= 10_000.0, "0..10000 mm"),
+            ("depth_tolerance_rel", 0.0 <= self.depth_tolerance_rel <= 1.0, "0..1"),
+            ("contact_px", 0 <= self.contact_px <= 200, "0..200 px"),
+            ("min_contact", 0.0 <= self.min_contact <= 1.0, "0..1"),
+            ("relation_gap_mm", 0.0 <= self.relation_gap_mm <= 10_000.0, "0..10000 mm"),
+        ]
+        for name, ok, want in checks:
+            value = getattr(self, name)
+            if not ok or (isinstance(value, float) and not math.isfinite(value)):
+                raise InputError(f"TreeConfig.{name} must be in {want}, got {value!r}")
+
+
+def support_depth_at(obj: SceneObject, row: float) -> float:
+    """Estimated depth (mm) of a support's surface at an image row.
+
+    A floor or table top seen obliquely recedes upward in the image. With only the mean and
+    standard deviation of its depth, model the depth as a linear ramp over the object's rows:
+    a uniform ramp of range R has standard deviation R / sqrt(12), centered on the mean row.
+    Frontal objects have a small spread and so an almost flat ramp.
+
+    Parameters
+    ----------
+    obj : SceneObject
+        The support.
+    row : float
+        Image row (px).
+    """
+    height = obj.bbox[3] - obj.bbox[1] + 1
+    span = _SQRT12 * obj.depth_std
+    frac = float(np.clip((obj.center[1] - row) / height, -0.5, 0.5))
+    return obj.depth + span * frac
+
+
+def _contact_fractions(
+    labels: NDArray[np.integer], objects: Sequence[SceneObject], index: Mapping[int, int], rows: int
+) -> NDArray[np.float64]:
+    """Share of each object's bottom-edge columns whose pixels just below belong to each other object.
+
+    Returns an (n, n) array: ``[i, j]`` for object i resting on object j. Only pixels inside
+    each object's bounding box are read, so the cost follows the objects' size, not the frame's.
+    """
+    n = len(objects)
+    out = np.zeros((n, n))
+    h = labels.shape[0]
+    for i, o in enumerate(objects):
+        if o.kind in _SURFACES:
+            continue
+        x0, y0, x1, y1 = o.bbox
+        sub = labels[y0 : y1 + 1, x0 : x1 + 1] == o.id
+        present = sub.any(axis=0)
+        if not present.any():
+            continue
+        # Lowest row of the object in each column: where the object would touch what holds it.
+        bottom = y0 + sub.shape[0] - 1 - np.argmax(sub[::-1], axis=0)
+        cols = np.arange(x0, x1 + 1)[present]
+        bottom = bottom[present]
+        found = np.zeros(cols.size, dtype=np.int64)
+        for k in range(1, rows + 1):
+            r = bottom + k
+            inside = r < h
+            lab = np.zeros(cols.size, dtype=np.int64)
+            lab[inside] = labels[r[inside], cols[inside]]
+            take = (found == 0) & (lab != 0) & (lab != o.id)
+            found[take] = lab[take]
+        ids, counts = np.unique(found[found != 0], return_counts=True)
+        for sid, c in zip(ids.tolist(), counts.tolist(), strict=True):
+            j = index.get(int(sid))
+            if j is not None:
+                out[i, j] = c / cols.size
+    return out
+
+
+def build_tree(
+    objects: Sequence[SceneObject],
+    frame_size: tuple[int, int],
+    *,
+    motion: Mapping[int, Motion] | None = None,
+    config: TreeConfig | None = None,
+    labels: NDArray[np.integer] | None = None,
+) -> SceneTree:
+    """The scene's parse tree: ``Bkg`` at the root, every object below what supports it.
+
+    Parameters
+    ----------
+    objects : sequence of SceneObject
+        The frame's objects (ids >= 1, unique).
+    frame_size : (int, int)
+        Frame (width, height) in pixels. The root's area is ``width * height`` and its center
+        the image center, so the sentence carries the frame size.
+    motion : mapping of int to Motion, optional
+        Dynamic attributes per object id (v_radial, ttc, status) for sequences.
+    config : TreeConfig, optional
+        Tolerances; defaults to ``TreeConfig()``.
+    labels : ndarray of int, shape (H, W), optional
+        The segmentation's label map. When given, an object rests on a support only if the
+        pixels just below its bottom edge belong to that support (``config.min_contact``).
+
+    Returns
+    -------
+    SceneTree
+        Children are ordered left to right by center x. Relations (one per sibling pair at
+        most): ``a occludes b`` for every pair of siblings whose bounding boxes overlap with
+        ``a`` nearer by more than ``relation_gap_mm``; then, between neighbours in left-to-right
+        order only, the first of ``left_of`` (boxes disjoint in x), ``above`` / ``below``
+        (disjoint in y) or ``in_front_of`` (depth gap). Neighbours only keep the list to
+        about one relation per object; the rest follows from the attributes.
+
+    Raises
+    ------
+    InputError
+        For ids < 1, repeated ids, a non-positive frame size or a label map of another size.
+    """
+    cfg = config or TreeConfig()
+    width, height = (int(v) for v in frame_size)
+    if width <= 0 or height <= 0:
+        raise InputError(f"build_tree: frame size must be positive (width, height), got {frame_size}")
+    objs = list(objects)
+    ids = [o.id for o in objs]
+    if any(i < 1 for i in ids) or len(set(ids)) != len(ids):
+        raise InputError(f"build_tree: object ids must be unique and >= 1 (0 is Bkg), got {ids}")
+    if labels is not None and labels.shape != (height, width):
+        raise InputError(
+            f"build_tree: label map shape {labels.shape} does not match the frame size "
+            f"{width}x{height} (expected shape ({height}, {width}))"
+        )
+    n = len(objs)
+    parent = np.zeros(n, dtype=np.int64)  # object id of the support, 0 for Bkg
+    if n:
+        parent = _supports(objs, cfg, labels)
+
+    motion = motion or {}
+    kids: dict[int, list[int]] = {}
+    for i, p in enumerate(parent.tolist()):
+        kids.setdefault(int(p), []).append(i)
+    for v in kids.values():
+        v.sort(key=lambda i: (objs[i].center[0], objs[i].id))
+
+    def node(i: int) -> Node:
+        o = objs[i]
+        m = motion.get(o.id)
+        return Node(
+            id=o.id,
+            kind=o.kind,
+            label=o.label,
+            depth=float(o.depth),
+            area=int(o.area),
+            center=(float(o.center[0]), float(o.center[1])),
+            v_radial=None if m is None else m.v_radial,
+            ttc=None if m is None else m.ttc,
+            status=None if m is None else m.status,
+            parts=tuple(sorted({p.label for p in o.parts})),
+            children=tuple(node(c) for c in kids.get(o.id, [])),
+        )
+
+    root = Node(
+        id=0,
+        kind=ROOT_KIND,
+        label=ROOT_LABEL,
+        depth=0.0,
+        area=width * height,
+        center=((width - 1) / 2.0, (height - 1) / 2.0),
+        children=tuple(node(c) for c in kids.get(0, [])),
+    )
+    rels = _relations(objs, parent, kids, cfg) if cfg.relations and n > 1 else ()
+    return SceneTree(root=root, relations=rels)
+
+
+def _supports(
+    objs: Sequence[SceneObject], cfg: TreeConfig, labels: NDArray[np.integer] | None
+) -> NDArray[np.int64]:
+    """Support (object id, 0 for Bkg) of each object, decided for all pairs at once."""
+    n = len(objs)
+    bbox = np.array([o.bbox for o in objs], dtype=np.float64)
+    x0, y0, x1, y1 = bbox.T
+    cx = np.array([o.center[0] for o in objs])
+    depth = np.array([o.depth for o in objs])
+    std = np.array([o.depth_std for o in objs])
+    area = np.array([o.area for o in objs], dtype=np.float64)
+    cy = np.array([o.center[1] for o in objs])
+    idv = np.array([o.id for o in objs], dtype=np.float64)
+    kind = [o.kind for o in objs]
+    is_floor = np.array([k == "floor" for k in kind])
+    rests = np.array([k not in _SURFACES for k in kind])  # may rest on something
+    holds = np.array([k not in ("wall", "ceiling") for k in kind])  # may hold something
+    m = float(cfg.contact_px)
+
+    # Rows i: the object; columns j: the candidate support.
+    foot = y1[:, None]
+    ok = rests[:, None] & holds[None, :] & ~np.eye(n, dtype=bool)
+    ok &= (cx[:, None] >= x0[None, :] - m) & (cx[:, None] <= x1[None, :] + m)
+    ok &= (foot >= y0[None, :] - m) & (foot <= y1[None, :] + m)
+    # A strict order on (floor, bottom row, area, -id) keeps the support relation a tree:
+    # a support reaches at least as low in the image as what it holds, and is larger.
+    key = np.stack([is_floor.astype(np.float64), y1, area, -idv], axis=1)
+    greater = np.zeros((n, n), dtype=bool)
+    decided = np.zeros((n, n), dtype=bool)
+    for k in range(key.shape[1]):
+        a, b = key[:, k][None, :], key[:, k][:, None]
+        greater |= ~decided & (a > b)
+        decided |= a != b
+    ok &= greater
+    # Support depth at the object's bottom row (linear ramp, see support_depth_at).
+    height = (y1 - y0 + 1)[None, :]
+    frac = np.clip((cy[None, :] - foot) / height, -0.5, 0.5)
+    z_at = depth[None, :] + _SQRT12 * std[None, :] * frac
+    err = np.abs(depth[:, None] - z_at)
+    tol = np.maximum(cfg.depth_tolerance_mm, cfg.depth_tolerance_rel * z_at)
+    ok &= err <= tol
+    score = err / np.maximum(tol, 1e-9) + 1e-12 * area[None, :]
+    if labels is not None:
+        index = {o.id: i for i, o in enumerate(objs)}
+        contact = _contact_fractions(labels, objs, index, max(cfg.contact_px, 1))
+        ok &= contact >= cfg.min_contact
+        # Contact with the pixels below is the stronger evidence; depth breaks ties.
+        score = score - 10.0 * contact
+    score = np.where(ok, score, np.inf)
+    best = np.argmin(score, axis=1)
+    has = np.isfinite(score[np.arange(n), best])
+    return np.where(has, idv[best], 0).astype(np.int64)
+
+
+def _relations(
+    objs: Sequence[SceneObject], parent: NDArray[np.int64], kids: Mapping[int, list[int]], cfg: TreeConfig
+) -> tuple[Relation, ...]:
+    gap = cfg.relation_gap_mm
+    bbox = np.array([o.bbox for o in objs], dtype=np.float64)
+    depth = np.array([o.depth for o in objs])
+    x0, y0, x1, y1 = bbox.T
+    overlap = (x0[:, None] <= x1[None, :]) & (x0[None, :] <= x1[:, None])
+    overlap &= (y0[:, None] <= y1[None, :]) & (y0[None, :] <= y1[:, None])
+    siblings = parent[:, None] == parent[None, :]
+    occ = overlap & siblings & (depth[:, None] + gap < depth[None, :])
+    out: list[Relation] = []
+    for i, j in zip(*np.nonzero(occ), strict=True):
+        out.append(Relation(objs[int(i)].id, "occludes", objs[int(j)].id))
+    for group in kids.values():
+        for i, j in itertools.pairwise(group):
+            if occ[i, j] or occ[j, i]:
+                continue
+            a, b = objs[i], objs[j]
+            if x1[i] < x0[j]:
+                out.append(Relation(a.id, "left_of", b.id))
+            elif y1[i] < y0[j]:
+                out.append(Relation(a.id, "above", b.id))
+            elif y1[j] < y0[i]:
+                out.append(Relation(a.id, "below", b.id))
+            elif depth[i] + gap < depth[j]:
+                out.append(Relation(a.id, "in_front_of", b.id))
+            elif depth[j] + gap < depth[i]:
+                out.append(Relation(b.id, "in_front_of", a.id))
+    return tuple(out)
