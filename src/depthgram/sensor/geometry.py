@@ -1,0 +1,317 @@
+"""Scene geometry for the simulator: primitives, moving bodies, a pinhole camera, ray casting.
+
+World frame: X right, Y up, Z forward (horizontal), millimetres, floor at Y = 0 in the
+named scenes. The camera sits at a position and is pitched down by an angle; its own frame
+is x right, y down, z along the optical axis. Rays are cast with direction vectors whose
+camera-z component is 1, so the ray parameter *is* the depth along the optical axis (Z),
+and the radial distance is that times the ray's length.
+
+Every intersection is vectorized over all rays at once (no per-pixel Python loop); a body
+is hit where the nearest of its parts is hit, and the nearest body wins the pixel.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from depthgram.errors import InputError
+from depthgram.frame import Intrinsics
+
+__all__ = [
+    "BackAndForth",
+    "Body",
+    "Box",
+    "Camera",
+    "Cylinder",
+    "Ellipsoid",
+    "Linear",
+    "Plane",
+    "Primitive",
+    "RayHits",
+    "cast",
+]
+
+_EPS = 1e-6
+Vec = tuple[float, float, float]
+Arr = NDArray[np.float64]
+
+
+def _nearest_positive(*ts: Arr) -> Arr:
+    """Smallest candidate t > 0 per ray, inf where none."""
+    stacked = np.stack(ts)
+    stacked = np.where(np.isfinite(stacked) & (stacked > _EPS), stacked, np.inf)
+    return np.asarray(stacked.min(axis=0))
+
+
+@dataclass(frozen=True)
+class Plane:
+    """Infinite plane through ``point`` with normal ``normal`` (mm)."""
+
+    point: Vec
+    normal: Vec
+
+    def intersect(self, origin: Arr, dirs: Arr) -> Arr:
+        """Ray parameter of the hit for each ray (inf where none). ``dirs`` is (N, 3)."""
+        n = np.asarray(self.normal, dtype=np.float64)
+        denom = dirs @ n
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t = float((np.asarray(self.point) - origin) @ n) / denom
+        return _nearest_positive(t)
+
+
+@dataclass(frozen=True)
+class Box:
+    """Axis-aligned box from corner ``lo`` to corner ``hi`` (mm)."""
+
+    lo: Vec
+    hi: Vec
+
+    def intersect(self, origin: Arr, dirs: Arr) -> Arr:
+        """Ray parameter of the hit (slab method), inf where none."""
+        lo = np.asarray(self.lo, dtype=np.float64)
+        hi = np.asarray(self.hi, dtype=np.float64)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            inv = 1.0 / dirs
+            t1 = (lo - origin) * inv
+            t2 = (hi - origin) * inv
+        tnear = np.nanmax(np.minimum(t1, t2), axis=1)
+        tfar = np.nanmin(np.maximum(t1, t2), axis=1)
+        hit = tfar >= np.maximum(tnear, _EPS)
+        t = np.where(tnear > _EPS, tnear, tfar)
+        return np.where(hit, t, np.inf)
+
+
+@dataclass(frozen=True)
+class Cylinder:
+    """Upright cylinder (axis along world Y) with base centre ``base``, ``radius`` and ``height`` (mm)."""
+
+    base: Vec
+    radius: float
+    height: float
+
+    def intersect(self, origin: Arr, dirs: Arr) -> Arr:
+        """Ray parameter of the nearest hit on the side or the caps, inf where none."""
+        b = np.asarray(self.base, dtype=np.float64)
+        o = origin - b
+        dx, dy, dz = dirs[:, 0], dirs[:, 1], dirs[:, 2]
+        a = dx * dx + dz * dz
+        bq = 2.0 * (o[0] * dx + o[2] * dz)
+        c = o[0] ** 2 + o[2] ** 2 - self.radius**2
+        disc = bq * bq - 4.0 * a * c
+        with np.errstate(divide="ignore", invalid="ignore"):
+            sq = np.sqrt(np.where(disc >= 0, disc, np.nan))
+            side = []
+            for t in ((-bq - sq) / (2 * a), (-bq + sq) / (2 * a)):
+                y = o[1] + t * dy
+                side.append(np.where((y >= 0) & (y <= self.height), t, np.inf))
+            caps = []
+            for yc in (0.0, self.height):
+                t = (yc - o[1]) / dy
+                r2 = (o[0] + t * dx) ** 2 + (o[2] + t * dz) ** 2
+                caps.append(np.where(r2 <= self.radius**2, t, np.inf))
+        return _nearest_positive(*side, *caps)
+
+
+@dataclass(frozen=True)
+class Ellipsoid:
+    """Axis-aligned ellipsoid with ``center`` and semi-axes ``radii`` (mm); a sphere when equal."""
+
+    center: Vec
+    radii: Vec
+
+    def intersect(self, origin: Arr, dirs: Arr) -> Arr:
+        """Ray parameter of the nearest hit, inf where none (solved on the unit sphere)."""
+        r = np.asarray(self.radii, dtype=np.float64)
+        o = (origin - np.asarray(self.center, dtype=np.float64)) / r
+        d = dirs / r
+        a = np.einsum("ij,ij->i", d, d)
+        bq = 2.0 * (d @ o)
+        c = float(o @ o) - 1.0
+        disc = bq * bq - 4.0 * a * c
+        with np.errstate(invalid="ignore"):
+            sq = np.sqrt(np.where(disc >= 0, disc, np.nan))
+        return _nearest_positive((-bq - sq) / (2 * a), (-bq + sq) / (2 * a))
+
+
+Primitive = Plane | Box | Cylinder | Ellipsoid
+
+
+@dataclass(frozen=True)
+class Linear:
+    """Offset p0 + v t (mm, mm/s) of a body; the zero motion by default."""
+
+    p0: Vec = (0.0, 0.0, 0.0)
+    v: Vec = (0.0, 0.0, 0.0)
+
+    def position(self, t: float) -> Arr:
+        """Offset (mm) at time ``t`` (s)."""
+        return np.asarray(self.p0, dtype=np.float64) + t * np.asarray(self.v, dtype=np.float64)
+
+    def velocity(self, t: float) -> Arr:
+        """Velocity (mm/s) at time ``t`` (s)."""
+        return np.asarray(self.v, dtype=np.float64)
+
+
+@dataclass(frozen=True)
+class BackAndForth:
+    """Scripted back-and-forth: from p0 along v for ``half_period_s``, then back, repeating.
+
+    The position is a triangle wave, so the speed is exactly |v| at every instant except
+    the turning points (where the velocity reported is that of the leg that starts there).
+    """
+
+    p0: Vec
+    v: Vec
+    half_period_s: float
+
+    def _phase(self, t: float) -> tuple[float, float]:
+        cycle = np.mod(t, 2.0 * self.half_period_s)
+        if cycle < self.half_period_s:
+            return float(cycle), 1.0
+        return float(2.0 * self.half_period_s - cycle), -1.0
+
+    def position(self, t: float) -> Arr:
+        """Offset (mm) at time ``t`` (s)."""
+        s, _ = self._phase(t)
+        return np.asarray(self.p0, dtype=np.float64) + s * np.asarray(self.v, dtype=np.float64)
+
+    def velocity(self, t: float) -> Arr:
+        """Velocity (mm/s) at time ``t`` (s)."""
+        _, sign = self._phase(t)
+        return sign * np.asarray(self.v, dtype=np.float64)
+
+
+@dataclass(frozen=True)
+class Body:
+    """A rigid body of the scene: one ground-truth instance.
+
+    Attributes
+    ----------
+    id : int
+        Instance id (>= 1), the value of its pixels in the instance map.
+    name : str
+        "cup", "table", "floor", ...
+    kind : str
+        "object", "floor", "wall" or "ceiling".
+    parts : tuple of Primitive
+        Geometry in world coordinates at offset zero (mm).
+    reflectivity : float
+        Diffuse reflectivity at the sensor's wavelength, 0..1.
+    motion : Linear or BackAndForth
+        Offset of the parts over time.
+    parent : int or None
+        Id of the body it stands on.
+    """
+
+    id: int
+    name: str
+    kind: str
+    parts: tuple[Primitive, ...]
+    reflectivity: float = 0.5
+    motion: Linear | BackAndForth = Linear()
+    parent: int | None = None
+
+    @property
+    def moving(self) -> bool:
+        """True when the body may move."""
+        return isinstance(self.motion, BackAndForth) or any(self.motion.v)
+
+    def intersect(self, origin: Arr, dirs: Arr, t: float) -> Arr:
+        """Ray parameter of the nearest hit on any part at time ``t`` (s); inf where none."""
+        o = origin - self.motion.position(t)
+        return _nearest_positive(*(p.intersect(o, dirs) for p in self.parts))
+
+
+@dataclass(frozen=True)
+class Camera:
+    """Pinhole camera with square pixels.
+
+    Attributes
+    ----------
+    width, height : int
+        Image size (px).
+    fov_x_deg : float
+        Horizontal field of view (degrees); 40° like the paper's Canesta sensor, giving
+        about 30° vertically at 176 x 132.
+    position : tuple of float
+        Optical centre in the world (mm).
+    pitch_deg : float
+        Downward tilt of the optical axis from horizontal (degrees).
+    """
+
+    width: int
+    height: int
+    fov_x_deg: float = 40.0
+    position: Vec = (0.0, 1000.0, 0.0)
+    pitch_deg: float = 0.0
+
+    def __post_init__(self) -> None:
+        if not (0.0 < self.fov_x_deg < 170.0):
+            raise InputError(f"camera field of view must be in (0, 170) degrees, got {self.fov_x_deg}")
+
+    @property
+    def intrinsics(self) -> Intrinsics:
+        """Pinhole intrinsics (px), principal point at the image centre."""
+        f = (self.width / 2.0) / np.tan(np.radians(self.fov_x_deg) / 2.0)
+        return Intrinsics(float(f), float(f), (self.width - 1) / 2.0, (self.height - 1) / 2.0)
+
+    @property
+    def forward(self) -> Arr:
+        """Unit optical axis in the world frame."""
+        p = np.radians(self.pitch_deg)
+        return np.array([0.0, -np.sin(p), np.cos(p)])
+
+    def rays(self) -> tuple[Arr, Arr]:
+        """World ray directions (H*W, 3), row-major, scaled so camera-z is 1; and their lengths."""
+        k = self.intrinsics
+        u, v = np.meshgrid(np.arange(self.width, dtype=np.float64), np.arange(self.height, dtype=np.float64))
+        xc = ((u - k.cx) / k.fx).ravel()
+        yc = ((v - k.cy) / k.fy).ravel()
+        p = np.radians(self.pitch_deg)
+        right = np.array([1.0, 0.0, 0.0])
+        down = np.array([0.0, -np.cos(p), -np.sin(p)])
+        dirs = xc[:, None] * right + yc[:, None] * down + self.forward
+        return dirs, np.sqrt(1.0 + xc * xc + yc * yc)
+
+
+@dataclass(frozen=True)
+class RayHits:
+    """Result of casting the camera's rays into the bodies at one instant.
+
+    Attributes
+    ----------
+    depth : ndarray of float64, shape (H, W)
+        Depth along the optical axis (mm), 0 where no surface.
+    distance : ndarray of float64, shape (H, W)
+        Radial distance from the optical centre (mm), 0 where no surface.
+    instances : ndarray of int32, shape (H, W)
+        Id of the body hit, 0 where none.
+    """
+
+    depth: Arr
+    distance: Arr
+    instances: NDArray[np.int32]
+
+
+def cast(camera: Camera, bodies: tuple[Body, ...], t: float) -> RayHits:
+    """Cast every pixel's ray into ``bodies`` at time ``t`` (s); the nearest hit wins."""
+    dirs, lengths = camera.rays()
+    origin = np.asarray(camera.position, dtype=np.float64)
+    shape = (camera.height, camera.width)
+    if not bodies:
+        z = np.zeros(shape)
+        return RayHits(z, z.copy(), np.zeros(shape, np.int32))
+    ts = np.stack([b.intersect(origin, dirs, t) for b in bodies])
+    nearest = np.argmin(ts, axis=0)
+    z = ts[nearest, np.arange(ts.shape[1])]
+    hit = np.isfinite(z)
+    ids = np.array([b.id for b in bodies], dtype=np.int32)[nearest]
+    depth = np.where(hit, z, 0.0)
+    return RayHits(
+        depth.reshape(shape),
+        (depth * lengths).reshape(shape),
+        np.where(hit, ids, 0).astype(np.int32).reshape(shape),
+    )

@@ -1,0 +1,133 @@
+"""The named scenes of the simulator, built from :mod:`depthgram.sensor.geometry` primitives.
+
+World frame: X right, Y up (floor at Y = 0), Z forward, millimetres. Every scene keeps its
+surfaces within the 50 MHz ambiguity range (radial distance below about 2998 mm) except
+``corridor``, whose floor, walls and ceiling run to an end wall at 6 m: its default sensor
+therefore adds a 40 MHz second frequency for unwrapping (unambiguous to about 15 m), as the
+paper's "multiple beams of different frequencies to extend the sensor range".
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from depthgram.errors import InputError
+from depthgram.sensor.geometry import (
+    BackAndForth,
+    Body,
+    Box,
+    Camera,
+    Cylinder,
+    Ellipsoid,
+    Linear,
+    Plane,
+)
+from depthgram.sensor.tof import ToFConfig
+
+__all__ = ["APPROACH_SPEED_MM_S", "SCENES", "SceneSpec", "build_scene"]
+
+#: Speed (mm/s) of the hand in ``approach``: toward the sensor for 2 s, then away for 2 s.
+APPROACH_SPEED_MM_S = 600.0
+
+FLOOR = Plane((0.0, 0.0, 0.0), (0.0, 1.0, 0.0))
+
+
+@dataclass(frozen=True)
+class SceneSpec:
+    """A scene ready to render: camera, bodies and the sensor model it is meant for."""
+
+    name: str
+    camera: Camera
+    bodies: tuple[Body, ...]
+    tof: ToFConfig
+
+
+def _back_wall(z: float) -> Plane:
+    return Plane((0.0, 0.0, z), (0.0, 0.0, -1.0))
+
+
+def _table(w: int, h: int) -> SceneSpec:
+    # Camera above the table looking down 25°, so the top is a horizontal plane seen
+    # obliquely (as in the paper's Fig. 1) and objects stand out against the wall behind.
+    cam = Camera(w, h, position=(0.0, 1000.0, 0.0), pitch_deg=14.0)
+    top_y = 750.0
+    legs = tuple(
+        Box((x - 25.0, 0.0, z - 25.0), (x + 25.0, top_y - 40.0, z + 25.0))
+        for x in (-600.0, 600.0)
+        for z in (750.0, 1450.0)
+    )
+    bodies = (
+        Body(1, "floor", "floor", (FLOOR,), 0.4),
+        Body(2, "back_wall", "wall", (_back_wall(2300.0),), 0.7),
+        Body(3, "table", "object", (Box((-650.0, top_y - 40.0, 700.0), (650.0, top_y, 1500.0)), *legs), 0.5,
+             parent=1),
+        Body(4, "cup", "object", (Cylinder((-280.0, top_y, 1000.0), 45.0, 110.0),), 0.8, parent=3),
+        Body(5, "box", "object", (Box((-180.0, top_y, 1050.0), (-20.0, top_y + 150.0, 1170.0)),), 0.6,
+             parent=3),
+        Body(6, "ball", "object", (Ellipsoid((80.0, top_y + 70.0, 1000.0), (70.0, 70.0, 70.0)),), 0.7,
+             parent=3),
+        Body(7, "bottle", "object", (Cylinder((260.0, top_y, 1150.0), 40.0, 260.0),), 0.6, parent=3),
+    )
+    return SceneSpec("table", cam, bodies, ToFConfig())
+
+
+def _corridor(w: int, h: int) -> SceneSpec:
+    half_w, ceiling, end = 900.0, 2000.0, 6000.0
+    cam = Camera(w, h, position=(0.0, 1000.0, 0.0), pitch_deg=0.0)
+    bodies = (
+        Body(1, "floor", "floor", (FLOOR,), 0.5),
+        Body(2, "left_wall", "wall", (Plane((-half_w, 0.0, 0.0), (1.0, 0.0, 0.0)),), 0.8),
+        Body(3, "right_wall", "wall", (Plane((half_w, 0.0, 0.0), (-1.0, 0.0, 0.0)),), 0.8),
+        Body(4, "ceiling", "ceiling", (Plane((0.0, ceiling, 0.0), (0.0, -1.0, 0.0)),), 0.8),
+        Body(5, "end_wall", "wall", (_back_wall(end),), 0.8),
+        Body(6, "box", "object", (Box((-450.0, 0.0, 2600.0), (-100.0, 600.0, 2900.0)),), 0.7, parent=1),
+        Body(7, "person", "object", (Cylinder((350.0, 0.0, 3800.0), 200.0, 1750.0),), 0.6, parent=1),
+    )
+    return SceneSpec("corridor", cam, bodies, ToFConfig(f_mod2_hz=40e6))
+
+
+def _approach(w: int, h: int) -> SceneSpec:
+    cam = Camera(w, h, position=(0.0, 1200.0, 0.0), pitch_deg=0.0)
+    hand = Ellipsoid((0.0, 1200.0, 1800.0), (85.0, 100.0, 35.0))
+    motion = BackAndForth((0.0, 0.0, 0.0), (0.0, 0.0, -APPROACH_SPEED_MM_S), 2.0)
+    bodies = (
+        Body(1, "back_wall", "wall", (_back_wall(2500.0),), 0.7),
+        Body(2, "hand", "object", (hand,), 0.6, motion),
+    )
+    return SceneSpec("approach", cam, bodies, ToFConfig())
+
+
+def _crossing(w: int, h: int) -> SceneSpec:
+    # A person walks left to right close by while a cart rolls right to left behind: the
+    # person hides the cart for about three frames at 30 fps around t = 1.2 s.
+    cam = Camera(w, h, position=(0.0, 900.0, 0.0), pitch_deg=8.0)
+    person = Cylinder((-720.0, 0.0, 1300.0), 200.0, 1800.0)
+    cart = Box((1000.0 - 250.0, 0.0, 2100.0), (1000.0 + 250.0, 1000.0, 2350.0))
+    bodies = (
+        Body(1, "floor", "floor", (FLOOR,), 0.5),
+        Body(2, "back_wall", "wall", (_back_wall(2500.0),), 0.7),
+        Body(3, "person", "object", (person,), 0.6, Linear(v=(700.0, 0.0, 0.0)), parent=1),
+        Body(4, "cart", "object", (cart,), 0.7, Linear(v=(-700.0, 0.0, 0.0)), parent=1),
+    )
+    return SceneSpec("crossing", cam, bodies, ToFConfig())
+
+
+_BUILDERS = {"table": _table, "corridor": _corridor, "approach": _approach, "crossing": _crossing}
+
+#: Names of the scenes :func:`depthgram.sensor.simulate` knows.
+SCENES: tuple[str, ...] = tuple(_BUILDERS)
+
+
+def build_scene(name: str, size: tuple[int, int]) -> SceneSpec:
+    """The scene ``name`` for a camera of ``size`` (width, height) px.
+
+    Raises
+    ------
+    InputError
+        For an unknown name; the message lists the known ones.
+    """
+    try:
+        builder = _BUILDERS[name]
+    except KeyError:
+        raise InputError(f"unknown scene {name!r}; known scenes: {', '.join(SCENES)}") from None
+    return builder(int(size[0]), int(size[1]))
