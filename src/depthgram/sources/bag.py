@@ -118,8 +118,13 @@ class BagSource(Source):
         # camera_info lives beside the image topic: /cam/depth/image_raw -> /cam/depth/camera_info.
         ns = self.topic.rsplit("/", 1)[0]
         infos = [c for c in conns if c.msgtype == _INFO and c.topic.rsplit("/", 1)[0] == ns]
+        if not infos:  # an empty connection list would mean "all messages" to rosbags
+            return None
         for conn, _, raw in reader.messages(connections=infos[:1]):
-            k = reader.deserialize(raw, conn.msgtype).k
+            msg = reader.deserialize(raw, conn.msgtype)
+            k = getattr(msg, "k", None)
+            if k is None:  # ROS 1 spells it K
+                k = msg.K
             return Intrinsics(float(k[0]), float(k[4]), float(k[2]), float(k[5]))
         return None
 

@@ -1,0 +1,157 @@
+"""ROS 1 / ROS 2 bags and MCAP written here with rosbags' writers, read back through the sources."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from rosbags.rosbag1 import Writer as Writer1
+from rosbags.rosbag2 import StoragePlugin
+from rosbags.rosbag2 import Writer as Writer2
+from rosbags.typesys import Stores, get_typestore
+
+from depthgram.errors import InputError
+from depthgram.frame import Intrinsics
+from depthgram.sources import open_source, read
+
+T0 = 1_700_000_000  # header stamp seconds of frame 0
+
+
+def frames_u16(n: int = 3) -> list[np.ndarray]:
+    rng = np.random.default_rng(3)
+    out = []
+    for _ in range(n):
+        a = rng.integers(400, 5000, size=(6, 10)).astype(np.uint16)
+        a[0, 0] = 0
+        out.append(a)
+    return out
+
+
+def image_msg(ts, arr: np.ndarray, i: int, encoding: str, pad: int = 0):  # noqa: ANN001, ANN201
+    """sensor_msgs/Image with ``pad`` bytes of row padding, stamped T0 + i/10 s."""
+    h, w = arr.shape
+    row = arr.astype(arr.dtype.newbyteorder("<")).view(np.uint8).reshape(h, -1)
+    data = np.concatenate([row, np.zeros((h, pad), np.uint8)], axis=1).ravel()
+    Header = ts.types["std_msgs/msg/Header"]
+    Time = ts.types["builtin_interfaces/msg/Time"]
+    Image = ts.types["sensor_msgs/msg/Image"]
+    extra = {"seq": i} if "seq" in Header.__dataclass_fields__ else {}  # ROS 1 headers carry seq
+    header = Header(stamp=Time(sec=T0, nanosec=i * 100_000_000), frame_id="depth", **extra)
+    return Image(header=header, height=h, width=w, encoding=encoding, is_bigendian=0,
+                 step=row.shape[1] + pad, data=data)
+
+
+def camera_info(ts):  # noqa: ANN001, ANN201
+    info = ts.types["sensor_msgs/msg/CameraInfo"]
+    Header = ts.types["std_msgs/msg/Header"]
+    Time = ts.types["builtin_interfaces/msg/Time"]
+    roi = ts.types["sensor_msgs/msg/RegionOfInterest"](x_offset=0, y_offset=0, height=0, width=0, do_rectify=False)
+    k = np.array([300.0, 0, 4.5, 0, 310.0, 2.5, 0, 0, 1])
+    return info(header=Header(stamp=Time(sec=T0, nanosec=0), frame_id="depth"), height=6, width=10,
+                distortion_model="plumb_bob", d=np.zeros(5), k=k, r=np.eye(3).ravel(), p=np.zeros(12),
+                binning_x=0, binning_y=0, roi=roi)
+
+
+def write_ros2(path: Path, topics: dict[str, tuple[str, list[np.ndarray]]], storage: StoragePlugin,
+               with_info: bool = False) -> Path:
+    ts = get_typestore(Stores.ROS2_HUMBLE)
+    with Writer2(path, version=9, storage_plugin=storage) as w:
+        for topic, (enc, arrays) in topics.items():
+            conn = w.add_connection(topic, "sensor_msgs/msg/Image", typestore=ts)
+            for i, a in enumerate(arrays):
+                msg = image_msg(ts, a, i, enc, pad=4)
+                w.write(conn, (T0 * 10 + i) * 100_000_000, ts.serialize_cdr(msg, "sensor_msgs/msg/Image"))
+        if with_info:
+            ns = next(iter(topics)).rsplit("/", 1)[0]
+            conn = w.add_connection(f"{ns}/camera_info", "sensor_msgs/msg/CameraInfo", typestore=ts)
+            w.write(conn, T0 * 1_000_000_000, ts.serialize_cdr(camera_info(ts), "sensor_msgs/msg/CameraInfo"))
+    return path
+
+
+def write_ros1(path: Path, topics: dict[str, tuple[str, list[np.ndarray]]]) -> Path:
+    ts = get_typestore(Stores.ROS1_NOETIC)
+    with Writer1(path) as w:
+        for topic, (enc, arrays) in topics.items():
+            conn = w.add_connection(topic, "sensor_msgs/msg/Image", typestore=ts)
+            for i, a in enumerate(arrays):
+                msg = image_msg(ts, a, i, enc)
+                w.write(conn, (T0 * 10 + i) * 100_000_000, ts.serialize_ros1(msg, "sensor_msgs/msg/Image"))
+    return path
+
+
+def check_round_trip(spec: Path, arrays: list[np.ndarray], scale: float = 1.0, **kw: object) -> None:
+    src = open_source(spec, **kw)  # type: ignore[arg-type]
+    assert src.kind == "bag" and len(src) == len(arrays)
+    frames = list(src)
+    assert len(frames) == len(arrays)
+    for i, (f, a) in enumerate(zip(frames, arrays, strict=True)):
+        np.testing.assert_allclose(f.depth, a.astype(np.float64) * scale, rtol=1e-6)
+        np.testing.assert_array_equal(f.valid, a > 0)
+        assert f.index == i
+        assert f.time_s == pytest.approx(T0 + 0.1 * i, abs=1e-6)  # from the header, not the log time
+
+
+def test_ros1_bag_16uc1_round_trip(tmp_path: Path) -> None:
+    arrays = frames_u16()
+    check_round_trip(write_ros1(tmp_path / "d.bag", {"/camera/depth/image_raw": ("16UC1", arrays)}), arrays)
+
+
+def test_ros1_bag_32fc1_metres(tmp_path: Path) -> None:
+    arrays = [a.astype(np.float32) / 1000 for a in frames_u16()]
+    check_round_trip(write_ros1(tmp_path / "m.bag", {"/depth": ("32FC1", arrays)}), arrays, scale=1000)
+
+
+def test_ros2_sqlite_bag_folder_16uc1_with_camera_info(tmp_path: Path) -> None:
+    arrays = frames_u16()
+    bag = write_ros2(tmp_path / "bag2", {"/cam/depth/image_rect_raw": ("16UC1", arrays)},
+                     StoragePlugin.SQLITE3, with_info=True)
+    assert (bag / "metadata.yaml").is_file()
+    check_round_trip(bag, arrays)
+    assert open_source(bag).intrinsics == Intrinsics(300.0, 310.0, 4.5, 2.5)
+
+
+def test_mcap_32fc1_file_and_folder(tmp_path: Path) -> None:
+    arrays = [a.astype(np.float32) / 1000 for a in frames_u16()]
+    bag = write_ros2(tmp_path / "bagm", {"/depth/image": ("32FC1", arrays)}, StoragePlugin.MCAP)
+    check_round_trip(bag, arrays, scale=1000)
+    [mcap] = list(bag.glob("*.mcap"))
+    check_round_trip(mcap, arrays, scale=1000)
+
+
+def test_topic_chosen_when_one_is_depth_like_else_required(tmp_path: Path) -> None:
+    d = frames_u16(2)
+    c = [np.zeros((6, 10), np.uint16) + 1] * 2
+    bag = write_ros1(tmp_path / "two.bag", {"/cam/depth": ("16UC1", d), "/cam/ir": ("16UC1", c)})
+    check_round_trip(bag, d)  # only one Image topic has "depth" in its name
+    bag3 = write_ros1(tmp_path / "three.bag", {"/a/depth": ("16UC1", d), "/b/depth": ("16UC1", c)})
+    with pytest.raises(InputError, match=r"three\.bag: several Image topics \(/a/depth, /b/depth\).*topic="):
+        open_source(bag3)
+    check_round_trip(bag3, c, topic="/b/depth")
+    with pytest.raises(InputError, match=r"no sensor_msgs/Image topic '/c/depth'"):
+        open_source(bag3, topic="/c/depth")
+
+
+def test_bag_without_depth_topic_lists_topics(tmp_path: Path) -> None:
+    ts = get_typestore(Stores.ROS1_NOETIC)
+    path = tmp_path / "nodepth.bag"
+    with Writer1(path) as w:
+        conn = w.add_connection("/chatter", "std_msgs/msg/String", typestore=ts)
+        msg = ts.types["std_msgs/msg/String"](data="hi")
+        w.write(conn, 1, ts.serialize_ros1(msg, "std_msgs/msg/String"))
+    with pytest.raises(InputError, match=r"nodepth\.bag: no sensor_msgs/Image depth topic.*topics: /chatter"):
+        open_source(path)
+
+
+def test_colour_topic_is_refused_with_frame(tmp_path: Path) -> None:
+    rgb = [np.zeros((6, 30), np.uint8)]
+    bag = write_ros1(tmp_path / "rgb.bag", {"/cam/image": ("rgb8", rgb)})
+    with pytest.raises(InputError, match=r"rgb\.bag topic /cam/image \(frame 0\): image encoding 'rgb8' is not depth"):
+        list(read(bag))
+
+
+def test_corrupt_bag(tmp_path: Path) -> None:
+    p = tmp_path / "broken.bag"
+    p.write_bytes(b"#ROSBAG V2.0\nnot really")
+    with pytest.raises(InputError, match=r"broken\.bag: cannot read the bag"):
+        open_source(p)
