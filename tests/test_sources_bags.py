@@ -10,6 +10,7 @@ from rosbags.rosbag1 import Writer as Writer1
 from rosbags.rosbag2 import StoragePlugin
 from rosbags.rosbag2 import Writer as Writer2
 from rosbags.typesys import Stores, get_typestore
+from rosbags.typesys.store import Typestore
 
 from depthgram.errors import InputError
 from depthgram.frame import Intrinsics
@@ -28,7 +29,7 @@ def frames_u16(n: int = 3) -> list[np.ndarray]:
     return out
 
 
-def image_msg(ts, arr: np.ndarray, i: int, encoding: str, pad: int = 0):  # noqa: ANN001, ANN201
+def image_msg(ts: Typestore, arr: np.ndarray, i: int, encoding: str, pad: int = 0) -> object:
     """sensor_msgs/Image with ``pad`` bytes of row padding, stamped T0 + i/10 s."""
     h, w = arr.shape
     row = arr.astype(arr.dtype.newbyteorder("<")).view(np.uint8).reshape(h, -1)
@@ -42,7 +43,7 @@ def image_msg(ts, arr: np.ndarray, i: int, encoding: str, pad: int = 0):  # noqa
                  step=row.shape[1] + pad, data=data)
 
 
-def camera_info(ts):  # noqa: ANN001, ANN201
+def camera_info(ts: Typestore) -> object:
     info = ts.types["sensor_msgs/msg/CameraInfo"]
     Header = ts.types["std_msgs/msg/Header"]
     Time = ts.types["builtin_interfaces/msg/Time"]
