@@ -1,1 +1,26 @@
-"""depthgram.dynamics."""
+"""Range flow (paper, section 5): objects tracked across frames, radial velocity, time to collision.
+
+>>> from depthgram.dynamics import Tracker
+>>> tracker = Tracker()
+>>> upd = tracker.update(segmentation.objects, frame.time_s, frame.size)  # doctest: +SKIP
+>>> upd.motions[obj.id]  # doctest: +SKIP
+Motion(track_id=1, v_radial=-410.2, ttc=1.9, status='visible', per_frame=False)
+"""
+
+from depthgram.dynamics.config import TrackerConfig
+from depthgram.dynamics.flow import fit_radial_velocity, time_to_collision
+from depthgram.dynamics.match import assign, bbox_iou, match_cost
+from depthgram.dynamics.tracker import STATUSES, Track, Tracker, TrackUpdate
+
+__all__ = [
+    "STATUSES",
+    "Track",
+    "TrackUpdate",
+    "Tracker",
+    "TrackerConfig",
+    "assign",
+    "bbox_iou",
+    "fit_radial_velocity",
+    "match_cost",
+    "time_to_collision",
+]

@@ -1,0 +1,262 @@
+"""The tracker on hand-built object sequences with known truth."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from depthgram.dynamics import Tracker, TrackerConfig
+from depthgram.errors import InputError
+from depthgram.segment.objects import SceneObject
+
+W, H = 640, 480
+FPS = 30.0
+
+
+def box(oid: int, cx: float, cy: float, w: float, h: float, z: float, label: int = 0) -> SceneObject:
+    """A rectangular object clipped to the image, as segmentation would report it."""
+    x0, x1 = max(0, round(cx - w / 2)), min(W - 1, round(cx + w / 2) - 1)
+    y0, y1 = max(0, round(cy - h / 2)), min(H - 1, round(cy + h / 2) - 1)
+    area = (x1 - x0 + 1) * (y1 - y0 + 1)
+    center = ((x0 + x1) / 2, (y0 + y1) / 2)
+    return SceneObject(oid, "object", label, z, 5.0, area, area / (W * H), center, (x0, y0, x1, y1))
+
+
+def approaching(speed: float, z0: float, n: int, noise: float, seed: int = 0) -> list[SceneObject]:
+    """A 100 mm x 100 mm square (fx = 500 px) coming straight at the sensor at ``speed`` mm/s."""
+    rng = np.random.default_rng(seed)
+    out = []
+    for k in range(n):
+        z = z0 + speed * k / FPS
+        side = 500 * 100 / z
+        out.append(box(3, 320, 240, side, side, z + rng.normal(0, noise)))
+    return out
+
+
+def test_approach_velocity_and_ttc_noise_free() -> None:
+    tr = Tracker()
+    objs = approaching(-600.0, 2000.0, 8, noise=0.0)
+    for k, o in enumerate(objs):
+        m = tr.update([o], k / FPS, (W, H)).motions[3]
+        assert m.track_id == 1 and m.status == "visible" and not m.per_frame
+        if k == 0:
+            assert m.v_radial is None and m.ttc is None
+            continue
+        assert m.v_radial == pytest.approx(-600.0, rel=1e-6)
+        assert m.ttc == pytest.approx(o.depth / 600.0, rel=1e-6)  # depth over closing speed
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_approach_velocity_with_depth_noise(seed: int) -> None:
+    # sigma 2 mm on the mean depth; the 4-frame least-squares slope then has a standard
+    # error of 2 / sqrt(5) = 0.89 mm/frame, so 2 mm/frame is 2.2 standard errors: a few
+    # frames in a hundred may exceed it, none by far.
+    truth = -400.0
+    tol = max(0.05 * abs(truth), 2.0 * FPS)  # 5 % or 2 mm/frame, whichever larger
+    tr = Tracker()
+    errors, ttc_rel = [], []
+    for k, o in enumerate(approaching(truth, 2500.0, 60, noise=2.0, seed=seed)):
+        m = tr.update([o], k / FPS, (W, H)).motions[3]
+        if k >= 3:
+            assert m.v_radial is not None and m.ttc is not None
+            errors.append(m.v_radial - truth)
+            z_true = 2500.0 + truth * k / FPS
+            ttc_rel.append(m.ttc / (z_true / -truth) - 1)
+    err = np.abs(errors)
+    assert np.sqrt(np.mean(err**2)) < tol / 2
+    assert np.mean(err <= tol) >= 0.9
+    assert err.max() < 2 * tol
+    assert np.median(np.abs(ttc_rel)) < 0.05
+
+
+def test_receding_object_has_no_ttc() -> None:
+    tr = Tracker()
+    for k, o in enumerate(approaching(+500.0, 800.0, 5, noise=0.0)):
+        m = tr.update([o], k / FPS, (W, H)).motions[3]
+    assert m.v_radial == pytest.approx(500.0) and m.ttc is None
+
+
+def test_per_frame_units_without_timestamps() -> None:
+    tr = Tracker()
+    objs = approaching(-300.0, 1500.0, 6, noise=0.0)  # 10 mm per frame
+    for o in objs:
+        m = tr.update([o], None, (W, H)).motions[3]
+    assert m.per_frame
+    assert m.v_radial == pytest.approx(-10.0)
+    assert m.ttc == pytest.approx(objs[-1].depth / 10.0)  # frames
+
+
+def test_still_object_noise_does_not_explode() -> None:
+    rng = np.random.default_rng(7)
+    sigma = 4.0
+    tr = Tracker()
+    vs, ttcs = [], 0
+    for k in range(200):
+        o = box(1, 300, 200, 80, 60, 1800.0 + rng.normal(0, sigma))
+        m = tr.update([o], k / FPS, (W, H)).motions[1]
+        if k >= 3:
+            assert m.v_radial is not None
+            vs.append(m.v_radial / FPS)
+            ttcs += m.ttc is not None
+    v = np.abs(np.array(vs))
+    # Slope of 4 equally spaced points: std sigma / sqrt(5) = 1.8 mm/frame.
+    assert np.median(v) < sigma / np.sqrt(5)
+    assert v.max() < 5 * sigma / np.sqrt(5)
+    assert ttcs < 0.2 * len(vs)  # mostly "still": below min_speed
+
+
+def test_two_objects_crossing_one_behind_the_other() -> None:
+    # A (near, 1000 mm) moves right, B (far, 2500 mm) moves left; B is hidden while the
+    # two overlap, then reappears on the far side.
+    tr = Tracker()
+    ids_a, ids_b, occluded_b = set(), set(), 0
+    for k in range(50):
+        xa, xb = 150 + 7 * k, 490 - 7 * k
+        objs = [box(1, xa, 240, 90, 90, 1000.0 - 3 * k)]
+        hidden = abs(xa - xb) < 60  # frames 21..28: 8 frames, within the budget of 10
+        if not hidden:
+            objs.append(box(2, xb, 250, 60, 60, 2500.0, label=1))
+        upd = tr.update(objs, k / FPS, (W, H))
+        ids_a.add(upd.motions[1].track_id)
+        if hidden:
+            assert [t.status for t in upd.occluded] == ["occluded"]
+            occluded_b += 1
+        else:
+            ids_b.add(upd.motions[2].track_id)
+        assert not upd.ended
+    assert occluded_b == 8
+    assert ids_a == {1} and ids_b == {2}  # no identity switch
+    m = upd.motions[1]
+    assert m.v_radial == pytest.approx(-90.0, rel=1e-6)
+
+
+def test_occluded_entries_are_skipped_in_the_fit() -> None:
+    tr = Tracker(TrackerConfig(queue_length=4))
+    zs = {0: 2020.0, 1: 2010.0, 2: 2000.0, 3: 1990.0, 5: 1970.0}  # frame 4 missing
+    for k in range(6):
+        upd = tr.update([box(1, 320, 240, 50, 50, zs[k])] if k in zs else [], k / FPS, (W, H))
+        if k == 4:
+            assert upd.occluded[0].motion.v_radial == pytest.approx(-300.0)
+    track = tr.tracks[0]
+    assert [z for _, z in track.queue] == [2000.0, 1990.0, None, 1970.0]
+    assert upd.motions[1].v_radial == pytest.approx(-300.0)
+
+
+@pytest.mark.parametrize("gap", [10, 11])
+def test_occlusion_budget(gap: int) -> None:
+    cfg = TrackerConfig(max_missed=10)
+    tr = Tracker(cfg)
+    ended = []
+    for k in range(5):
+        tr.update([box(1, 320, 240, 50, 50, 1500.0)], k / FPS, (W, H))
+    for k in range(5, 5 + gap):
+        upd = tr.update([], k / FPS, (W, H))
+        ended.extend(upd.ended)
+    m = tr.update([box(1, 320, 240, 50, 50, 1500.0)], (5 + gap) / FPS, (W, H)).motions[1]
+    if gap <= cfg.max_missed:
+        assert m.track_id == 1 and not ended
+    else:
+        assert m.track_id == 2
+        assert [t.id for t in ended] == [1] and ended[0].confirmed
+
+
+def test_enter_at_left_and_leave_at_right() -> None:
+    # A 60 px wide object at constant depth crossing the whole field of view; its mean
+    # depth reads 40 mm deeper while partly visible (the visible part is its rim).
+    tr = Tracker()
+    tr.update([], 0.0, (W, H))  # at the very first frame nothing is "entering" yet
+    statuses, ids, vs = [], set(), []
+    k = 1
+    for cx in range(-25, W + 30, 8):
+        clipped = cx - 30 < 0 or cx + 30 > W
+        o = box(4, cx, 240, 60, 60, 1500.0 + (40.0 if clipped else 0.0))
+        upd = tr.update([o], k / FPS, (W, H))
+        k += 1
+        m = upd.motions[4]
+        statuses.append((cx, m.status))
+        ids.add(m.track_id)
+        if m.v_radial is not None:
+            vs.append(m.v_radial)
+    assert ids == {1}
+    left = [s for cx, s in statuses if cx - 30 < 0]
+    right = [s for cx, s in statuses if cx + 30 > W]
+    middle = [s for cx, s in statuses if cx - 30 > 2 and cx + 30 < W - 3]
+    assert set(left) == {"entering"}
+    assert set(right) == {"leaving"}
+    assert set(middle) == {"visible"}
+    assert np.abs(vs).max() < 1e-6  # area change and rim bias are not read as motion
+    # It leaves: the track survives the budget as occluded, then ends.
+    ended = []
+    for j in range(TrackerConfig().max_missed + 1):
+        ended.extend(tr.update([], (k + j) / FPS, (W, H)).ended)
+    assert [t.id for t in ended] == [1]
+
+
+def test_one_frame_split_keeps_identity_of_the_bigger_part() -> None:
+    tr = Tracker()
+    for k in range(6):
+        if k == 3:  # segmentation cut the object in two, 70 / 30
+            objs = [box(7, 300, 240, 28, 100, 1200.0), box(8, 334, 240, 70, 100, 1200.0)]
+        else:
+            objs = [box(7, 320, 240, 100, 100, 1200.0)]
+        upd = tr.update(objs, k / FPS, (W, H))
+        if k == 3:
+            assert upd.motions[8].track_id == 1
+            assert upd.motions[7].track_id == 2
+        else:
+            assert upd.motions[7].track_id == 1
+        assert not upd.ended  # the splinter never was a confirmed track
+    assert [t.id for t in tr.tracks] == [1]
+
+
+def test_one_frame_merge_keeps_both_identities_and_velocity() -> None:
+    tr = Tracker()
+    for k in range(8):
+        za = 1500.0 - 10 * k  # big object approaching 300 mm/s
+        if k == 4:  # merged with its small neighbour at 1600 mm for one frame
+            merged = box(1, 340, 240, 140, 100, (100 * 100 * za + 40 * 100 * 1600.0) / 14000)
+            objs = [merged]
+        else:
+            objs = [box(1, 320, 240, 100, 100, za), box(2, 390, 240, 40, 100, 1600.0)]
+        upd = tr.update(objs, k / FPS, (W, H))
+        if k == 4:
+            assert upd.motions[1].track_id == 1
+            assert [t.id for t in upd.occluded] == [2]
+        else:
+            assert upd.motions[1].track_id == 1 and upd.motions[2].track_id == 2
+        if k >= 2:
+            # the merged frame's biased depth is not fitted
+            assert upd.motions[1].v_radial == pytest.approx(-300.0, rel=1e-6)
+
+
+def test_min_hits_confirms_and_tentative_tracks_die_silently() -> None:
+    tr = Tracker(TrackerConfig(min_hits=3))
+    for k in range(3):
+        tr.update([box(1, 100, 100, 30, 30, 900.0)], k / FPS, (W, H))
+        assert tr.tracks[0].confirmed == (k >= 2)
+    tr.update([box(1, 100, 100, 30, 30, 900.0), box(2, 500, 300, 30, 30, 900.0)], 3 / FPS, (W, H))
+    upd = tr.update([box(1, 100, 100, 30, 30, 900.0)], 4 / FPS, (W, H))
+    assert not upd.ended and not upd.occluded and [t.id for t in tr.tracks] == [1]
+
+
+def test_reset_restarts_ids() -> None:
+    tr = Tracker()
+    tr.update([box(1, 100, 100, 30, 30, 900.0), box(2, 300, 100, 30, 30, 900.0)], 0.0, (W, H))
+    tr.reset()
+    assert tr.tracks == ()
+    upd = tr.update([box(5, 100, 100, 30, 30, 900.0)], 0.0, (W, H))
+    assert upd.motions[5].track_id == 1
+
+
+def test_bad_input_is_reported() -> None:
+    tr = Tracker()
+    o = box(1, 100, 100, 30, 30, 900.0)
+    with pytest.raises(InputError, match="duplicate"):
+        tr.update([o, o], 0.0, (W, H))
+    with pytest.raises(InputError, match="frame_size"):
+        tr.update([o], 0.0, (0, H))
+    tr.update([o], 1.0, (W, H))
+    with pytest.raises(InputError, match="not after"):
+        tr.update([o], 1.0, (W, H))
+    with pytest.raises(InputError, match="timestamps"):
+        tr.update([o], None, (W, H))
