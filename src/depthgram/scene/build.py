@@ -52,6 +52,11 @@ class TreeConfig:
         pixels just below belong to the support.
     relation_gap_mm : float
         Depth difference (mm) above which one sibling is ``in_front_of`` / ``occludes`` another.
+    floor_reach : float
+        An object that rests on nothing found but reaches down to within this fraction of
+        the frame height above the floor's top row becomes a child of the floor: the floor
+        around a table's or a box's foot is hidden by the object itself, so its depth at the
+        contact cannot be checked. Objects ending higher (a hand in the air) stay under Bkg.
     relations : bool
         Derive horizontal relations between siblings.
     """
@@ -61,6 +66,7 @@ class TreeConfig:
     contact_px: int = 4
     min_contact: float = 0.2
     relation_gap_mm: float = 100.0
+    floor_reach: float = 0.1
     relations: bool = True
 
     def __post_init__(self) -> None:
@@ -70,6 +76,7 @@ class TreeConfig:
             ("contact_px", 0 <= self.contact_px <= 200, "0..200 px"),
             ("min_contact", 0.0 <= self.min_contact <= 1.0, "0..1"),
             ("relation_gap_mm", 0.0 <= self.relation_gap_mm <= 10_000.0, "0..10000 mm"),
+            ("floor_reach", 0.0 <= self.floor_reach <= 1.0, "0..1 of the frame height"),
         ]
         for name, ok, want in checks:
             value = getattr(self, name)
@@ -194,6 +201,7 @@ def build_tree(
     parent = np.zeros(n, dtype=np.int64)  # object id of the support, 0 for Bkg
     if n:
         parent = _supports(objs, cfg, labels)
+        _fall_to_floor(objs, parent, cfg.floor_reach * height)
 
     motion = motion or {}
     kids: dict[int, list[int]] = {}
@@ -284,6 +292,21 @@ def _supports(
     best = np.argmin(score, axis=1)
     has = np.isfinite(score[np.arange(n), best])
     return np.where(has, idv[best], 0).astype(np.int64)
+
+
+def _fall_to_floor(objs: Sequence[SceneObject], parent: NDArray[np.int64], reach_px: float) -> None:
+    """Give unsupported objects that reach down to the floor's rows to the (largest) floor."""
+    floors = [o for o in objs if o.kind == "floor"]
+    if not floors:
+        return
+    floor = max(floors, key=lambda o: (o.area, -o.id))
+    fx0, fy0, fx1, _ = floor.bbox
+    for i, o in enumerate(objs):
+        if parent[i] != 0 or o.kind in _SURFACES:
+            continue
+        x0, _, x1, y1 = o.bbox
+        if y1 >= fy0 - reach_px and x0 <= fx1 and x1 >= fx0:
+            parent[i] = floor.id
 
 
 def _relations(

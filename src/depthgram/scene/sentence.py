@@ -340,7 +340,9 @@ def _parse_line(text: str, line: int, source: str) -> SceneTree:
         lt = _parser().parse(text)
     except UnexpectedInput as exc:
         col = getattr(exc, "column", None)
-        if not isinstance(col, int) or col < 1:
+        at_end = isinstance(exc, UnexpectedToken) and exc.token.type == "$END"
+        # lark places the end of input on the last token; point just past the text instead.
+        if at_end or not isinstance(col, int) or col < 1:
             col = len(text.rstrip()) + 1
         raise SentenceError(_describe(exc), text=text, line=line, column=col, source=source) from None
     return _Reader(text, line, source).sentence(lt)
