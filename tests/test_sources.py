@@ -401,3 +401,42 @@ def test_info_streams_exact_figures(tmp_path: Path) -> None:
     assert (info.depth_min_mm, info.depth_median_mm, info.depth_max_mm) == (500, 2000, 6000)
     assert info.invalid_fraction == pytest.approx(6 / 12)
     assert info.fps == 5 and info.duration_s == pytest.approx(0.2)
+
+
+# --- the simulator as a source -----------------------------------------------------------------
+
+
+def test_sim_spec_matches_simulate_and_bare_scene_name() -> None:
+    sensor = pytest.importorskip("depthgram.sensor", reason="simulator not available")
+    direct = [s.frame for s in sensor.simulate("table", 3, size=(48, 36), fps=10, seed=1)]
+    src = open_source("sim:table?frames=3&size=48x36&seed=1&fps=10")
+    assert src.kind == "sim" and len(src) == 3 and src.fps == 10
+    got = list(src)
+    assert len(got) == 3
+    for a, b in zip(got, direct, strict=True):
+        np.testing.assert_array_equal(a.depth, b.depth)
+        assert a.time_s == pytest.approx(b.time_s) and a.size == (48, 36)
+    assert src.intrinsics == direct[0].intrinsics
+    bare = open_source("table?frames=2&size=48x36&seed=1&fps=10")  # no file named "table" here
+    assert bare.kind == "sim" and len(bare) == 2
+    np.testing.assert_array_equal(next(iter(bare)).depth, direct[0].depth)
+
+
+@pytest.mark.parametrize(
+    ("spec", "match"),
+    [
+        ("sim:table?frames=0", "frames must be >= 1"),
+        ("sim:table?size=176", "bad value '176' for size"),
+        ("sim:table?colour=1", "unknown sim option 'colour'"),
+        ("sim:?frames=3", "needs a scene name"),
+    ],
+)
+def test_sim_spec_errors(spec: str, match: str) -> None:
+    with pytest.raises(InputError, match=match):
+        open_source(spec)
+
+
+def test_sim_unknown_scene_is_a_clear_error() -> None:
+    pytest.importorskip("depthgram.sensor", reason="simulator not available")
+    with pytest.raises(InputError, match="kitchen"):
+        list(open_source("sim:kitchen?frames=1"))

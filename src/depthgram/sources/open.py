@@ -18,7 +18,7 @@ from depthgram.sources.base import Source
 from depthgram.sources.config import SourceConfig
 from depthgram.sources.files import FilesSource, list_frames
 from depthgram.sources.images import IMAGE_SUFFIXES
-from depthgram.sources.sidecars import find_sidecar
+from depthgram.sources.sidecars import find_sidecar, natural_key
 from depthgram.sources.sim import SimSource, parse_sim_spec, scene_names
 from depthgram.sources.stack import NpyStackSource, NpzStackSource, npz_member_header
 
@@ -119,17 +119,15 @@ def open_source(
         if suffix == ".npz" and len(npz_member_header(path, key)[1]) == 3:
             return NpzStackSource(path, cfg, name=text, intrinsics=intr, fps=rate)
         return _files([path], cfg, text, "file", path.parent, intrinsics)
-    if _GLOB_CHARS.search(text):
-        matches = [Path(p) for p in glob.glob(text)]
-        matches = [p for p in matches if p.is_file() and p.suffix.lower() in IMAGE_SUFFIXES]
-        if not matches:
-            raise InputError(f"{text}: the pattern matches no depth frame files")
-        from depthgram.sources.sidecars import natural_key
-
+    matches = [Path(p) for p in glob.glob(text)] if _GLOB_CHARS.search(text) else []
+    matches = [p for p in matches if p.is_file() and p.suffix.lower() in IMAGE_SUFFIXES]
+    if matches:
         matches.sort(key=lambda p: natural_key(str(p)))
         return _files(matches, cfg, text, "glob", matches[0].parent, intrinsics)
     if _SCENE_NAME.match(text) and _is_scene(text.partition("?")[0]):
         return SimSource(parse_sim_spec(text, fps), name=f"sim:{text}", intrinsics=intrinsics)
+    if _GLOB_CHARS.search(text):
+        raise InputError(f"{text}: the pattern matches no depth frame files")
     raise InputError(f"{text}: no such file or folder")
 
 
