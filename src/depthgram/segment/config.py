@@ -1,0 +1,135 @@
+"""Configuration of the segmentation stage: one frozen dataclass, loadable from TOML."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, fields, replace
+from typing import Any
+
+from depthgram.errors import InputError
+
+__all__ = ["METHODS", "SegmentConfig"]
+
+#: Segmentation methods: ``threshold`` (the paper's global histogram), ``slices`` (global
+#: histogram for surfaces facing the sensor plus slicing for floor, ceiling, walls and supports),
+#: ``region`` (region growing, the paper's reference).
+METHODS = ("slices", "threshold", "region")
+
+
+@dataclass(frozen=True)
+class SegmentConfig:
+    """Parameters of :func:`depthgram.segment.segment`.
+
+    Attributes
+    ----------
+    method : str
+        ``slices`` (default), ``threshold`` or ``region``; see :data:`METHODS`.
+    bin_mm : float
+        Histogram bin width (mm). Follows the sensor's depth resolution: about 10 mm for the
+        paper's 8-bit ToF over 3 m.
+    depth_dependent_bins : bool
+        When True the bins widen with depth: ``bin_mm`` at ``ref_depth_mm`` and proportional to
+        depth elsewhere (log-spaced edges), because ToF noise grows with distance.
+    ref_depth_mm : float
+        Depth (mm) at which depth-dependent bins are ``bin_mm`` wide.
+    fraction : float
+        The paper's 10 % rule, in [0, 0.5]: the share of the peak-to-minimum depth difference
+        used to place each cut (see ``cut_from``).
+    cut_from : str
+        ``minimum`` (default): the cut sits ``fraction`` of the peak-to-minimum distance before
+        the following minimum, a safety margin against the next object. ``peak``: the cut sits
+        ``fraction`` of that distance past the peak. The leading edge of each band is placed
+        symmetrically from the preceding minimum. Pixels outside every band are background.
+    smooth_bins : float
+        Gaussian smoothing of the histogram before peak search (bins, sigma); 0 disables.
+    min_prominence : float
+        Peak prominence needed, as a fraction of the valid pixel count (0..1), so that noise
+        makes no peaks.
+    min_area : float
+        Smallest object kept: pixels when >= 1, fraction of the frame when < 1.
+    fill_holes_px : int
+        Largest run of invalid pixels (px, along a row or column) bridged when labelling, so
+        that an object seen through a sieve of dropouts stays one object. 0 disables.
+    slice_aperture : float
+        Slice height or width for oblique surfaces: pixels when >= 1, fraction of the frame
+        dimension when < 1 (the paper's rule of thumb: about 10 % of the object dimension).
+    slice_directions : str
+        ``both``, ``horizontal`` (floor, ceiling, table tops) or ``vertical`` (walls).
+    oblique_deg : float
+        A surface whose normal is within this angle (degrees) of the vertical image axis is a
+        horizontal support (floor, ceiling, table top); within it of the horizontal axis, a wall.
+    normal_window_px : int
+        Side (px) of the box window over which surface orientation is estimated.
+    jump_rel : float
+        Relative depth step between neighbours (|dZ| / Z) that marks an occlusion edge; the
+        orientation there is not estimated.
+    region_tol_mm : float
+        Region growing: largest depth difference (mm) between joined neighbours.
+    region_relative : bool
+        Region growing: when True the tolerance scales with depth (``region_tol_mm`` per metre).
+    """
+
+    method: str = "slices"
+    bin_mm: float = 10.0
+    depth_dependent_bins: bool = False
+    ref_depth_mm: float = 1000.0
+    fraction: float = 0.10
+    cut_from: str = "minimum"
+    smooth_bins: float = 1.0
+    min_prominence: float = 0.002
+    min_area: float = 0.005
+    fill_holes_px: int = 2
+    slice_aperture: float = 0.10
+    slice_directions: str = "both"
+    oblique_deg: float = 35.0
+    normal_window_px: int = 7
+    jump_rel: float = 0.05
+    region_tol_mm: float = 20.0
+    region_relative: bool = True
+
+    def __post_init__(self) -> None:
+        def bad(name: str, value: object, expected: str) -> InputError:
+            return InputError(f"segment config: {name} = {value!r}, expected {expected}")
+
+        if self.method not in METHODS:
+            raise bad("method", self.method, f"one of {METHODS}")
+        if self.cut_from not in ("minimum", "peak"):
+            raise bad("cut_from", self.cut_from, "'minimum' or 'peak'")
+        if self.slice_directions not in ("both", "horizontal", "vertical"):
+            raise bad("slice_directions", self.slice_directions, "'both', 'horizontal' or 'vertical'")
+        positive = {
+            "bin_mm": (self.bin_mm, 0.01, 10_000.0),
+            "ref_depth_mm": (self.ref_depth_mm, 1.0, 1e6),
+            "min_area": (self.min_area, 1e-9, 1e9),
+            "slice_aperture": (self.slice_aperture, 1e-6, 1e6),
+            "region_tol_mm": (self.region_tol_mm, 1e-6, 1e5),
+            "oblique_deg": (self.oblique_deg, 1.0, 60.0),
+            "jump_rel": (self.jump_rel, 1e-4, 10.0),
+        }
+        for name, (value, lo, hi) in positive.items():
+            if not (isinstance(value, int | float) and math.isfinite(value) and lo <= value <= hi):
+                raise bad(name, value, f"a number in [{lo}, {hi}]")
+        if not 0.0 <= self.fraction <= 0.5:
+            raise bad("fraction", self.fraction, "a share in [0, 0.5] (the paper uses 0.10)")
+        if not 0.0 <= self.min_prominence < 1.0:
+            raise bad("min_prominence", self.min_prominence, "a fraction of the valid pixels in [0, 1)")
+        if not 0.0 <= self.smooth_bins <= 50.0:
+            raise bad("smooth_bins", self.smooth_bins, "a sigma in bins in [0, 50]")
+        if not (isinstance(self.fill_holes_px, int) and 0 <= self.fill_holes_px <= 64):
+            raise bad("fill_holes_px", self.fill_holes_px, "an integer number of pixels in [0, 64]")
+        if not (isinstance(self.normal_window_px, int) and 3 <= self.normal_window_px <= 101):
+            raise bad("normal_window_px", self.normal_window_px, "an integer number of pixels in [3, 101]")
+
+    def with_overrides(self, **overrides: Any) -> SegmentConfig:
+        """A copy with some fields replaced; unknown names raise :class:`InputError`."""
+        known = {f.name for f in fields(self)}
+        unknown = sorted(set(overrides) - known)
+        if unknown:
+            raise InputError(f"segment config: unknown option(s) {unknown}; known: {sorted(known)}")
+        return replace(self, **overrides) if overrides else self
+
+    def min_area_px(self, n_pixels: int) -> int:
+        """``min_area`` in pixels for a frame of ``n_pixels`` pixels (at least 1)."""
+        if self.min_area >= 1:
+            return math.ceil(self.min_area)
+        return max(1, math.ceil(self.min_area * n_pixels))

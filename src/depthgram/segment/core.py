@@ -1,0 +1,201 @@
+"""The segmentation entry point: depth image in, objects with attributes out."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from depthgram.frame import Intrinsics
+from depthgram.segment.attributes import label_stats, make_objects, relabel_small
+from depthgram.segment.config import SegmentConfig
+from depthgram.segment.histogram import Bands
+from depthgram.segment.objects import Histogram, SceneObject, Segmentation
+from depthgram.segment.orientation import FACING, HORIZONTAL, VERTICAL, default_intrinsics, orientation_classes
+from depthgram.segment.region import region_grow
+from depthgram.segment.slices import slice_parts, support_components, support_kind
+from depthgram.segment.threshold import band_image, threshold_labels
+from depthgram.segment.validate import check_depth
+
+__all__ = ["segment"]
+
+
+def segment(
+    depth_mm: NDArray[np.floating],
+    *,
+    valid: NDArray[np.bool_] | None = None,
+    intrinsics: Intrinsics | None = None,
+    config: SegmentConfig | None = None,
+    **overrides: Any,
+) -> Segmentation:
+    """Segment one depth image into salient objects (paper, section 3).
+
+    Parameters
+    ----------
+    depth_mm : ndarray, shape (H, W)
+        Depth along the optical axis (mm); 0 or NaN where there is no reading.
+    valid : ndarray of bool, optional
+        Pixels with a reading; by default finite and > 0.
+    intrinsics : Intrinsics, optional
+        Camera intrinsics (px). Fill ``centroid_mm`` and ``area_mm2``; the ``slices`` method
+        uses them for surface orientation (a 64 degree field of view is assumed without).
+    config : SegmentConfig, optional
+        Parameters; defaults when omitted.
+    **overrides
+        Fields of :class:`SegmentConfig` to change, e.g. ``method="threshold"``.
+
+    Returns
+    -------
+    Segmentation
+        ``labels`` (int32, 0 = background, invalid or too small), ``objects`` in id order,
+        ``histogram`` (global histogram, peaks and trailing cuts), ``method``; ``extras`` holds
+        ``bands_mm`` (K x 2 band limits, mm) and for ``slices`` the orientation ``classes``.
+
+    Raises
+    ------
+    InputError
+        For a non-2-D or non-numeric image, a mask of another shape, or absurd options.
+
+    Notes
+    -----
+    ``threshold``: the global depth histogram's peaks (``scipy.signal.find_peaks`` with a
+    prominence floor) each give a depth band; every band is split into connected components
+    (holes of up to ``fill_holes_px`` bridged), small ones dropped. ``slices``: the same for
+    pixels facing the sensor, while horizontal surfaces and walls become compound objects
+    (``floor``, ``ceiling``, ``wall``, ``compound``) made of slice ``part``s. ``region``: region
+    growing, see :func:`depthgram.segment.region_grow`.
+    """
+    cfg = (config or SegmentConfig()).with_overrides(**overrides)
+    depth, ok = check_depth(depth_mm, valid)
+    if cfg.method == "region":
+        return region_grow(
+            depth,
+            valid=ok,
+            tol_mm=cfg.region_tol_mm,
+            relative=cfg.region_relative,
+            min_area=cfg.min_area,
+            fill_holes_px=cfg.fill_holes_px,
+            intrinsics=intrinsics,
+        )
+    if not ok.any():
+        empty = Histogram(np.zeros(1), np.zeros(0, np.int64), np.zeros(0), np.zeros(0))
+        return Segmentation(np.zeros(depth.shape, np.int32), (), empty, cfg.method, {"bands_mm": np.zeros((0, 2))})
+    if cfg.method == "threshold":
+        return _threshold(depth, ok, intrinsics, cfg)
+    return _slices(depth, ok, intrinsics, cfg)
+
+
+def _band_of_labels(labels: NDArray[np.int32], band: NDArray[np.int32], n: int) -> NDArray[np.int64]:
+    """Band index of each label (constant inside a label)."""
+    flat = labels.ravel()
+    first = np.zeros(n + 1, np.int64)
+    # the last write wins, and every pixel of a label has the same band
+    first[flat] = band.ravel()
+    return first
+
+
+def _facing_objects(
+    depth: NDArray[np.float32],
+    ok: NDArray[np.bool_],
+    include: NDArray[np.bool_] | None,
+    intrinsics: Intrinsics | None,
+    cfg: SegmentConfig,
+) -> tuple[NDArray[np.int32], list[SceneObject], Bands]:
+    hist_mask = ok if include is None else ok & include
+    band, bands = band_image(depth, hist_mask, cfg)
+    labels, n = threshold_labels(band, ok, cfg, include=include)
+    counts = np.bincount(labels.ravel(), minlength=n + 1).astype(np.float64)
+    labels = relabel_small(labels, counts, cfg.min_area_px(depth.size))
+    k = int(labels.max(initial=0))
+    stats = label_stats(labels, depth, k, metric=intrinsics is not None)
+    band_of = _band_of_labels(labels, band, k)
+    objects = make_objects(labels, stats, depth_labels=band_of, intrinsics=intrinsics)
+    return labels, objects, bands
+
+
+def _extras(bands: Bands) -> dict[str, object]:
+    return {"bands_mm": np.stack([bands.lower, bands.upper], axis=1) if bands.lower.size else np.zeros((0, 2))}
+
+
+def _threshold(
+    depth: NDArray[np.float32], ok: NDArray[np.bool_], intrinsics: Intrinsics | None, cfg: SegmentConfig
+) -> Segmentation:
+    labels, objects, bands = _facing_objects(depth, ok, None, intrinsics, cfg)
+    return Segmentation(labels, tuple(objects), bands.histogram, "threshold", _extras(bands))
+
+
+def _slices(
+    depth: NDArray[np.float32], ok: NDArray[np.bool_], intrinsics: Intrinsics | None, cfg: SegmentConfig
+) -> Segmentation:
+    cam = intrinsics or default_intrinsics(depth.shape)
+    classes = orientation_classes(
+        depth, ok, cam, window_px=cfg.normal_window_px, oblique_deg=cfg.oblique_deg, jump_rel=cfg.jump_rel
+    )
+    wanted = []
+    if cfg.slice_directions in ("both", "horizontal"):
+        wanted.append(HORIZONTAL)
+    if cfg.slice_directions in ("both", "vertical"):
+        wanted.append(VERTICAL)
+    for cls in (HORIZONTAL, VERTICAL):
+        if cls not in wanted:
+            classes[classes == cls] = FACING
+    min_px = cfg.min_area_px(depth.size)
+    # supports first: a class region too small to be a surface goes back to the facing pixels
+    support_maps: list[tuple[int, NDArray[np.int32], int]] = []
+    for cls in wanted:
+        lab, n = support_components(depth, ok, classes, cls, jump_rel=cfg.jump_rel, bridge=cfg.fill_holes_px)
+        counts = np.bincount(lab.ravel(), minlength=n + 1).astype(np.float64)
+        small = counts < min_px
+        small[0] = False
+        classes[small[lab]] = FACING
+        lab = relabel_small(lab, counts, min_px)
+        support_maps.append((cls, lab, int(lab.max(initial=0))))
+    facing = classes == FACING
+    labels, objects, bands = _facing_objects(depth, ok, facing, intrinsics, cfg)
+    next_id = len(objects) + 1
+    compounds: list[tuple[int, SceneObject]] = []
+    for cls, lab, n in support_maps:
+        if n == 0:
+            continue
+        stats = label_stats(lab, depth, n, metric=True)
+        objs = make_objects(lab, stats, intrinsics=cam, first_id=next_id)
+        labels[lab > 0] = lab[lab > 0] + (next_id - 1)
+        next_id += n
+        compounds.extend((cls, o) for o in objs)
+    floor_ids = {o.id for c, o in compounds if c == HORIZONTAL and o.centroid_mm is not None and o.centroid_mm[1] > 0}
+    lowest = max(
+        (o for c, o in compounds if o.id in floor_ids and o.centroid_mm is not None),
+        key=lambda o: o.centroid_mm[1] if o.centroid_mm is not None else 0.0,
+        default=None,
+    )
+    part_id = next_id
+    for cls, o in compounds:
+        kind = support_kind(cls, o.centroid_mm[1] if o.centroid_mm else 0.0, lowest is not None and o.id == lowest.id)
+        parts = slice_parts(
+            labels,
+            depth,
+            o,
+            horizontal=cls == HORIZONTAL,
+            aperture=cfg.slice_aperture,
+            depth_label=bands.depth_label,
+            intrinsics=intrinsics,
+            first_id=part_id,
+        )
+        part_id += len(parts)
+        label = parts[0].label if parts else int(bands.depth_label(o.depth))
+        keep_metric = intrinsics is not None
+        objects.append(
+            replace(
+                o,
+                kind=kind,
+                label=label,
+                parts=parts,
+                centroid_mm=o.centroid_mm if keep_metric else None,
+                area_mm2=o.area_mm2 if keep_metric else None,
+            )
+        )
+    extras = _extras(bands)
+    extras["classes"] = classes
+    return Segmentation(labels, tuple(objects), bands.histogram, "slices", extras)

@@ -1,0 +1,122 @@
+"""The global depth histogram, its peaks and the paper's 10 % cuts (paper, section 3).
+
+For each peak, the following minimum is the lowest bin between it and the next peak (for the
+last peak, up to the end). The band of a peak runs from a leading cut to a trailing cut placed
+``fraction`` of the peak-to-minimum distance from the minimum (``cut_from="minimum"``) or from
+the peak (``cut_from="peak"``); pixels between bands are background, as in the paper.
+
+Measured on the simulator's seeded ``table`` scene (``benchmarks/table1.py --readings``): see
+:func:`depthgram.segment.segment` for the figures of both readings.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.ndimage import gaussian_filter1d
+from scipy.signal import find_peaks
+
+from depthgram.segment.config import SegmentConfig
+from depthgram.segment.objects import Histogram
+
+__all__ = ["Bands", "bin_index", "depth_bands"]
+
+
+def bin_index(
+    depth_mm: NDArray[np.floating], valid: NDArray[np.bool_], config: SegmentConfig
+) -> tuple[NDArray[np.intp], NDArray[np.float64]]:
+    """Histogram bin of every pixel and the bin edges (mm).
+
+    Invalid pixels get bin -1. With ``depth_dependent_bins`` the edges are geometric, so a
+    bin is ``bin_mm`` wide at ``ref_depth_mm`` and proportional to depth elsewhere.
+    """
+    z = depth_mm[valid]
+    if z.size == 0:
+        return np.full(depth_mm.shape, -1, np.intp), np.zeros(1)
+    lo, hi = float(z.min()), float(z.max())
+    out = np.full(depth_mm.shape, -1, np.intp)
+    if config.depth_dependent_bins:
+        step = math.log1p(config.bin_mm / config.ref_depth_mm)
+        l0 = math.log(lo)
+        nb = int((math.log(hi) - l0) / step) + 1
+        out[valid] = ((np.log(z) - l0) / step).astype(np.intp)
+        edges = np.exp(l0 + step * np.arange(nb + 1))
+    else:
+        nb = int((hi - lo) / config.bin_mm) + 1
+        out[valid] = ((z - lo) / config.bin_mm).astype(np.intp)
+        edges = lo + config.bin_mm * np.arange(nb + 1)
+    np.minimum(out, nb - 1, out=out)
+    return out, edges
+
+
+class Bands:
+    """Depth bands of one histogram: a bin -> band lookup table and the band limits.
+
+    Attributes
+    ----------
+    histogram : Histogram
+        Edges, counts, peak depths and trailing cuts (mm).
+    lut : ndarray of int32, shape (B,)
+        Band of each bin, -1 for bins between bands.
+    lower, upper : ndarray of float64, shape (K,)
+        Leading and trailing cut of each band (mm), nearest band first.
+    """
+
+    def __init__(self, histogram: Histogram, lut: NDArray[np.int32], lower: NDArray[np.float64]) -> None:
+        self.histogram = histogram
+        self.lut = lut
+        self.lower = lower
+        self.upper = histogram.cuts
+
+    @property
+    def n(self) -> int:
+        """Number of bands."""
+        return int(self.lut.max(initial=-1)) + 1
+
+    def depth_label(self, depth_mm: NDArray[np.floating] | float) -> NDArray[np.intp]:
+        """Depth label on the global scale: the number of trailing cuts nearer than ``depth_mm``.
+
+        Equal to the band index inside a band; monotonic in depth, so slice parts of an oblique
+        surface get successive labels.
+        """
+        return np.searchsorted(self.upper, np.asarray(depth_mm), side="left")
+
+
+def depth_bands(bins: NDArray[np.intp], edges: NDArray[np.float64], n_valid: int, config: SegmentConfig) -> Bands:
+    """Histogram, peaks and cuts of a frame whose pixels were binned by :func:`bin_index`."""
+    nb = edges.size - 1
+    flat = bins.ravel()
+    counts = np.bincount(flat[flat >= 0], minlength=nb)[:nb].astype(np.int64) if nb > 0 else np.zeros(0, np.int64)
+    if nb == 0 or n_valid == 0:
+        empty = np.zeros(0)
+        return Bands(Histogram(edges, counts, empty, empty), np.full(max(nb, 1), -1, np.int32), empty)
+    smooth = gaussian_filter1d(counts.astype(np.float64), config.smooth_bins) if config.smooth_bins > 0 else counts
+    # pad so that a peak in the first or last bin is found too
+    padded = np.concatenate(([0.0], smooth, [0.0]))
+    peaks, _ = find_peaks(padded, prominence=max(config.min_prominence * n_valid, 1e-9))
+    peaks = peaks - 1
+    k = peaks.size
+    lut = np.full(nb, -1, np.int32)
+    centers = 0.5 * (edges[:-1] + edges[1:])
+    lower = np.zeros(k)
+    upper = np.zeros(k)
+    t = 1.0 - config.fraction if config.cut_from == "minimum" else config.fraction
+    prev_min = 0
+    for i, p in enumerate(peaks):
+        # following minimum: lowest smoothed bin before the next peak (first one on ties)
+        stop = peaks[i + 1] if i + 1 < k else nb - 1
+        nxt = p + int(np.argmin(smooth[p : stop + 1])) if stop > p else p
+        if i + 1 == k:
+            nxt = nb - 1 if smooth[nxt] > 0 else nxt
+        lo_bin = p - t * (p - prev_min)
+        hi_bin = p + t * (nxt - p)
+        first = max(math.ceil(lo_bin - 1e-9), 0)
+        last = min(math.floor(hi_bin + 1e-9), nb - 1)
+        lut[first : last + 1] = i
+        lower[i] = edges[first]
+        upper[i] = edges[last + 1]
+        prev_min = nxt
+    hist = Histogram(edges=edges, counts=counts, peaks=centers[peaks], cuts=upper)
+    return Bands(hist, lut, lower)
