@@ -70,7 +70,19 @@ def test_info_bad_input_exit_2(tmp_path: Path, capsys: pytest.CaptureFixture[str
     assert err.startswith("depthgram info: error: ") and str(target) in err and match in err
 
 
-def test_info_progress_bar_only_for_long_sources(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+def test_info_progress_bar_only_for_long_sources_on_a_terminal(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import sys
+
     write_seq(tmp_path / "short", 2)
+    write_seq(tmp_path / "long", 25)
+    assert main(["info", str(tmp_path / "long")]) == 0
+    assert "reading" not in capsys.readouterr().err  # not a terminal: no bar in logs
+    monkeypatch.setattr(sys.stderr, "isatty", lambda: True)
     assert main(["info", str(tmp_path / "short")]) == 0
-    assert "frame" not in capsys.readouterr().err
+    assert "reading" not in capsys.readouterr().err
+    assert main(["info", str(tmp_path / "long")]) == 0
+    captured = capsys.readouterr()
+    assert "reading" in captured.err and "/25" in captured.err  # a bar over the 25 frames
+    assert "frames      25" in captured.out

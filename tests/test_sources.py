@@ -85,6 +85,11 @@ def test_tiff_float_metres_and_scale_override(tmp_path: Path) -> None:
     assert not f.valid[2, 2] and f.depth[2, 2] == 0
     [g] = list(read(p, scale_mm=1.0))  # float millimetres when told
     np.testing.assert_allclose(g.depth[ok], m[ok], rtol=1e-6)
+    [h] = list(read(p, encoding="mm"))  # the same, said as an encoding
+    np.testing.assert_allclose(h.depth[ok], m[ok], rtol=1e-6)
+    np.save(tmp_path / "int_m.npy", np.array([[1, 2]], np.uint8))
+    [k] = list(read(tmp_path / "int_m.npy", encoding="m"))  # integer metres
+    np.testing.assert_array_equal(k.depth, [[1000, 2000]])
 
 
 def test_tiff_uint16(tmp_path: Path) -> None:

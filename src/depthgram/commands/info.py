@@ -25,8 +25,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--timestamps", metavar="FILE", default=None,
                         help="timestamps file: one time (s) per line, or 'index time' pairs")
     parser.add_argument("--encoding", default="auto",
-                        choices=["auto", "raw", "8bit", "sun", "kinect-disparity"],
-                        help="sample encoding (sun: SUN RGB-D bit shift; kinect-disparity: NYU raw PGM)")
+                        choices=["auto", "raw", "mm", "m", "8bit", "sun", "kinect-disparity"],
+                        help="sample encoding (mm/m: units whatever the dtype; sun: SUN RGB-D bit shift; "
+                        "kinect-disparity: NYU raw PGM)")
     parser.add_argument("--range", type=float, nargs=2, metavar=("NEAR", "FAR"), default=None, dest="depth_range",
                         help="depth range in mm: of the 8-bit codes 1..255, else the valid range")
     parser.add_argument("--topic", default=None, help="bag topic (needed when a bag has several depth topics)")
@@ -78,7 +79,8 @@ def run(args: argparse.Namespace) -> int:
         topic=args.topic,
         key=args.key,
     )
-    info = src.info(progress=len(src) > _PROGRESS_FROM)
+    # Same rule as the other commands: no bar in logs or pipes.
+    info = src.info(progress=len(src) > _PROGRESS_FROM and sys.stderr.isatty())
     if args.json:
         json.dump(info.to_dict(), sys.stdout)
         sys.stdout.write("\n")

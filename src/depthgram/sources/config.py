@@ -8,6 +8,8 @@ Rules (``encoding="auto"`` only decides the unambiguous cases):
 - ``uint8`` images are the paper's 0-255 depth over ``depth_range_mm`` and are refused without it
   (an 8-bit PNG is far more often a grey preview than metric depth; guessing a range would give
   silently wrong distances). With ``scale_mm`` instead they are read as linear units;
+- ``"mm"`` / ``"m"`` say the samples are millimetres / metres whatever their dtype (float
+  millimetre arrays, integer metre grids); ``"raw"`` is ``auto`` without the 8-bit refusal;
 - ``"sun"`` (SUN RGB-D's 3-bit circular shift) and ``"kinect-disparity"`` (NYU's raw disparity)
   are never guessed: they are given explicitly.
 """
@@ -23,7 +25,7 @@ from depthgram.errors import InputError
 __all__ = ["ENCODINGS", "SourceConfig"]
 
 #: Accepted values of :attr:`SourceConfig.encoding`.
-ENCODINGS = ("auto", "raw", "8bit", "sun", "kinect-disparity")
+ENCODINGS = ("auto", "raw", "mm", "m", "8bit", "sun", "kinect-disparity")
 
 
 @dataclass(frozen=True)

@@ -129,7 +129,8 @@ def to_frame(
         values, scale, invalid = decode_kinect_disparity(arr, invalid), 1.0, ()
     else:
         values = arr
-        scale = cfg.scale_mm if cfg.scale_mm is not None else (1.0 if is_int else 1000.0)
+        default = {"mm": 1.0, "m": 1000.0}.get(enc, 1.0 if is_int else 1000.0)
+        scale = cfg.scale_mm if cfg.scale_mm is not None else default
         if arr.dtype == np.uint16:
             invalid = (*invalid, 65535.0)
     near_far = cfg.depth_range_mm if enc != "8bit" else None
