@@ -445,3 +445,12 @@ def test_sim_unknown_scene_is_a_clear_error() -> None:
     pytest.importorskip("depthgram.sensor", reason="simulator not available")
     with pytest.raises(InputError, match="kitchen"):
         list(open_source("sim:kitchen?frames=1"))
+
+
+def test_colour_npy_is_one_image_not_a_stack(tmp_path: Path) -> None:
+    np.save(tmp_path / "rgb.npy", np.zeros((6, 8, 3), np.uint8))
+    with pytest.raises(InputError, match=r"rgb\.npy: this is a colour image"):
+        list(read(tmp_path / "rgb.npy"))
+    np.save(tmp_path / "grey.npy", np.full((6, 8, 1), 900, np.uint16))
+    [f] = list(read(tmp_path / "grey.npy"))
+    assert f.size == (8, 6) and f.depth[0, 0] == 900

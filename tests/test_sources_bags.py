@@ -156,3 +156,10 @@ def test_corrupt_bag(tmp_path: Path) -> None:
     p.write_bytes(b"#ROSBAG V2.0\nnot really")
     with pytest.raises(InputError, match=r"broken\.bag: cannot read the bag"):
         open_source(p)
+
+
+def test_bag_with_mixed_sizes_names_the_frame(tmp_path: Path) -> None:
+    arrays = [np.full((6, 10), 900, np.uint16), np.full((4, 10), 900, np.uint16)]
+    bag = write_ros1(tmp_path / "mixed.bag", {"/depth": ("16UC1", arrays)})
+    with pytest.raises(InputError, match=r"mixed\.bag topic /depth \(frame 1\): image is 10x4 px but frame 0 is 10x6"):
+        list(read(bag))

@@ -139,6 +139,7 @@ class BagSource(Source):
             raise InputError(f"{self.path}: cannot read the bag ({exc})") from None
         try:
             conns = [c for c in reader.connections if c.topic == self.topic]
+            first: tuple[int, int] | None = None
             for i, (conn, log_ns, raw) in enumerate(reader.messages(connections=conns)):
                 where = f"{self.path} topic {self.topic} (frame {i})"
                 try:
@@ -147,10 +148,18 @@ class BagSource(Source):
                     raise InputError(f"{where}: cannot decode the message ({exc})") from None
                 stamp = msg.header.stamp
                 t = stamp.sec + stamp.nanosec * 1e-9
-                yield to_frame(
+                frame = to_frame(
                     image_array(msg, where), self.cfg, where=where, index=i,
                     time_s=t if t > 0 else log_ns * 1e-9, intrinsics=self.intrinsics,
                     name=f"bag:{self.topic}#{i}",
                 )
+                if first is None:
+                    first = frame.size
+                elif frame.size != first:
+                    raise InputError(
+                        f"{where}: image is {frame.size[0]}x{frame.size[1]} px but frame 0 is "
+                        f"{first[0]}x{first[1]} px; all frames of a sequence must have one size"
+                    )
+                yield frame
         finally:
             reader.close()

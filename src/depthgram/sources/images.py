@@ -78,7 +78,10 @@ def read_image(path: Path, *, key: str | None = None, where: str | None = None) 
 
     # imdecode over a bytes buffer, not imread: it handles non-ASCII paths and lets a
     # truncated file be told apart from a missing one.
-    buf = np.fromfile(path, dtype=np.uint8)
+    try:
+        buf = np.fromfile(path, dtype=np.uint8)
+    except OSError as exc:
+        raise InputError(f"{where}: cannot read the file ({exc.strerror or exc})") from None
     try:
         img = cv2.imdecode(buf, cv2.IMREAD_UNCHANGED) if buf.size else None
     except cv2.error:

@@ -114,9 +114,9 @@ def open_source(
         side = find_sidecar(path.parent)
         intr = intrinsics or side.intrinsics
         rate = fps or side.fps
-        if suffix == ".npy" and _npy_ndim(path) == 3:
+        if suffix == ".npy" and _is_stack(_npy_shape(path)):
             return NpyStackSource(path, cfg, name=text, intrinsics=intr, fps=rate)
-        if suffix == ".npz" and len(npz_member_header(path, key)[1]) == 3:
+        if suffix == ".npz" and _is_stack(npz_member_header(path, key)[1]):
             return NpzStackSource(path, cfg, name=text, intrinsics=intr, fps=rate)
         return _files([path], cfg, text, "file", path.parent, intrinsics)
     matches = [Path(p) for p in glob.glob(text)] if _GLOB_CHARS.search(text) else []
@@ -135,9 +135,15 @@ def _is_scene(name: str) -> bool:
     return name in scene_names()
 
 
-def _npy_ndim(path: Path) -> int:
+def _is_stack(shape: tuple[int, ...]) -> bool:
+    # (H, W, 1|3|4) is one image (grey or colour, refused later with a clear message), not a
+    # stack of frames 1, 3 or 4 pixels wide.
+    return len(shape) == 3 and shape[2] not in (1, 3, 4)
+
+
+def _npy_shape(path: Path) -> tuple[int, ...]:
     try:
-        return int(np.load(path, mmap_mode="r", allow_pickle=False).ndim)
+        return tuple(np.load(path, mmap_mode="r", allow_pickle=False).shape)
     except (ValueError, OSError, EOFError) as exc:
         raise InputError(f"{path}: cannot read the .npy ({exc})") from None
 
