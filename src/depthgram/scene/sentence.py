@@ -348,7 +348,7 @@ def _parse_line(text: str, line: int, source: str) -> SceneTree:
     return _Reader(text, line, source).sentence(lt)
 
 
-def parse_sentence(text: str, *, source: str = "<sentence>") -> SceneTree:
+def parse_sentence(text: str, *, source: str = "<sentence>", first_line: int = 1) -> SceneTree:
     """Read one sentence back into a :class:`SceneTree`.
 
     Parameters
@@ -357,6 +357,8 @@ def parse_sentence(text: str, *, source: str = "<sentence>") -> SceneTree:
         One sentence (leading and trailing blank lines are ignored).
     source : str
         Name used in error messages (a file name, say).
+    first_line : int
+        Line number of the text's first line in ``source``, for error messages.
 
     Raises
     ------
@@ -364,9 +366,9 @@ def parse_sentence(text: str, *, source: str = "<sentence>") -> SceneTree:
         When the text is not exactly one valid sentence; ``.line`` and ``.column`` point at
         the offending character.
     """
-    lines = [(i + 1, s) for i, s in enumerate(text.splitlines()) if s.strip()]
+    lines = [(i + first_line, s) for i, s in enumerate(text.splitlines()) if s.strip()]
     if not lines:
-        raise SentenceError("empty text: expected a sentence starting with Bkg", text="", line=1, column=1,
+        raise SentenceError("empty text: expected a sentence starting with Bkg", text="", line=first_line, column=1,
                             source=source)
     if len(lines) > 1:
         n, s = lines[1]
