@@ -13,6 +13,7 @@ lasts exactly as long as the frames it was pushed.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, replace
 
@@ -125,10 +126,36 @@ class _State:
     fading: bool = False
 
 
+@functools.lru_cache(maxsize=16)
+def _wavetables(harmonics_max: int) -> tuple[NDArray[np.float64], ...]:
+    """One period with 1..k harmonics of amplitude 1/k, each normalised to peak 1 (index 0: silence)."""
+    t = np.arange(_TABLE) / _TABLE
+    tables = [np.zeros(_TABLE)]
+    acc = np.zeros(_TABLE)
+    for k in range(1, harmonics_max + 1):
+        acc = acc + np.sin(2 * np.pi * k * t) / k
+        tables.append(acc / np.abs(acc).max())
+    for tab in tables:
+        tab.flags.writeable = False  # shared between sonifiers: constants
+    return tuple(tables)
+
+
+@functools.lru_cache(maxsize=1)
+def _hann_table() -> NDArray[np.float64]:
+    """Raised-cosine beep envelope over one beep; the extra last entry (0) means "after the beep"."""
+    x = np.arange(_HANN + 1) / _HANN
+    h = 0.5 - 0.5 * np.cos(2 * np.pi * x)
+    h[-1] = 0.0
+    h.flags.writeable = False
+    return h
+
+
 def _soft_limit(x: NDArray[np.float64]) -> NDArray[np.float64]:
     # Identity below the knee so that quiet scenes keep their exact levels; above it a tanh
     # curve with matching slope: never clips, never jumps.
     a = np.abs(x)
+    if a.size == 0 or a.max() <= _KNEE:
+        return x
     over = _KNEE + (1 - _KNEE) * np.tanh((a - _KNEE) / (1 - _KNEE))
     return np.where(a <= _KNEE, x, np.sign(x) * over)
 
@@ -164,16 +191,11 @@ class Sonifier:
         self._states: dict[tuple[str, int], _State] = {}
         self._seconds = 0.0
         self._samples = 0
-        # Wavetables with 1/k harmonics, each normalised to peak 1, built once per mapping.
-        t = np.arange(_TABLE) / _TABLE
-        self._tables: list[NDArray[np.float64]] = [np.zeros(_TABLE)]
-        acc = np.zeros(_TABLE)
-        for k in range(1, self.mapping.harmonics_max + 1):
-            acc = acc + np.sin(2 * np.pi * k * t) / k
-            self._tables.append(acc / np.abs(acc).max())
-        x = np.arange(_HANN + 1) / _HANN
-        self._hann = 0.5 - 0.5 * np.cos(2 * np.pi * x)
-        self._hann[-1] = 0.0  # index _HANN means "after the beep"
+        self._tables = _wavetables(self.mapping.harmonics_max)
+        self._hann = _hann_table()
+        from depthgram.sound._kernels import pulse_voice  # numba: loaded only when sound is made
+
+        self._pulse_voice = pulse_voice
 
     @property
     def seconds(self) -> float:
@@ -209,8 +231,8 @@ class Sonifier:
         # Weight of the old value along the push: 1 -> 0 over the ramp, then 0.
         old_w = np.clip(1.0 - (np.arange(n) + 1.0) / r, 0.0, 1.0)
         ticks = np.arange(1, n + 1, dtype=np.float64)
-        out = np.zeros((n, 2))
-        env: NDArray[np.float64] | float
+        out_l = np.zeros(n)
+        out_r = np.zeros(n)
         for key, gone in self._states.items():
             if key not in targets:  # gone from the scene: fade out over the ramp, then drop
                 gone.fading = True
@@ -227,47 +249,32 @@ class Sonifier:
                 return b if a == b else b + (a - b) * old_w
 
             if key[0] == "o":
-                rate = ramp(old.rate, new.rate)
-                if isinstance(rate, np.ndarray):
-                    pp = st.pulse + np.cumsum(rate) / sr
-                else:
-                    pp = st.pulse + ticks * (rate / sr)
-                duty = np.minimum(np.multiply(ramp(old.beep_s, new.beep_s), rate), m.duty_max)
-                x = (pp - np.floor(pp)) / duty
-                env = self._hann[np.minimum((x * _HANN).astype(np.int64), _HANN)]
-                env = np.where(pp < 0, 0.0, env)
-                freq = ramp(old.freq_a, new.freq_a)
-                gain = ramp(old.gain_a, new.gain_a)
-                pan_l = ramp(old.pan_a[0], new.pan_a[0])
-                pan_r = ramp(old.pan_a[1], new.pan_a[1])
-                end_pulse = float(pp[-1])
-            else:
-                gp = st.pulse + ticks / (sr * m.glide_period_s)
-                tri = 1.0 - np.abs(2.0 * (gp - np.floor(gp)) - 1.0)  # near end -> far end -> near end
-                fa, fb = ramp(old.freq_a, new.freq_a), ramp(old.freq_b, new.freq_b)
-                freq = fa * np.power(np.divide(fb, fa), tri)
-                gain = ramp(old.gain_a, new.gain_a) * (1 - tri) + ramp(old.gain_b, new.gain_b) * tri
-                pan_l = ramp(old.pan_a[0], new.pan_a[0]) * (1 - tri) + ramp(old.pan_b[0], new.pan_b[0]) * tri
-                pan_r = ramp(old.pan_a[1], new.pan_a[1]) * (1 - tri) + ramp(old.pan_b[1], new.pan_b[1]) * tri
-                env = 1.0
-                end_pulse = float(gp[-1] % 1.0)
-            if isinstance(freq, np.ndarray):
-                cyc = st.osc + np.cumsum(freq) / sr
-            else:
-                cyc = st.osc + ticks * (freq / sr)
-            idx = (cyc * _TABLE).astype(np.int64) & (_TABLE - 1)
-            wave = self._tables[new.harmonics][idx]
-            if old.harmonics != new.harmonics:  # cross-fade timbres: switching tables would click
-                wave = wave + (self._tables[old.harmonics][idx] - wave) * old_w
-            sig = wave * env * gain * m.master_gain
-            out[:, 0] += sig * pan_l
-            out[:, 1] += sig * pan_r
+                st.osc, st.pulse = self._pulse_voice(
+                    out_l, out_r, self._tables[new.harmonics], self._tables[old.harmonics], self._hann,
+                    old.harmonics != new.harmonics, st.osc, st.pulse, float(sr), float(r), m.duty_max, m.master_gain,
+                    old.freq_a, new.freq_a, old.rate, new.rate, old.beep_s, new.beep_s,
+                    old.gain_a, new.gain_a, old.pan_a[0], new.pan_a[0], old.pan_a[1], new.pan_a[1],
+                )
+                st.voice = new
+                continue
+            # A glide: continuous tone, parameters following the triangle near -> far -> near.
+            gp = st.pulse + ticks / (sr * m.glide_period_s)
+            tri = 1.0 - np.abs(2.0 * (gp - np.floor(gp)) - 1.0)
+            fa, fb = ramp(old.freq_a, new.freq_a), ramp(old.freq_b, new.freq_b)
+            freq = fa * np.power(np.divide(fb, fa), tri)
+            gain = (ramp(old.gain_a, new.gain_a) * (1 - tri) + ramp(old.gain_b, new.gain_b) * tri) * m.master_gain
+            cyc = st.osc + np.cumsum(freq) / sr
+            wave = self._tables[new.harmonics][(cyc * _TABLE).astype(np.int64) & (_TABLE - 1)]
+            out_l += wave * gain * (ramp(old.pan_a[0], new.pan_a[0]) * (1 - tri)
+                                    + ramp(old.pan_b[0], new.pan_b[0]) * tri)
+            out_r += wave * gain * (ramp(old.pan_a[1], new.pan_a[1]) * (1 - tri)
+                                    + ramp(old.pan_b[1], new.pan_b[1]) * tri)
             st.osc = float(cyc[-1] % 1.0)
-            st.pulse = end_pulse if end_pulse < 0 else end_pulse % 1.0
+            st.pulse = float(gp[-1] % 1.0)
             st.voice = new
         for key in [k for k, s in self._states.items() if s.fading]:
             del self._states[key]
-        return _soft_limit(out)
+        return _soft_limit(np.column_stack((out_l, out_r)))
 
 
 def render_scene(
