@@ -13,6 +13,7 @@ is hit where the nearest of its parts is hit, and the nearest body wins the pixe
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 from numpy.typing import NDArray
@@ -32,6 +33,7 @@ __all__ = [
     "Primitive",
     "RayHits",
     "cast",
+    "cast_times",
 ]
 
 _EPS = 1e-6
@@ -77,8 +79,10 @@ class Box:
             inv = 1.0 / dirs
             t1 = (lo - origin) * inv
             t2 = (hi - origin) * inv
-        tnear = np.nanmax(np.minimum(t1, t2), axis=1)
-        tfar = np.nanmin(np.maximum(t1, t2), axis=1)
+        lo_t, hi_t = np.minimum(t1, t2), np.maximum(t1, t2)
+        # fmax/fmin skip the NaN of a ray lying in a slab's face (0 * inf)
+        tnear = np.fmax(np.fmax(lo_t[:, 0], lo_t[:, 1]), lo_t[:, 2])
+        tfar = np.fmin(np.fmin(hi_t[:, 0], hi_t[:, 1]), hi_t[:, 2])
         hit = tfar >= np.maximum(tnear, _EPS)
         t = np.where(tnear > _EPS, tnear, tfar)
         return np.where(hit, t, np.inf)
@@ -265,7 +269,15 @@ class Camera:
         return np.array([0.0, -np.sin(p), np.cos(p)])
 
     def rays(self) -> tuple[Arr, Arr]:
-        """World ray directions (H*W, 3), row-major, scaled so camera-z is 1; and their lengths."""
+        """World ray directions (H*W, 3), row-major, scaled so camera-z is 1; and their lengths.
+
+        Computed once per camera and shared (read-only arrays): every frame and every
+        exposure sub-step casts the same rays.
+        """
+        return self._rays
+
+    @cached_property
+    def _rays(self) -> tuple[Arr, Arr]:
         k = self.intrinsics
         u, v = np.meshgrid(np.arange(self.width, dtype=np.float64), np.arange(self.height, dtype=np.float64))
         xc = ((u - k.cx) / k.fx).ravel()
@@ -274,7 +286,10 @@ class Camera:
         right = np.array([1.0, 0.0, 0.0])
         down = np.array([0.0, -np.cos(p), -np.sin(p)])
         dirs = xc[:, None] * right + yc[:, None] * down + self.forward
-        return dirs, np.sqrt(1.0 + xc * xc + yc * yc)
+        lengths = np.sqrt(1.0 + xc * xc + yc * yc)
+        dirs.flags.writeable = False
+        lengths.flags.writeable = False
+        return dirs, lengths
 
 
 @dataclass(frozen=True)
@@ -298,20 +313,30 @@ class RayHits:
 
 def cast(camera: Camera, bodies: tuple[Body, ...], t: float) -> RayHits:
     """Cast every pixel's ray into ``bodies`` at time ``t`` (s); the nearest hit wins."""
+    return cast_times(camera, bodies, (t,))[0]
+
+
+def cast_times(camera: Camera, bodies: tuple[Body, ...], times: tuple[float, ...]) -> list[RayHits]:
+    """:func:`cast` at several instants, intersecting the bodies that do not move only once."""
     dirs, lengths = camera.rays()
     origin = np.asarray(camera.position, dtype=np.float64)
     shape = (camera.height, camera.width)
     if not bodies:
         z = np.zeros(shape)
-        return RayHits(z, z.copy(), np.zeros(shape, np.int32))
-    ts = np.stack([b.intersect(origin, dirs, t) for b in bodies])
-    nearest = np.argmin(ts, axis=0)
-    z = ts[nearest, np.arange(ts.shape[1])]
-    hit = np.isfinite(z)
-    ids = np.array([b.id for b in bodies], dtype=np.int32)[nearest]
-    depth = np.where(hit, z, 0.0)
-    return RayHits(
-        depth.reshape(shape),
-        (depth * lengths).reshape(shape),
-        np.where(hit, ids, 0).astype(np.int32).reshape(shape),
-    )
+        return [RayHits(z, z.copy(), np.zeros(shape, np.int32)) for _ in times]
+    order = sorted(bodies, key=lambda b: b.moving)
+    ids = np.array([b.id for b in order], dtype=np.int32)
+    still = [b.intersect(origin, dirs, 0.0) for b in order if not b.moving]
+    out = []
+    for t in times:
+        ts = np.stack(still + [b.intersect(origin, dirs, t) for b in order if b.moving])
+        nearest = np.argmin(ts, axis=0)
+        z = np.take_along_axis(ts, nearest[None], axis=0)[0]
+        hit = np.isfinite(z)
+        depth = np.where(hit, z, 0.0)
+        out.append(RayHits(
+            depth.reshape(shape),
+            (depth * lengths).reshape(shape),
+            np.where(hit, ids[nearest], 0).astype(np.int32).reshape(shape),
+        ))
+    return out

@@ -98,16 +98,17 @@ def _approach(w: int, h: int) -> SceneSpec:
 
 
 def _crossing(w: int, h: int) -> SceneSpec:
-    # A person walks left to right close by while a cart rolls right to left behind: the
-    # person hides the cart for about three frames at 30 fps around t = 1.2 s.
+    # A person walks in from the left close by while a cart rolls in from the right behind:
+    # the person hides the cart for about four frames at 30 fps around t = 1.2 s; both
+    # leave on the far side (the person by t = 2 s, the cart by t = 2.5 s).
     cam = Camera(w, h, position=(0.0, 900.0, 0.0), pitch_deg=8.0)
     person = Cylinder((-720.0, 0.0, 1300.0), 200.0, 1800.0)
-    cart = Box((1000.0 - 250.0, 0.0, 2100.0), (1000.0 + 250.0, 1000.0, 2350.0))
+    cart = Box((1250.0 - 200.0, 0.0, 2100.0), (1250.0 + 200.0, 1000.0, 2350.0))
     bodies = (
         Body(1, "floor", "floor", (FLOOR,), 0.5),
         Body(2, "back_wall", "wall", (_back_wall(2500.0),), 0.7),
         Body(3, "person", "object", (person,), 0.6, Linear(v=(700.0, 0.0, 0.0)), parent=1),
-        Body(4, "cart", "object", (cart,), 0.7, Linear(v=(-700.0, 0.0, 0.0)), parent=1),
+        Body(4, "cart", "object", (cart,), 0.7, Linear(v=(-900.0, 0.0, 0.0)), parent=1),
     )
     return SceneSpec("crossing", cam, bodies, ToFConfig())
 

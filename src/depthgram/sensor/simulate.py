@@ -10,7 +10,7 @@ from numpy.typing import NDArray
 
 from depthgram.errors import InputError
 from depthgram.frame import Frame
-from depthgram.sensor.geometry import cast
+from depthgram.sensor.geometry import cast_times
 from depthgram.sensor.scenes import SceneSpec, build_scene
 from depthgram.sensor.tof import (
     REFERENCE_INTEGRATION_S,
@@ -166,16 +166,16 @@ def render(spec: SceneSpec, cfg: ToFConfig, index: int, fps: float, rng: np.rand
     """Render frame ``index`` of ``spec``; ``rng`` None means noise-free."""
     cam = spec.camera
     t = index / fps
-    nominal = cast(cam, spec.bodies, t)
     moving = any(b.moving for b in spec.bodies)
     n_sub = cfg.motion_substeps if (cfg.mixed_pixels and moving) else 1
     if n_sub == 1:
+        (nominal,) = cast_times(cam, spec.bodies, (t,))
         hits = [nominal]
     else:
         # The exposure is centred on the frame's instant; a pixel that sees two surfaces
         # during it accumulates the charge of both, which is what makes mixed pixels.
         offsets = ((np.arange(n_sub) + 0.5) / n_sub - 0.5) * cfg.integration_s
-        hits = [cast(cam, spec.bodies, t + float(dt)) for dt in offsets]
+        nominal, *hits = cast_times(cam, spec.bodies, (t, *(t + float(dt) for dt in offsets)))
     refl = np.zeros(max(b.id for b in spec.bodies) + 1)
     for b in spec.bodies:
         refl[b.id] = b.reflectivity
