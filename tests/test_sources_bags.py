@@ -163,3 +163,10 @@ def test_bag_with_mixed_sizes_names_the_frame(tmp_path: Path) -> None:
     bag = write_ros1(tmp_path / "mixed.bag", {"/depth": ("16UC1", arrays)})
     with pytest.raises(InputError, match=r"mixed\.bag topic /depth \(frame 1\): image is 10x4 px but frame 0 is 10x6"):
         list(read(bag))
+
+
+def test_bag_refuses_a_timestamps_file(tmp_path: Path) -> None:
+    bag = write_ros1(tmp_path / "d.bag", {"/depth": ("16UC1", frames_u16(1))})
+    (tmp_path / "t.txt").write_text("0.0\n")
+    with pytest.raises(InputError, match=r"d\.bag: a bag's frame times come from its message headers"):
+        open_source(bag, timestamps=tmp_path / "t.txt")

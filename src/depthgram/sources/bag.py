@@ -82,6 +82,8 @@ class BagSource(Source):
         self.cfg = cfg
         self.name = name
         self.fps = fps
+        if cfg.timestamps is not None:
+            raise InputError(f"{path}: a bag's frame times come from its message headers; drop timestamps=")
         try:
             with _reader(path) as reader:
                 conns = list(reader.connections)
