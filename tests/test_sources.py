@@ -416,6 +416,7 @@ def test_sim_spec_matches_simulate_and_bare_scene_name() -> None:
     direct = [s.frame for s in sensor.simulate("table", 3, size=(48, 36), fps=10, seed=1)]
     src = open_source("sim:table?frames=3&size=48x36&seed=1&fps=10")
     assert src.kind == "sim" and len(src) == 3 and src.fps == 10
+    assert src.intrinsics == direct[0].intrinsics  # known before iterating
     got = list(src)
     assert len(got) == 3
     for a, b in zip(got, direct, strict=True):
@@ -444,7 +445,7 @@ def test_sim_spec_errors(spec: str, match: str) -> None:
 def test_sim_unknown_scene_is_a_clear_error() -> None:
     pytest.importorskip("depthgram.sensor", reason="simulator not available")
     with pytest.raises(InputError, match="kitchen"):
-        list(open_source("sim:kitchen?frames=1"))
+        open_source("sim:kitchen?frames=1")  # refused at open, not at the first frame
 
 
 def test_colour_npy_is_one_image_not_a_stack(tmp_path: Path) -> None:

@@ -124,7 +124,10 @@ class SimSource(Source):
         self.spec = spec
         self.name = name
         self.fps = spec.fps
-        self.intrinsics = intrinsics
+        # One rendered frame (a few ms at the paper's size) checks the scene name at open time
+        # and gives the intrinsics before iteration, through the simulator's public API only.
+        first = next(iter(simulator()(spec.scene, 1, size=spec.size, fps=spec.fps, seed=spec.seed)))
+        self.intrinsics = intrinsics or first.frame.intrinsics
 
     def __len__(self) -> int:
         return self.spec.frames
@@ -133,7 +136,4 @@ class SimSource(Source):
         simulate = simulator()
         s = self.spec
         for sim_frame in simulate(s.scene, s.frames, size=s.size, fps=s.fps, seed=s.seed):
-            frame: Frame = sim_frame.frame
-            if self.intrinsics is None and frame.intrinsics is not None:
-                self.intrinsics = frame.intrinsics
-            yield frame
+            yield sim_frame.frame
