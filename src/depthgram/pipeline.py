@@ -118,19 +118,21 @@ def _toml_value(v: Any) -> Any:
 
 
 def _build_section(klass: type, values: Mapping[str, Any], where: str) -> Any:
+    # A section that knows more than its fields (the sound mapping's ``preset``) builds itself.
+    own = getattr(klass, "from_dict", None)
     fields = {f.name: f for f in dataclasses.fields(klass)}
     unknown = set(values) - set(fields)
-    if unknown:
+    if unknown and own is None:
         raise InputError(f"{where}: unknown setting(s) {sorted(unknown)}; known: {sorted(fields)}")
     default = klass()
     kwargs: dict[str, Any] = {}
     for k, v in values.items():
         # TOML has arrays, not tuples: give tuple-typed fields their tuple back.
-        if isinstance(v, list) and isinstance(getattr(default, k), tuple):
+        if isinstance(v, list) and isinstance(getattr(default, k, None), tuple):
             v = tuple(tuple(x) if isinstance(x, list) else x for x in v)
         kwargs[k] = v
     try:
-        return klass(**kwargs)
+        return own(kwargs) if own is not None else klass(**kwargs)
     except InputError as exc:
         raise InputError(f"{where}: {exc}") from None
     except (TypeError, ValueError) as exc:
