@@ -84,6 +84,9 @@ class TreeConfig:
                 raise InputError(f"TreeConfig.{name} must be in {want}, got {value!r}")
 
 
+_DEFAULT = TreeConfig()
+
+
 def support_depth_at(obj: SceneObject, row: float) -> float:
     """Estimated depth (mm) of a support's surface at an image row.
 
@@ -184,7 +187,7 @@ def build_tree(
     InputError
         For ids < 1, repeated ids, a non-positive frame size or a label map of another size.
     """
-    cfg = config or TreeConfig()
+    cfg = config or _DEFAULT
     width, height = (int(v) for v in frame_size)
     if width <= 0 or height <= 0:
         raise InputError(f"build_tree: frame size must be positive (width, height), got {frame_size}")
@@ -266,13 +269,9 @@ def _supports(
     ok &= (foot >= y0[None, :] - m) & (foot <= y1[None, :] + m)
     # A strict order on (floor, bottom row, area, -id) keeps the support relation a tree:
     # a support reaches at least as low in the image as what it holds, and is larger.
-    key = np.stack([is_floor.astype(np.float64), y1, area, -idv], axis=1)
-    greater = np.zeros((n, n), dtype=bool)
-    decided = np.zeros((n, n), dtype=bool)
-    for k in range(key.shape[1]):
-        a, b = key[:, k][None, :], key[:, k][:, None]
-        greater |= ~decided & (a > b)
-        decided |= a != b
+    rank = np.empty(n, dtype=np.int64)
+    rank[np.lexsort((-idv, area, y1, is_floor))] = np.arange(n)
+    greater = rank[None, :] > rank[:, None]
     ok &= greater
     # Support depth at the object's bottom row (linear ramp, see support_depth_at).
     height = (y1 - y0 + 1)[None, :]
@@ -320,22 +319,24 @@ def _relations(
     overlap &= (y0[:, None] <= y1[None, :]) & (y0[None, :] <= y1[:, None])
     siblings = parent[:, None] == parent[None, :]
     occ = overlap & siblings & (depth[:, None] + gap < depth[None, :])
-    out: list[Relation] = []
-    for i, j in zip(*np.nonzero(occ), strict=True):
-        out.append(Relation(objs[int(i)].id, "occludes", objs[int(j)].id))
+    out = [Relation(objs[i].id, "occludes", objs[j].id) for i, j in zip(*np.nonzero(occ), strict=True)]
+    # Plain lists: indexing numpy scalars one by one costs more than the whole loop.
+    occl = occ.tolist()
+    bx0, by0, bx1, by1 = x0.tolist(), y0.tolist(), x1.tolist(), y1.tolist()
+    z = depth.tolist()
     for group in kids.values():
         for i, j in itertools.pairwise(group):
-            if occ[i, j] or occ[j, i]:
+            if occl[i][j] or occl[j][i]:
                 continue
-            a, b = objs[i], objs[j]
-            if x1[i] < x0[j]:
-                out.append(Relation(a.id, "left_of", b.id))
-            elif y1[i] < y0[j]:
-                out.append(Relation(a.id, "above", b.id))
-            elif y1[j] < y0[i]:
-                out.append(Relation(a.id, "below", b.id))
-            elif depth[i] + gap < depth[j]:
-                out.append(Relation(a.id, "in_front_of", b.id))
-            elif depth[j] + gap < depth[i]:
-                out.append(Relation(b.id, "in_front_of", a.id))
+            a, b = objs[i].id, objs[j].id
+            if bx1[i] < bx0[j]:
+                out.append(Relation(a, "left_of", b))
+            elif by1[i] < by0[j]:
+                out.append(Relation(a, "above", b))
+            elif by1[j] < by0[i]:
+                out.append(Relation(a, "below", b))
+            elif z[i] + gap < z[j]:
+                out.append(Relation(a, "in_front_of", b))
+            elif z[j] + gap < z[i]:
+                out.append(Relation(b, "in_front_of", a))
     return tuple(out)
