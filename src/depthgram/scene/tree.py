@@ -44,6 +44,11 @@ class Node:
 
     The root has kind ``Bkg`` and id 0. Every other node is a terminal ``o_<label>``
     carrying its object's attributes; objects standing on a support are its children.
+
+    Conventions of :func:`depthgram.scene.build_tree`: the root's label is -1 (no depth
+    band), its area is the frame's pixel count and its center the image center, so the
+    frame size is recoverable; ``parts`` holds the sorted distinct depth labels of a
+    compound object's parts (written ``o_2..5`` when successive).
     """
 
     id: int
