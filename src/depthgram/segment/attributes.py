@@ -41,9 +41,7 @@ class Stats:
     syz: NDArray[Any] | None
 
 
-def label_stats(
-    labels: NDArray[np.int32], depth_mm: NDArray[np.floating], n: int, *, metric: bool = False
-) -> Stats:
+def label_stats(labels: NDArray[np.int32], depth_mm: NDArray[np.floating], n: int, *, metric: bool = False) -> Stats:
     """Sums per label over the pixels with a label > 0.
 
     Parameters

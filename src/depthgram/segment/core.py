@@ -13,9 +13,16 @@ from depthgram.segment.attributes import label_stats, make_objects, relabel_smal
 from depthgram.segment.config import SegmentConfig
 from depthgram.segment.histogram import Bands
 from depthgram.segment.objects import Histogram, SceneObject, Segmentation
-from depthgram.segment.orientation import FACING, HORIZONTAL, VERTICAL, default_intrinsics, orientation_classes
+from depthgram.segment.orientation import FACING, HORIZONTAL, VERTICAL, default_intrinsics, orientation_field
 from depthgram.segment.region import region_grow
-from depthgram.segment.slices import slice_parts, support_components, support_kind
+from depthgram.segment.slices import (
+    front_faces,
+    merge_coplanar,
+    on_support_planes,
+    slice_parts,
+    support_components,
+    support_kind,
+)
 from depthgram.segment.threshold import band_image, threshold_labels
 from depthgram.segment.validate import check_depth
 
@@ -130,7 +137,7 @@ def _slices(
     depth: NDArray[np.float32], ok: NDArray[np.bool_], intrinsics: Intrinsics | None, cfg: SegmentConfig
 ) -> Segmentation:
     cam = intrinsics or default_intrinsics(depth.shape)
-    classes = orientation_classes(
+    classes, _ = orientation_field(
         depth, ok, cam, window_px=cfg.normal_window_px, oblique_deg=cfg.oblique_deg, jump_rel=cfg.jump_rel
     )
     wanted = []
@@ -142,10 +149,18 @@ def _slices(
         if cls not in wanted:
             classes[classes == cls] = FACING
     min_px = cfg.min_area_px(depth.size)
-    # supports first: a class region too small to be a surface goes back to the facing pixels
+    # supports first: a piece of surface too small to matter goes back to the facing pixels
     support_maps: list[tuple[int, NDArray[np.int32], int]] = []
     for cls in wanted:
         lab, n = support_components(depth, ok, classes, cls, jump_rel=cfg.jump_rel, bridge=cfg.fill_holes_px)
+        lab, n = merge_coplanar(lab, n, depth, cam, min_fit_px=max(min_px // 2, 10))
+        # noise makes some support pixels look facing; those lying on a big support's plane
+        # go back to it (an upright object meets that plane only along its base row)
+        near = on_support_planes(lab, n, depth, ok & (classes == FACING), cam, min_px=min_px, tol_rel=cfg.jump_rel / 2)
+        if near.any():
+            classes[near] = cls
+            lab, n = support_components(depth, ok, classes, cls, jump_rel=cfg.jump_rel, bridge=cfg.fill_holes_px)
+            lab, n = merge_coplanar(lab, n, depth, cam, min_fit_px=max(min_px // 2, 10))
         counts = np.bincount(lab.ravel(), minlength=n + 1).astype(np.float64)
         small = counts < min_px
         small[0] = False
@@ -164,19 +179,39 @@ def _slices(
         labels[lab > 0] = lab[lab > 0] + (next_id - 1)
         next_id += n
         compounds.extend((cls, o) for o in objs)
-    floor_ids = {o.id for c, o in compounds if c == HORIZONTAL and o.centroid_mm is not None and o.centroid_mm[1] > 0}
+    # only supports seen from above (floor, table tops) can have a front face below them
+    horizontal_ids = np.array(
+        [o.id for c, o in compounds if c == HORIZONTAL and o.centroid_mm and o.centroid_mm[1] > 0], np.int32
+    )
+    fronts = front_faces(labels, depth, len(objects), horizontal_ids, jump_rel=cfg.jump_rel)
+    with_front = set(fronts.values())
+    if fronts:
+        lut = np.arange(next_id, dtype=np.int32)
+        for f, sup in fronts.items():
+            lut[f] = sup
+        labels = lut[labels]
+        objects = [o for o in objects if o.id not in fronts]
+    objects, labels, remap = _renumber(objects, labels, compounds)
+    floor_ids = {o.id for c, o in compounds if c == HORIZONTAL and o.centroid_mm and o.centroid_mm[1] > 0}
     lowest = max(
-        (o for c, o in compounds if o.id in floor_ids and o.centroid_mm is not None),
+        (o for c, o in compounds if o.id in floor_ids and o.id not in with_front),
         key=lambda o: o.centroid_mm[1] if o.centroid_mm is not None else 0.0,
         default=None,
     )
-    part_id = next_id
+    part_id = len(objects) + len(compounds) + 1
+    keep_metric = intrinsics is not None
+    recount = label_stats(labels, depth, int(labels.max(initial=0)), metric=True)
+    merged = {o.id: o for o in make_objects(labels, recount, intrinsics=cam)}
     for cls, o in compounds:
+        new_id = remap[o.id]
+        whole = merged[new_id]
         kind = support_kind(cls, o.centroid_mm[1] if o.centroid_mm else 0.0, lowest is not None and o.id == lowest.id)
+        if o.id in with_front:
+            kind = "compound"  # a horizontal top with a face below it: a table, a box, a step
         parts = slice_parts(
             labels,
             depth,
-            o,
+            whole,
             horizontal=cls == HORIZONTAL,
             aperture=cfg.slice_aperture,
             depth_label=bands.depth_label,
@@ -184,18 +219,30 @@ def _slices(
             first_id=part_id,
         )
         part_id += len(parts)
-        label = parts[0].label if parts else int(bands.depth_label(o.depth))
-        keep_metric = intrinsics is not None
+        label = min(p.label for p in parts) if parts else int(bands.depth_label(o.depth))
         objects.append(
             replace(
-                o,
+                whole,
                 kind=kind,
                 label=label,
                 parts=parts,
-                centroid_mm=o.centroid_mm if keep_metric else None,
-                area_mm2=o.area_mm2 if keep_metric else None,
+                centroid_mm=whole.centroid_mm if keep_metric else None,
+                area_mm2=whole.area_mm2 if keep_metric else None,
             )
         )
     extras = _extras(bands)
     extras["classes"] = classes
     return Segmentation(labels, tuple(objects), bands.histogram, "slices", extras)
+
+
+def _renumber(
+    objects: list[SceneObject], labels: NDArray[np.int32], compounds: list[tuple[int, SceneObject]]
+) -> tuple[list[SceneObject], NDArray[np.int32], dict[int, int]]:
+    """Ids 1..n again after front faces were folded into their supports: facing objects first."""
+    old = [o.id for o in objects] + [o.id for _, o in compounds]
+    lut = np.zeros(int(labels.max(initial=0)) + 1, np.int32)
+    remap = {}
+    for new, oid in enumerate(old, start=1):
+        lut[oid] = new
+        remap[oid] = new
+    return [replace(o, id=remap[o.id]) for o in objects], lut[labels], remap

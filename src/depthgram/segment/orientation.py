@@ -19,7 +19,7 @@ from numpy.typing import NDArray
 
 from depthgram.frame import Intrinsics
 
-__all__ = ["default_intrinsics", "orientation_classes"]
+__all__ = ["default_intrinsics", "orientation_classes", "orientation_field"]
 
 #: Classes returned by :func:`orientation_classes`.
 FACING, HORIZONTAL, VERTICAL = 0, 1, 2
@@ -43,6 +43,24 @@ def orientation_classes(
 ) -> NDArray[np.int8]:
     """Per-pixel class: 0 facing the sensor (or unknown), 1 horizontal, 2 vertical lateral.
 
+    See :func:`orientation_field` for the parameters.
+    """
+    return orientation_field(
+        depth_mm, valid, intrinsics, window_px=window_px, oblique_deg=oblique_deg, jump_rel=jump_rel
+    )[0]
+
+
+def orientation_field(
+    depth_mm: NDArray[np.float32],
+    valid: NDArray[np.bool_],
+    intrinsics: Intrinsics,
+    *,
+    window_px: int = 7,
+    oblique_deg: float = 35.0,
+    jump_rel: float = 0.05,
+) -> tuple[NDArray[np.int8], NDArray[np.float32]]:
+    """Per-pixel class (0 facing or unknown, 1 horizontal, 2 vertical lateral) and unit normal.
+
     Parameters
     ----------
     depth_mm : ndarray of float32, shape (H, W)
@@ -58,6 +76,13 @@ def orientation_classes(
         horizontal surface, or its horizontal axis for a wall.
     jump_rel : float
         Relative depth step between neighbours marking an occlusion edge.
+
+    Returns
+    -------
+    classes : ndarray of int8, shape (H, W)
+    normals : ndarray of float32, shape (H, W, 3)
+        Unit surface normal in the camera frame (x right, y down, z forward), turned toward
+        the sensor.
     """
     h, w = depth_mm.shape
     inv = np.zeros_like(depth_mm)
@@ -68,8 +93,8 @@ def orientation_classes(
     m = valid.astype(np.float32)
     k = (window_px, window_px)
     den = np.maximum(cv2.boxFilter(m, -1, k, normalize=False, borderType=cv2.BORDER_REPLICATE), 1e-6)
-    gx = cv2.boxFilter(gx, -1, k, normalize=False, borderType=cv2.BORDER_REPLICATE) / den
-    gy = cv2.boxFilter(gy, -1, k, normalize=False, borderType=cv2.BORDER_REPLICATE) / den
+    gx = np.asarray(cv2.boxFilter(gx, -1, k, normalize=False, borderType=cv2.BORDER_REPLICATE) / den, np.float32)
+    gy = np.asarray(cv2.boxFilter(gy, -1, k, normalize=False, borderType=cv2.BORDER_REPLICATE) / den, np.float32)
     fx, fy, cx, cy = intrinsics.fx, intrinsics.fy, intrinsics.cx, intrinsics.cy
     a = fx * gx
     b = fy * gy
@@ -83,7 +108,10 @@ def orientation_classes(
     cls[np.abs(a) >= cos_t * norm] = VERTICAL
     jump = (_jumps(depth_mm, valid, jump_rel) | _jumps(depth_mm.T, valid.T, jump_rel).T).astype(np.uint8)
     cls[jump.astype(bool) | ~valid] = FACING
-    return cls
+    # (a, b, c) . ray = 1/Z > 0 always, so its opposite is the normal turned toward the sensor
+    sign = np.float32(-1.0) / norm
+    normals = np.stack([a * sign, b * sign, c * sign], axis=-1).astype(np.float32)
+    return cls, normals
 
 
 def _jumps(z: NDArray[np.float32], valid: NDArray[np.bool_], jump_rel: float) -> NDArray[np.bool_]:

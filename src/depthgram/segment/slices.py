@@ -17,6 +17,7 @@ import math
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy import ndimage
 
 from depthgram.frame import Intrinsics
 from depthgram.segment.attributes import label_stats, make_objects
@@ -24,7 +25,15 @@ from depthgram.segment.label import ACTIVE, BLOCK, HOLE, label_keyed
 from depthgram.segment.objects import SceneObject
 from depthgram.segment.orientation import HORIZONTAL, VERTICAL
 
-__all__ = ["slice_parts", "support_components"]
+__all__ = [
+    "front_faces",
+    "merge_coplanar",
+    "on_support_planes",
+    "plane_fits",
+    "slice_parts",
+    "support_components",
+    "support_kind",
+]
 
 
 def support_components(
@@ -114,3 +123,161 @@ def support_kind(cls: int, centroid_y_mm: float, is_lowest: bool) -> str:
     if cls == HORIZONTAL and centroid_y_mm < 0:
         return "ceiling"
     return "floor" if is_lowest else "compound"
+
+
+def plane_fits(
+    labels: NDArray[np.int32], n: int, depth_mm: NDArray[np.float32], cam: Intrinsics
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Least-squares plane of each label: unit normal toward the sensor and offset (mm).
+
+    Inverse depth is exactly affine in the normalised image coordinates for a plane
+    (``1/Z = (n . ray) / d``), so the fit is linear: ``1/Z = alpha u' + beta v' + gamma`` from
+    nine weighted bincounts, then ``n = -(alpha, beta, gamma) / |.|`` and ``d = 1 / |.|``.
+    """
+    flat = labels.ravel()
+    idx = np.flatnonzero(flat)
+    lab = flat[idx]
+    m = n + 1
+    ys, xs = np.divmod(idx, labels.shape[1])
+    u = (xs - cam.cx) / cam.fx
+    v = (ys - cam.cy) / cam.fy
+    w = 1.0 / depth_mm.ravel()[idx].astype(np.float64)
+    feats = (u, v, np.ones_like(u))
+    ata = np.empty((m, 3, 3))
+    atb = np.empty((m, 3))
+    for i in range(3):
+        atb[:, i] = np.bincount(lab, weights=feats[i] * w, minlength=m)
+        for j in range(i, 3):
+            ata[:, i, j] = ata[:, j, i] = np.bincount(lab, weights=feats[i] * feats[j], minlength=m)
+    ata[0] = np.eye(3)
+    atb[0] = (0.0, 0.0, 1.0)
+    ata += np.eye(3) * 1e-12
+    coef = np.linalg.solve(ata, atb[..., None])[..., 0]
+    norm = np.maximum(np.linalg.norm(coef, axis=1), 1e-15)
+    return -coef / norm[:, None], 1.0 / norm
+
+
+def merge_coplanar(
+    labels: NDArray[np.int32],
+    n: int,
+    depth_mm: NDArray[np.float32],
+    cam: Intrinsics,
+    *,
+    max_angle_deg: float = 10.0,
+    max_offset_rel: float = 0.08,
+    min_fit_px: int = 1,
+) -> tuple[NDArray[np.int32], int]:
+    """Join pieces of one plane cut apart by occluders (the floor between two boxes).
+
+    Pieces join when their fitted normals (:func:`plane_fits`) agree within ``max_angle_deg``
+    and their plane offsets within ``max_offset_rel``. Pieces under ``min_fit_px`` pixels are
+    left alone: a few rows give no reliable plane (a cup's rim would join the table top).
+    """
+    if n < 2:
+        return labels, n
+    normal, off = plane_fits(labels, n, depth_mm, cam)
+    same_dir = normal @ normal.T > math.cos(math.radians(max_angle_deg))
+    close = np.abs(off[:, None] - off[None, :]) <= max_offset_rel * np.maximum(off[:, None], off[None, :])
+    big = np.bincount(labels.ravel(), minlength=n + 1) >= min_fit_px
+    join = same_dir & close & big[:, None] & big[None, :]
+    join[0, :] = False
+    join[:, 0] = False
+    parent = list(range(n + 1))
+
+    def root(i: int) -> int:
+        while parent[i] != i:
+            i = parent[i]
+        return i
+
+    for i, j in zip(*np.nonzero(np.triu(join, 1)), strict=True):
+        a, b = root(int(i)), root(int(j))
+        if a != b:
+            parent[max(a, b)] = min(a, b)
+    roots = np.array([root(i) for i in range(n + 1)])
+    uniq, lut = np.unique(roots, return_inverse=True)
+    out: NDArray[np.int32] = lut.astype(np.int32)[labels]
+    return out, int(uniq.size - 1)
+
+
+def front_faces(
+    labels: NDArray[np.int32],
+    depth_mm: NDArray[np.float32],
+    n_facing: int,
+    horizontal_ids: NDArray[np.int32],
+    *,
+    jump_rel: float,
+    min_contact: float = 0.5,
+) -> dict[int, int]:
+    """Facing objects that are the front face of a horizontal support right above them.
+
+    A table's front edge or a box's front face meets its top along the face's upper edge, at
+    the same depth; an object standing on the support meets it along its base instead, and
+    its upper edge borders the support farther behind (a depth jump). Returns
+    ``{facing id: support id}`` for faces whose upper edge touches the support, without a
+    depth jump, over at least ``min_contact`` of the face's width.
+    """
+    if n_facing == 0 or horizontal_ids.size == 0:
+        return {}
+    below = labels[1:, :]
+    above = labels[:-1, :]
+    is_support = np.zeros(int(labels.max(initial=0)) + 1, bool)
+    is_support[horizontal_ids] = True
+    za, zb = depth_mm[:-1, :], depth_mm[1:, :]
+    contact = (below > 0) & (below <= n_facing) & is_support[above]
+    contact &= np.abs(za - zb) <= jump_rel * np.maximum(za, zb)
+    if not contact.any():
+        return {}
+    pairs = below[contact].astype(np.int64) * (is_support.size) + above[contact]
+    uniq, cnt = np.unique(pairs, return_counts=True)
+    boxes = ndimage.find_objects(labels, max_label=n_facing)
+    widths = np.array([0] + [b[1].stop - b[1].start if b is not None else 0 for b in boxes], np.float64)
+    out: dict[int, int] = {}
+    best: dict[int, int] = {}
+    for key, c in zip(uniq.tolist(), cnt.tolist(), strict=True):
+        f, s = divmod(key, is_support.size)
+        if c >= min_contact * widths[f] and c > best.get(f, 0):
+            out[f] = s
+            best[f] = c
+    return out
+
+
+def on_support_planes(
+    labels: NDArray[np.int32],
+    n: int,
+    depth_mm: NDArray[np.float32],
+    candidates: NDArray[np.bool_],
+    cam: Intrinsics,
+    *,
+    min_px: int,
+    tol_rel: float,
+) -> NDArray[np.bool_]:
+    """Candidate pixels whose depth lies on the fitted plane of a support of >= ``min_px`` pixels.
+
+    Only pixels inside the support's bounding box (grown by a tenth) are tested, so a far
+    object that happens to lie on the plane's extension elsewhere is not taken.
+    """
+    out = np.zeros(labels.shape, bool)
+    if n == 0 or not candidates.any():
+        return out
+    normal, off = plane_fits(labels, n, depth_mm, cam)
+    counts = np.bincount(labels.ravel(), minlength=n + 1)
+    boxes = ndimage.find_objects(labels, max_label=n)
+    h, w = labels.shape
+    for i in np.flatnonzero(counts >= min_px):
+        if i == 0 or boxes[i - 1] is None:
+            continue
+        ys, xs = boxes[i - 1]
+        my = (ys.stop - ys.start) // 10 + 1
+        mx = (xs.stop - xs.start) // 10 + 1
+        y0, y1 = max(ys.start - my, 0), min(ys.stop + my, h)
+        x0, x1 = max(xs.start - mx, 0), min(xs.stop + mx, w)
+        # 1/Z predicted by the plane: -(n . ray) / d
+        u = ((np.arange(x0, x1) - cam.cx) / cam.fx)[None, :]
+        v = ((np.arange(y0, y1) - cam.cy) / cam.fy)[:, None]
+        inv_pred = -(normal[i, 0] * u + normal[i, 1] * v + normal[i, 2]) / off[i]
+        z = depth_mm[y0:y1, x0:x1]
+        cand = candidates[y0:y1, x0:x1]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            agree = np.abs(inv_pred * z - 1.0) <= tol_rel
+        out[y0:y1, x0:x1] |= cand & agree & (inv_pred > 0)
+    return out
