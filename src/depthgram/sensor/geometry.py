@@ -34,6 +34,7 @@ __all__ = [
     "RayHits",
     "cast",
     "cast_times",
+    "static_hits",
 ]
 
 _EPS = 1e-6
@@ -316,17 +317,34 @@ def cast(camera: Camera, bodies: tuple[Body, ...], t: float) -> RayHits:
     return cast_times(camera, bodies, (t,))[0]
 
 
-def cast_times(camera: Camera, bodies: tuple[Body, ...], times: tuple[float, ...]) -> list[RayHits]:
-    """:func:`cast` at several instants, intersecting the bodies that do not move only once."""
+def static_hits(camera: Camera, bodies: tuple[Body, ...]) -> list[Arr]:
+    """Ray parameters (one array per body that does not move, in ``bodies`` order).
+
+    Pass the result to :func:`cast_times` as ``still`` to intersect static geometry once
+    for a whole sequence instead of at every frame.
+    """
+    dirs, _ = camera.rays()
+    origin = np.asarray(camera.position, dtype=np.float64)
+    return [b.intersect(origin, dirs, 0.0) for b in bodies if not b.moving]
+
+
+def cast_times(
+    camera: Camera, bodies: tuple[Body, ...], times: tuple[float, ...], still: list[Arr] | None = None
+) -> list[RayHits]:
+    """:func:`cast` at several instants, intersecting the bodies that do not move only once.
+
+    ``still`` is :func:`static_hits` of the same camera and bodies, when already computed.
+    """
     dirs, lengths = camera.rays()
     origin = np.asarray(camera.position, dtype=np.float64)
     shape = (camera.height, camera.width)
     if not bodies:
         z = np.zeros(shape)
         return [RayHits(z, z.copy(), np.zeros(shape, np.int32)) for _ in times]
-    order = sorted(bodies, key=lambda b: b.moving)
+    order = [b for b in bodies if not b.moving] + [b for b in bodies if b.moving]
     ids = np.array([b.id for b in order], dtype=np.int32)
-    still = [b.intersect(origin, dirs, 0.0) for b in order if not b.moving]
+    if still is None:
+        still = static_hits(camera, bodies)
     out = []
     for t in times:
         ts = np.stack(still + [b.intersect(origin, dirs, t) for b in order if b.moving])

@@ -10,7 +10,7 @@ from numpy.typing import NDArray
 
 from depthgram.errors import InputError
 from depthgram.frame import Frame
-from depthgram.sensor.geometry import cast_times
+from depthgram.sensor.geometry import cast_times, static_hits
 from depthgram.sensor.scenes import SceneSpec, build_scene
 from depthgram.sensor.tof import (
     REFERENCE_INTEGRATION_S,
@@ -158,24 +158,36 @@ def simulate(
 
 
 def _frames(spec: SceneSpec, cfg: ToFConfig, frames: int, fps: float, seed: int, noise: bool) -> Iterator[SimFrame]:
+    still = static_hits(spec.camera, spec.bodies)
     for k in range(frames):
-        yield render(spec, cfg, k, fps, np.random.default_rng([seed, k]) if noise else None)
+        yield render(spec, cfg, k, fps, np.random.default_rng([seed, k]) if noise else None, still)
 
 
-def render(spec: SceneSpec, cfg: ToFConfig, index: int, fps: float, rng: np.random.Generator | None) -> SimFrame:
-    """Render frame ``index`` of ``spec``; ``rng`` None means noise-free."""
+def render(
+    spec: SceneSpec,
+    cfg: ToFConfig,
+    index: int,
+    fps: float,
+    rng: np.random.Generator | None,
+    still: list[NDArray[np.float64]] | None = None,
+) -> SimFrame:
+    """Render frame ``index`` of ``spec``; ``rng`` None means noise-free.
+
+    ``still`` is :func:`~depthgram.sensor.geometry.static_hits` of the scene, shared by
+    all frames of a sequence.
+    """
     cam = spec.camera
     t = index / fps
     moving = any(b.moving for b in spec.bodies)
     n_sub = cfg.motion_substeps if (cfg.mixed_pixels and moving) else 1
     if n_sub == 1:
-        (nominal,) = cast_times(cam, spec.bodies, (t,))
+        (nominal,) = cast_times(cam, spec.bodies, (t,), still)
         hits = [nominal]
     else:
         # The exposure is centred on the frame's instant; a pixel that sees two surfaces
         # during it accumulates the charge of both, which is what makes mixed pixels.
         offsets = ((np.arange(n_sub) + 0.5) / n_sub - 0.5) * cfg.integration_s
-        nominal, *hits = cast_times(cam, spec.bodies, (t, *(t + float(dt) for dt in offsets)))
+        nominal, *hits = cast_times(cam, spec.bodies, (t, *(t + float(dt) for dt in offsets)), still)
     refl = np.zeros(max(b.id for b in spec.bodies) + 1)
     for b in spec.bodies:
         refl[b.id] = b.reflectivity
