@@ -188,3 +188,28 @@ def test_bad_requests_raise_clear_errors() -> None:
         simulate("table", size=(100000, 100000))
     with pytest.raises(InputError, match="fps"):
         simulate("table", fps=0.0)
+
+
+def test_dim_far_pixels_are_invalid_and_belong_to_nobody() -> None:
+    # a = 8000 e * 0.8 / (6 m)^2 = 178 e at the end wall: below a 300 e threshold, so invalid;
+    # the box at 2.6-2.9 m returns 8000 * 0.7 / 2.9^2 >= 666 e and stays valid.
+    cfg = ToFConfig(f_mod2_hz=40e6, min_amplitude_e=300.0)
+    (sim,) = simulate("corridor", 1, noise=False, tof=cfg)
+    (ref,) = simulate("corridor", 1, noise=False)
+    end_id = _by_name(ref)["end_wall"].id
+    end = ref.instances == end_id
+    assert not sim.frame.valid[end].any() and (sim.frame.depth[end] == 0).all()
+    assert not (sim.instances == end_id).any() and "end_wall" not in _by_name(sim)
+    assert _by_name(sim)["box"].area == _by_name(ref)["box"].area
+    # truth areas count only the valid pixels of each body
+    for o in sim.truth:
+        assert o.area == np.count_nonzero((ref.instances == o.id) & sim.frame.valid)
+
+
+def test_eight_bit_code_spans_the_unwrapped_range_with_two_frequencies() -> None:
+    cfg = ToFConfig(f_mod2_hz=40e6, bits=8)
+    (sim,) = simulate("corridor", 1, noise=False, tof=cfg)
+    step = cfg.range_mm / 254  # 14990 mm / 254 = 59 mm
+    assert step == pytest.approx(59.0, abs=0.1)
+    ok = sim.frame.valid
+    assert np.max(np.abs(sim.frame.depth[ok] - sim.true_depth[ok])) <= step / 2 + 0.01

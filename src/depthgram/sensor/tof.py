@@ -77,8 +77,9 @@ class ToFConfig:
         Output quantization: 16 (millimetres, as most depth PNGs) or 8 (the paper's 0-255 over
         ``near_8bit_mm`` .. ``far_8bit_mm``).
     near_8bit_mm, far_8bit_mm : float
-        Range (mm) of the 8-bit code. ``far_8bit_mm`` None means the ambiguity range of
-        ``f_mod_hz`` (a step of about 11.8 mm at 50 MHz, the paper's "order of one centimeter").
+        Range (mm) of the 8-bit code. ``far_8bit_mm`` None means the range read without
+        wrap-around (:attr:`range_mm`): the ambiguity range of ``f_mod_hz`` with one
+        frequency, a step of about 11.8 mm at 50 MHz (the paper's "order of one centimeter").
     mixed_pixels : bool
         Simulate pixels on moving edges that see two surfaces during the exposure and
         average their correlation samples, giving an in-between depth.
@@ -269,7 +270,7 @@ def quantize(depth_mm: ArrayLike, cfg: ToFConfig) -> NDArray[np.float32]:
     d = np.asarray(depth_mm, dtype=np.float64)
     if cfg.bits == 16:
         return np.where(d > 0, np.clip(np.rint(d), 1, 65535), 0).astype(np.float32)
-    far = ambiguity_range_mm(cfg.f_mod_hz) if cfg.far_8bit_mm is None else cfg.far_8bit_mm
+    far = cfg.range_mm if cfg.far_8bit_mm is None else cfg.far_8bit_mm
     codes = depth_to_8bit(d, cfg.near_8bit_mm, far)
     return depth_from_8bit(codes, cfg.near_8bit_mm, far)
 
