@@ -7,7 +7,14 @@ import math
 import numpy as np
 import pytest
 
-from depthgram.dynamics import TrackerConfig, assign, bbox_iou, fit_radial_velocity, time_to_collision
+from depthgram.dynamics import (
+    TrackerConfig,
+    assign,
+    bbox_iou,
+    fit_radial_velocity,
+    match_cost,
+    time_to_collision,
+)
 from depthgram.dynamics.match import FORBIDDEN
 from depthgram.errors import InputError
 
@@ -98,3 +105,21 @@ def test_config_defaults_follow_the_paper() -> None:
     c = TrackerConfig()
     assert c.queue_length >= 3  # "three or more will increase the robustness"
     assert TrackerConfig(queue_length=2, max_depth_change=1).queue_length == 2  # TOML ints accepted
+
+
+def test_match_cost_hand_computed_and_gates() -> None:
+    cfg = TrackerConfig()  # center gate 0.1 * diagonal, depth gate 20 %, weights 1, 1, 0.5, 1, 0.2
+
+    def cost(obj_depth: float, missed: int) -> float:
+        c = match_cost(
+            [[100.0, 100.0]], [1000.0], [400.0], [[90.0, 90.0, 109.0, 109.0]], [0], [missed],
+            [[110.0, 100.0]], [obj_depth], [400.0], [[100.0, 90.0, 119.0, 109.0]], [1],
+            800.0, cfg,
+        )  # fmt: skip
+        return float(c[0, 0])
+
+    # center 10/80, depth 50/200, area 0, 1 - IoU = 1 - 200/600, label mismatch 0.2
+    assert cost(1050.0, 0) == pytest.approx(10 / 80 + 50 / 200 + 2 / 3 + 0.2)
+    assert cost(1300.0, 0) == FORBIDDEN  # 30 % depth change in one frame
+    # After one missed frame the depth gate doubles and the center gate grows by 25 %.
+    assert cost(1300.0, 1) == pytest.approx(10 / 100 + 300 / 400 + 2 / 3 + 0.2)

@@ -2,11 +2,14 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
 from depthgram.dynamics import Tracker, TrackerConfig
 from depthgram.errors import InputError
+from depthgram.scene.tree import Motion
 from depthgram.segment.objects import SceneObject
 
 W, H = 640, 480
@@ -260,3 +263,13 @@ def test_bad_input_is_reported() -> None:
         tr.update([o], 1.0, (W, H))
     with pytest.raises(InputError, match="timestamps"):
         tr.update([o], None, (W, H))
+
+
+def test_motions_are_ordinary_motion_objects() -> None:
+    tr = Tracker()
+    for k, o in enumerate(approaching(-600.0, 2000.0, 3, noise=0.0)):
+        m = tr.update([o], k / FPS, (W, H)).motions[3]
+    expected = Motion(track_id=1, v_radial=m.v_radial, ttc=m.ttc, status="visible", per_frame=False)
+    assert m == expected and repr(m) == repr(expected) and hash(m) == hash(expected)
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        m.ttc = 0.0  # type: ignore[misc]

@@ -12,7 +12,10 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-__all__ = ["fit_radial_velocity", "time_to_collision"]
+from depthgram.dynamics.kernels import fit_row, fit_rows
+from depthgram.errors import InputError
+
+__all__ = ["fit_radial_velocity", "fit_row", "time_to_collision"]
 
 
 def fit_radial_velocity(
@@ -41,35 +44,17 @@ def fit_radial_velocity(
     """
     t = np.asarray(times, dtype=np.float64)
     z = np.asarray(depths, dtype=np.float64)
+    if t.shape != z.shape or t.ndim not in (1, 2):
+        raise InputError(f"fit_radial_velocity: times {t.shape} and depths {z.shape} must be equal 1-D or 2-D")
     one = t.ndim == 1
-    t2 = np.atleast_2d(t)
-    z2 = np.atleast_2d(z)
-    if t_now is None:
-        tn = t2[:, -1]
-    else:
-        tn = np.broadcast_to(np.asarray(t_now, dtype=np.float64), t2.shape[:1])
-    ok = np.isfinite(z2) & np.isfinite(t2)
-    w = ok.astype(np.float64)
-    n = w.sum(axis=1)
-    # Centre on t_now so that large timestamps (Unix seconds) keep full precision.
-    tc = np.where(ok, t2 - tn[:, None], 0.0)
-    zc = np.where(ok, z2, 0.0)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        tb = tc.sum(axis=1) / n
-        zb = zc.sum(axis=1) / n
-        dt = np.where(ok, tc - tb[:, None], 0.0)
-        den = (dt * dt).sum(axis=1)
-        num = (dt * (zc - zb[:, None])).sum(axis=1)
-        good = (n >= 2) & (den > 0)
-        v = np.where(good, num / np.where(good, den, 1.0), np.nan)
-        z_fit = zb - v * tb
-    # Without a slope, the best depth estimate is the most recent valid one.
-    last_idx = z2.shape[1] - 1 - np.argmax(ok[:, ::-1], axis=1)
-    last_z = np.where(n > 0, z2[np.arange(z2.shape[0]), last_idx], np.nan)
-    z_now = np.where(good, z_fit, last_z)
+    t2 = np.ascontiguousarray(np.atleast_2d(t))
+    z2 = np.ascontiguousarray(np.atleast_2d(z))
+    tn = t2[:, -1] if t_now is None else np.asarray(t_now, dtype=np.float64)
+    tn = np.ascontiguousarray(np.broadcast_to(tn, t2.shape[:1]))
+    v, zn = fit_rows(t2, z2, tn)
     if one:
-        return v[0], z_now[0]
-    return v, z_now
+        return v[0], zn[0]
+    return v, zn
 
 
 def time_to_collision(depth: ArrayLike, v_radial: ArrayLike, min_speed: float) -> NDArray[np.float64]:

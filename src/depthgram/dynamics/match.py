@@ -8,17 +8,17 @@ one-to-one matching over all pairs, so no object steals a track just by coming f
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import linear_sum_assignment
 
 from depthgram.dynamics.config import TrackerConfig
+from depthgram.dynamics.kernels import FORBIDDEN, cost_kernel
 
-__all__ = ["FORBIDDEN", "assign", "bbox_iou", "match_cost"]
+__all__ = ["FORBIDDEN", "assign", "bbox_iou", "cost_kernel", "cost_params", "match_cost"]
 
-#: Cost of a gated (forbidden) pair. Finite, because linear_sum_assignment rejects
-#: matrices where a row has no finite entry; pairs at this cost are dropped afterwards.
-FORBIDDEN = 1e9
 
 
 def bbox_iou(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -45,38 +45,52 @@ def bbox_iou(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.float
     return np.asarray(inter / np.maximum(union, 1.0), dtype=np.float64)
 
 
+def cost_params(config: TrackerConfig) -> NDArray[np.float64]:
+    """The gates and weights of ``config`` in the order :func:`cost_kernel` reads them."""
+    c = config
+    gates = [c.max_center_frac, c.gate_growth, c.max_depth_change, math.log(c.max_area_ratio), c.min_iou]
+    weights = [c.w_center, c.w_depth, c.w_area, c.w_iou, c.w_label]
+    return np.array(gates + weights, dtype=np.float64)
+
+
 def match_cost(
-    track_center: NDArray[np.float64],
-    track_depth: NDArray[np.float64],
-    track_area: NDArray[np.float64],
-    track_bbox: NDArray[np.float64],
-    track_label: NDArray[np.int64],
-    track_missed: NDArray[np.int64],
-    obj_center: NDArray[np.float64],
-    obj_depth: NDArray[np.float64],
-    obj_area: NDArray[np.float64],
-    obj_bbox: NDArray[np.float64],
-    obj_label: NDArray[np.int64],
+    track_center: ArrayLike,
+    track_depth: ArrayLike,
+    track_area: ArrayLike,
+    track_bbox: ArrayLike,
+    track_label: ArrayLike,
+    track_missed: ArrayLike,
+    obj_center: ArrayLike,
+    obj_depth: ArrayLike,
+    obj_area: ArrayLike,
+    obj_bbox: ArrayLike,
+    obj_label: ArrayLike,
     diagonal_px: float,
     config: TrackerConfig,
 ) -> NDArray[np.float64]:
     """Cost of matching each track (predicted state) to each object, gates applied.
 
+    The cost sums, with the weights of ``config``: center distance over the center gate,
+    depth change over the depth gate, ``|log area ratio|`` over ``log max_area_ratio``,
+    ``1 - IoU`` of the boxes, and ``w_label`` when the depth labels differ. A pair is
+    allowed only when each of the first three is <= 1 and IoU >= ``min_iou``; the center
+    and depth gates widen with the frames a track has missed.
+
     Parameters
     ----------
-    track_center : ndarray, shape (T, 2)
+    track_center : array_like, shape (T, 2)
         Predicted image center (x, y) of each track this frame (px).
-    track_depth : ndarray, shape (T,)
+    track_depth : array_like, shape (T,)
         Predicted mean depth (mm).
-    track_area : ndarray, shape (T,)
+    track_area : array_like, shape (T,)
         Last seen area (px).
-    track_bbox : ndarray, shape (T, 4)
+    track_bbox : array_like, shape (T, 4)
         Predicted bbox (px, inclusive).
-    track_label : ndarray, shape (T,)
+    track_label : array_like, shape (T,)
         Last depth label.
-    track_missed : ndarray, shape (T,)
-        Frames since the last detection before this one; gates widen with it.
-    obj_center, obj_depth, obj_area, obj_bbox, obj_label : ndarray
+    track_missed : array_like, shape (T,)
+        Frames missed before this one.
+    obj_center, obj_depth, obj_area, obj_bbox, obj_label : array_like
         The same attributes of this frame's M objects.
     diagonal_px : float
         Image diagonal (px), the scale of the center gate.
@@ -88,29 +102,18 @@ def match_cost(
     ndarray of float, shape (T, M)
         Costs; :data:`FORBIDDEN` where a gate is exceeded.
     """
-    c = config
-    grow = 1.0 + track_missed.astype(np.float64)
-    r_center = c.max_center_frac * diagonal_px * (1.0 + c.gate_growth * track_missed)
-    d = np.hypot(
-        track_center[:, None, 0] - obj_center[None, :, 0], track_center[:, None, 1] - obj_center[None, :, 1]
-    )
-    dc = d / r_center[:, None]
-    with np.errstate(invalid="ignore", divide="ignore"):
-        dz = np.abs(obj_depth[None, :] - track_depth[:, None]) / (track_depth[:, None] * c.max_depth_change)
-        dz /= grow[:, None]
-        la = np.abs(np.log(np.maximum(obj_area[None, :], 1.0) / np.maximum(track_area[:, None], 1.0)))
-    da = la / np.log(c.max_area_ratio)
-    iou = bbox_iou(track_bbox, obj_bbox)
-    cost = (
-        c.w_center * dc
-        + c.w_depth * dz
-        + c.w_area * da
-        + c.w_iou * (1.0 - iou)
-        + c.w_label * (track_label[:, None] != obj_label[None, :])
-    )
-    # NaN depth (no valid pixel) fails the depth gate by comparison with NaN.
-    allowed = (dc <= 1.0) & (dz <= 1.0) & (da <= 1.0) & (iou >= c.min_iou)
-    return np.where(allowed, cost, FORBIDDEN)
+
+    def f(a: ArrayLike, shape: tuple[int, ...]) -> NDArray[np.float64]:
+        return np.ascontiguousarray(np.asarray(a, dtype=np.float64).reshape(shape))
+
+    nt = np.asarray(track_depth).size
+    no = np.asarray(obj_depth).size
+    return cost_kernel(  # type: ignore[no-any-return]
+        f(track_center, (nt, 2)), f(track_depth, (nt,)), f(track_area, (nt,)), f(track_bbox, (nt, 4)),
+        f(track_label, (nt,)), f(track_missed, (nt,)),
+        f(obj_center, (no, 2)), f(obj_depth, (no,)), f(obj_area, (no,)), f(obj_bbox, (no, 4)),
+        f(obj_label, (no,)), float(diagonal_px), cost_params(config),
+    )  # fmt: skip
 
 
 def assign(cost: NDArray[np.float64]) -> tuple[NDArray[np.intp], NDArray[np.intp]]:

@@ -1,0 +1,328 @@
+"""Compiled kernels of the tracker: the velocity fit, the matching cost, the per-frame step.
+
+They live in one module on purpose: numba's on-disk cache (``cache=True``) is invalidated
+per source file, so a kernel inlined into another file's kernel would keep running its
+stale compiled copy after an edit. Public, documented entry points are in
+:mod:`depthgram.dynamics.flow`, :mod:`depthgram.dynamics.match` and
+:mod:`depthgram.dynamics.tracker`.
+
+Hand-written loops because the tracker calls them every frame on a few dozen rows, where
+numpy's per-call overhead of some fifty array expressions costs more than the arithmetic.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+from numpy.typing import NDArray
+
+#: Cost of a gated (forbidden) pair. Finite, because linear_sum_assignment rejects
+#: matrices where a row has no finite entry; pairs at this cost are dropped afterwards.
+FORBIDDEN = 1e9
+
+#: Status codes, indices into :data:`depthgram.dynamics.tracker.STATUSES`.
+VISIBLE, ENTERING, LEAVING, OCCLUDED = range(4)
+
+
+@njit(cache=True)
+def fit_row(t: NDArray[np.float64], z: NDArray[np.float64], t_now: float) -> tuple[float, float]:
+    """Least-squares slope and fitted depth at ``t_now`` of one queue (see
+    :func:`fit_radial_velocity`); compiled so that the tracker can call it per track without
+    numpy's per-call overhead on arrays of four entries."""
+    n = 0
+    st = 0.0
+    sz = 0.0
+    last = np.nan
+    for j in range(t.shape[0]):
+        if np.isfinite(z[j]) and np.isfinite(t[j]):
+            n += 1
+            # Centred on t_now so that large timestamps (Unix seconds) keep full precision.
+            st += t[j] - t_now
+            sz += z[j]
+            last = z[j]
+    if n < 2:
+        return np.nan, last
+    tb = st / n
+    zb = sz / n
+    num = 0.0
+    den = 0.0
+    for j in range(t.shape[0]):
+        if np.isfinite(z[j]) and np.isfinite(t[j]):
+            d = t[j] - t_now - tb
+            num += d * (z[j] - zb)
+            den += d * d
+    if den <= 0.0:
+        return np.nan, last
+    v = num / den
+    return v, zb - v * tb
+
+
+@njit(cache=True)
+def fit_rows(
+    t: NDArray[np.float64], z: NDArray[np.float64], t_now: NDArray[np.float64]
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    v = np.empty(t.shape[0])
+    zn = np.empty(t.shape[0])
+    for i in range(t.shape[0]):
+        v[i], zn[i] = fit_row(t[i], z[i], t_now[i])
+    return v, zn
+
+
+@njit(cache=True)
+def cost_kernel(
+    tc: NDArray[np.float64],
+    tz: NDArray[np.float64],
+    ta: NDArray[np.float64],
+    tb: NDArray[np.float64],
+    tl: NDArray[np.float64],
+    tm: NDArray[np.float64],
+    oc: NDArray[np.float64],
+    oz: NDArray[np.float64],
+    oa: NDArray[np.float64],
+    ob: NDArray[np.float64],
+    ol: NDArray[np.float64],
+    diagonal_px: float,
+    params: NDArray[np.float64],
+) -> NDArray[np.float64]:
+    """Compiled body of :func:`match_cost`; ``params`` from :func:`cost_params`.
+
+    Hand-written loops because the tracker calls it every frame on matrices of a few dozen
+    entries, where numpy's per-call overhead of some twenty array expressions would cost
+    more than the arithmetic.
+    """
+    center_frac, growth, dz_max, log_ratio, min_iou, w_c, w_z, w_a, w_iou, w_label = params
+    nt = tc.shape[0]
+    no = oc.shape[0]
+    cost = np.empty((nt, no))
+    for i in range(nt):
+        r = center_frac * diagonal_px * (1.0 + growth * tm[i])
+        zg = tz[i] * dz_max * (1.0 + tm[i])
+        area_t = max(ta[i], 1.0)
+        bt_area = (tb[i, 2] - tb[i, 0] + 1.0) * (tb[i, 3] - tb[i, 1] + 1.0)
+        for j in range(no):
+            cost[i, j] = FORBIDDEN
+            # Cheapest gates first: most pairs are far apart and need no log or sqrt.
+            dx = tc[i, 0] - oc[j, 0]
+            dy = tc[i, 1] - oc[j, 1]
+            d2 = dx * dx + dy * dy
+            if not d2 <= r * r:
+                continue
+            dz = abs(oz[j] - tz[i]) / zg
+            # NaN depth (no valid pixel) fails the depth gate: comparisons with NaN are False.
+            if not dz <= 1.0:
+                continue
+            da = abs(np.log(max(oa[j], 1.0) / area_t)) / log_ratio
+            if not da <= 1.0:
+                continue
+            ix = min(tb[i, 2], ob[j, 2]) - max(tb[i, 0], ob[j, 0]) + 1.0
+            iy = min(tb[i, 3], ob[j, 3]) - max(tb[i, 1], ob[j, 1]) + 1.0
+            inter = max(ix, 0.0) * max(iy, 0.0)
+            bo_area = (ob[j, 2] - ob[j, 0] + 1.0) * (ob[j, 3] - ob[j, 1] + 1.0)
+            iou = inter / max(bt_area + bo_area - inter, 1.0)
+            if iou < min_iou:
+                continue
+            c = w_c * np.sqrt(d2) / r + w_z * dz + w_a * da + w_iou * (1.0 - iou)
+            if tl[i] != ol[j]:
+                c += w_label
+            cost[i, j] = c
+    return cost
+
+
+# Columns of the track state array.
+ID, HITS, MISSED, STATUS, CX, CY, VX, VY, X0, Y0, X1, Y1 = range(12)
+DEPTH, ZFIT, AREA, MAREA, LABEL, V = range(12, 18)
+NCOL = 18
+# Columns of the per-object feature array.
+F_CX, F_CY, F_Z, F_AREA, F_LABEL, F_X0 = 0, 1, 2, 3, 4, 5
+
+
+@njit(cache=True)
+def predict_cost(
+    s: NDArray[np.float64], n: int, f: NDArray[np.float64], diagonal_px: float, vscale: float, p: NDArray[np.float64]
+) -> NDArray[np.float64]:
+    """Predict each track forward by the frames since its last detection, then cost all pairs."""
+    pc = np.empty((n, 2))
+    pb = np.empty((n, 4))
+    pz = np.empty(n)
+    for i in range(n):
+        steps = s[i, MISSED] + 1.0
+        dx = s[i, VX] * steps
+        dy = s[i, VY] * steps
+        pc[i, 0] = s[i, CX] + dx
+        pc[i, 1] = s[i, CY] + dy
+        pb[i, 0] = s[i, X0] + dx
+        pb[i, 1] = s[i, Y0] + dy
+        pb[i, 2] = s[i, X1] + dx
+        pb[i, 3] = s[i, Y1] + dy
+        v = s[i, V] if np.isfinite(s[i, V]) else 0.0
+        pz[i] = s[i, ZFIT] + v * vscale * steps
+    return cost_kernel(
+        pc, pz, s[:n, AREA], pb, s[:n, LABEL], s[:n, MISSED],
+        f[:, 0:2], f[:, F_Z], f[:, F_AREA], f[:, F_X0 : F_X0 + 4], f[:, F_LABEL], diagonal_px, p,
+    )  # fmt: skip
+
+
+@njit(cache=True)
+def _at_border(f: NDArray[np.float64], j: int, b: float, width: float, height: float) -> bool:
+    x0, y0, x1, y1 = f[j, F_X0], f[j, F_X0 + 1], f[j, F_X0 + 2], f[j, F_X0 + 3]
+    return bool(x0 <= b or y0 <= b or x1 >= width - 1 - b or y1 >= height - 1 - b)
+
+
+@njit(cache=True)
+def step(
+    s: NDArray[np.float64],
+    qt: NDArray[np.float64],
+    qz: NDArray[np.float64],
+    n: int,
+    f: NDArray[np.float64],
+    rows: NDArray[np.intp],
+    cols: NDArray[np.intp],
+    cost: NDArray[np.float64],
+    t_now: float,
+    vscale: float,
+    width: float,
+    height: float,
+    first: bool,
+    next_id: int,
+    p: NDArray[np.float64],
+) -> tuple[NDArray[np.int64], NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_], int]:
+    """Advance every track by one frame, in place; new tracks go to rows ``n..``.
+
+    This is the project's own bookkeeping (queues, statuses, split/merge and border tests),
+    hand-written in one compiled pass because it runs every frame on a few dozen rows.
+    ``p`` holds border_px, border_area_change, max_area_jump, fit_border_entries,
+    min_speed (in v's unit), min_hits, max_missed.
+
+    Returns the track row of each object, the reported velocity and time to collision of
+    every row, which rows die this frame, and the number of new tracks.
+    """
+    border, thr, max_jump, fit_border, min_speed, min_hits, max_missed = p
+    m = f.shape[0]
+    nq = qt.shape[1]
+    # Every queue advances one slot; detections fill the newest one below.
+    for i in range(n):
+        for j in range(nq - 1):
+            qt[i, j] = qt[i, j + 1]
+            qz[i, j] = qz[i, j + 1]
+        qt[i, nq - 1] = t_now
+        qz[i, nq - 1] = np.nan
+        s[i, MISSED] += 1.0
+    obj_row = np.full(m, -1, np.int64)
+    z_ref_of = np.full(n + m, np.nan)
+    for k in range(rows.shape[0]):
+        i = rows[k]
+        c = cols[k]
+        if cost[i, c] >= FORBIDDEN:  # the assignment had to pair it; the gates say no
+            continue
+        obj_row[c] = i
+        steps = s[i, MISSED]
+        v_old = s[i, V] if np.isfinite(s[i, V]) else 0.0
+        p_depth = s[i, ZFIT] + v_old * vscale * steps
+        zo = f[c, F_Z]
+        z_ok = np.isfinite(zo) and zo > 0
+        z_new = zo if z_ok else s[i, DEPTH]
+        # Areas compared at the track's fitted depth, not this frame's mean depth: the area
+        # change of an approaching object is then not read as entering, and the biased mean
+        # depth of a partly visible object does not hide its area change either.
+        z_ref = p_depth if np.isfinite(p_depth) else z_new
+        z_ref_of[i] = z_ref
+        area = f[c, F_AREA]
+        ma_new = area * z_ref * z_ref
+        ma_old = s[i, AREA] * s[i, ZFIT] * s[i, ZFIT]
+        change = ma_new / ma_old - 1.0 if ma_old > 0 else np.nan
+        ma_run = s[i, MAREA]
+        jump = max(ma_new / ma_run, ma_run / ma_new) if ma_run > 0 and ma_new > 0 else np.nan
+        prev = s[i, STATUS]
+        status = VISIBLE
+        if _at_border(f, c, border, width, height):
+            # Hysteresis: an object keeps entering (leaving) while its area does not reverse,
+            # so a slow entry is not cut into entering/visible flicker.
+            if change > thr or (prev == ENTERING and change >= 0):
+                status = ENTERING
+            elif change < -thr or (prev == LEAVING and change <= 0):
+                status = LEAVING
+        valid = z_ok and not (jump > max_jump) and (fit_border > 0 or status == VISIBLE)
+        if valid:
+            qz[i, nq - 1] = zo
+        dcx = (f[c, F_CX] - s[i, CX]) / steps
+        dcy = (f[c, F_CY] - s[i, CY]) / steps
+        if s[i, HITS] >= 2:
+            s[i, VX] = 0.5 * s[i, VX] + 0.5 * dcx
+            s[i, VY] = 0.5 * s[i, VY] + 0.5 * dcy
+        else:
+            s[i, VX] = dcx
+            s[i, VY] = dcy
+        s[i, CX] = f[c, F_CX]
+        s[i, CY] = f[c, F_CY]
+        for q in range(4):
+            s[i, X0 + q] = f[c, F_X0 + q]
+        s[i, DEPTH] = z_new
+        s[i, AREA] = area
+        # The running area follows entering/leaving objects at once (their area change is
+        # real), others slowly so that a one-frame split or merge stands out.
+        if status != VISIBLE or not ma_run > 0:
+            s[i, MAREA] = ma_new
+        else:
+            s[i, MAREA] = 0.7 * ma_run + 0.3 * ma_new
+        s[i, LABEL] = f[c, F_LABEL]
+        s[i, STATUS] = status
+        s[i, HITS] += 1.0
+        s[i, MISSED] = 0.0
+    # Unmatched objects start tracks.
+    nn = n
+    for c in range(m):
+        if obj_row[c] >= 0:
+            continue
+        i = nn
+        nn += 1
+        obj_row[c] = i
+        zo = f[c, F_Z]
+        z_ok = np.isfinite(zo) and zo > 0
+        status = ENTERING if (not first and _at_border(f, c, border, width, height)) else VISIBLE
+        s[i, ID] = next_id + (i - n)
+        s[i, HITS] = 1.0
+        s[i, MISSED] = 0.0
+        s[i, STATUS] = status
+        s[i, CX] = f[c, F_CX]
+        s[i, CY] = f[c, F_CY]
+        s[i, VX] = 0.0
+        s[i, VY] = 0.0
+        for q in range(4):
+            s[i, X0 + q] = f[c, F_X0 + q]
+        z0 = zo if z_ok else np.nan
+        s[i, DEPTH] = z0
+        s[i, ZFIT] = z0
+        s[i, AREA] = f[c, F_AREA]
+        s[i, MAREA] = f[c, F_AREA] * z0 * z0
+        s[i, LABEL] = f[c, F_LABEL]
+        s[i, V] = np.nan
+        for j in range(nq):
+            qt[i, j] = np.nan
+            qz[i, j] = np.nan
+        qt[i, nq - 1] = t_now
+        if z_ok and (fit_border > 0 or status == VISIBLE):
+            qz[i, nq - 1] = zo
+    # Range flow of every track.
+    v_out = np.empty(nn)
+    ttc = np.empty(nn)
+    dead = np.zeros(nn, np.bool_)
+    for i in range(nn):
+        v, z_now = fit_row(qt[i], qz[i], t_now)
+        if np.isfinite(v):
+            s[i, V] = v
+        if s[i, MISSED] == 0:
+            if np.isfinite(z_now):
+                s[i, ZFIT] = z_now
+            elif np.isfinite(z_ref_of[i]):
+                s[i, ZFIT] = z_ref_of[i]
+            z_pred = s[i, ZFIT]
+            vo = v
+        else:
+            # Occluded tracks coast on their held velocity.
+            vo = s[i, V]
+            z_pred = s[i, ZFIT] + (vo if np.isfinite(vo) else 0.0) * vscale * s[i, MISSED]
+            s[i, STATUS] = OCCLUDED
+            dead[i] = s[i, HITS] < min_hits or s[i, MISSED] > max_missed
+        v_out[i] = vo
+        ttc[i] = z_pred / -vo if (vo < -min_speed and z_pred > 0) else np.nan
+    return obj_row, v_out, ttc, dead, nn - n
