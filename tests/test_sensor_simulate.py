@@ -213,3 +213,10 @@ def test_eight_bit_code_spans_the_unwrapped_range_with_two_frequencies() -> None
     assert step == pytest.approx(59.0, abs=0.1)
     ok = sim.frame.valid
     assert np.max(np.abs(sim.frame.depth[ok] - sim.true_depth[ok])) <= step / 2 + 0.01
+
+
+def test_frames_carry_time_and_provenance() -> None:
+    sims = list(simulate("approach", 3, fps=12.5, seed=9))
+    assert [s.frame.time_s for s in sims] == pytest.approx([0.0, 0.08, 0.16])
+    assert [s.frame.name for s in sims] == ["sim:approach#0", "sim:approach#1", "sim:approach#2"]
+    assert sims[1].frame.meta == {"scene": "approach", "fps": 12.5, "seed": 9}

@@ -78,7 +78,8 @@ class SimFrame:
     ----------
     frame : Frame
         What the sensor gives: measured depth (mm, 0 invalid), valid mask, index,
-        ``time_s = index / fps``, intrinsics, ``name = "sim:<scene>#<index>"``.
+        ``time_s = index / fps``, intrinsics, ``name = "sim:<scene>#<index>"``; ``meta``
+        holds ``scene``, ``fps`` and ``seed`` (None when noise-free).
     true_depth : ndarray of float32, shape (H, W)
         True depth along the optical axis (mm) at the frame's instant, 0 where no surface.
     instances : ndarray of int32, shape (H, W)
@@ -160,7 +161,9 @@ def simulate(
 def _frames(spec: SceneSpec, cfg: ToFConfig, frames: int, fps: float, seed: int, noise: bool) -> Iterator[SimFrame]:
     still = static_hits(spec.camera, spec.bodies)
     for k in range(frames):
-        yield render(spec, cfg, k, fps, np.random.default_rng([seed, k]) if noise else None, still)
+        sim = render(spec, cfg, k, fps, np.random.default_rng([seed, k]) if noise else None, still)
+        sim.frame.meta["seed"] = seed if noise else None
+        yield sim
 
 
 def render(
