@@ -40,6 +40,12 @@ class SegmentConfig:
         the following minimum, a safety margin against the next object. ``peak``: the cut sits
         ``fraction`` of that distance past the peak. The leading edge of each band is placed
         symmetrically from the preceding minimum. Pixels outside every band are background.
+    gap_pixels : str
+        What becomes of pixels between two bands (past one band's trailing cut, before the next
+        band's leading cut): ``nearest`` (default) gives them to the band on their side of the
+        histogram minimum; ``background`` leaves them out, as the paper does. Measured on the
+        seeded simulator ``table`` scene with ``slices`` (``benchmarks/table1.py --readings``):
+        background 95.8 % area at 98.2 % precision, nearest 97.8 % at 98.3 %.
     smooth_bins : float
         Gaussian smoothing of the histogram before peak search (bins, sigma); 0 disables.
     min_prominence : float
@@ -75,6 +81,7 @@ class SegmentConfig:
     ref_depth_mm: float = 1000.0
     fraction: float = 0.10
     cut_from: str = "minimum"
+    gap_pixels: str = "nearest"
     smooth_bins: float = 1.0
     min_prominence: float = 0.002
     min_area: float = 0.005
@@ -95,6 +102,8 @@ class SegmentConfig:
             raise bad("method", self.method, f"one of {METHODS}")
         if self.cut_from not in ("minimum", "peak"):
             raise bad("cut_from", self.cut_from, "'minimum' or 'peak'")
+        if self.gap_pixels not in ("nearest", "background"):
+            raise bad("gap_pixels", self.gap_pixels, "'nearest' or 'background'")
         if self.slice_directions not in ("both", "horizontal", "vertical"):
             raise bad("slice_directions", self.slice_directions, "'both', 'horizontal' or 'vertical'")
         positive = {

@@ -3,7 +3,8 @@
 For each peak, the following minimum is the lowest bin between it and the next peak (for the
 last peak, up to the end). The band of a peak runs from a leading cut to a trailing cut placed
 ``fraction`` of the peak-to-minimum distance from the minimum (``cut_from="minimum"``) or from
-the peak (``cut_from="peak"``); pixels between bands are background, as in the paper.
+the peak (``cut_from="peak"``); pixels between bands are background in the paper
+(``gap_pixels="background"``), or go to the band on their side of the minimum (``nearest``).
 
 Measured on the simulator's seeded ``table`` scene (``benchmarks/table1.py --readings``): see
 :func:`depthgram.segment.segment` for the figures of both readings.
@@ -114,9 +115,12 @@ def depth_bands(bins: NDArray[np.intp], edges: NDArray[np.float64], n_valid: int
         hi_bin = p + t * (nxt - p)
         first = max(math.ceil(lo_bin - 1e-9), 0)
         last = min(math.floor(hi_bin + 1e-9), nb - 1)
-        lut[first : last + 1] = i
         lower[i] = edges[first]
         upper[i] = edges[last + 1]
+        if config.gap_pixels == "nearest":
+            # the gap on each side goes to this band up to the minimum (the next band overwrites it)
+            first, last = prev_min if i else 0, nxt if i + 1 < k else nb - 1
+        lut[first : last + 1] = i
         prev_min = nxt
     hist = Histogram(edges=edges, counts=counts, peaks=centers[peaks], cuts=upper)
     return Bands(hist, lut, lower)

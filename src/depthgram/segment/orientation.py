@@ -87,12 +87,27 @@ def orientation_field(
     h, w = depth_mm.shape
     inv = np.zeros_like(depth_mm)
     np.divide(1000.0, depth_mm, out=inv, where=valid)  # 1/m keeps float32 well scaled
-    gx = _one_sided(inv, valid, 1)
-    gy = _one_sided(inv.T, valid.T, 1).T
-    # average the gradient over valid pixels only; holes neither pull it to zero nor fake edges
+    # a 3 x 3 valid-weighted mean, then differences over `step` px: the slope of a distant floor
+    # (1/Z changes by 1 / (h fy) per row) must stand above the noise of one difference
     m = valid.astype(np.float32)
+    den3 = np.maximum(cv2.boxFilter(m, -1, (3, 3), normalize=False, borderType=cv2.BORDER_REPLICATE), 1e-6)
+    inv3 = np.asarray(
+        cv2.boxFilter(inv, -1, (3, 3), normalize=False, borderType=cv2.BORDER_REPLICATE) / den3, np.float32
+    )
+    step = max(1, window_px // 2)
+    gx = _one_sided(inv3, valid, step)
+    gy = np.ascontiguousarray(_one_sided(np.ascontiguousarray(inv3.T), valid.T, step).T)
+    # average the gradient over valid pixels only; holes neither pull it to zero nor fake edges.
+    # Pixels whose slope is steeper than 80 degrees from the line of sight are left out too: on
+    # both sides of an occlusion edge (a smoothed or flying pixel) they would fake a steep plane.
+    fx, fy = intrinsics.fx, intrinsics.fy
+    steep = np.float32(math.tan(math.radians(80.0)))
+    keep = valid & (np.abs(fx * gx) <= steep * inv) & (np.abs(fy * gy) <= steep * inv)
+    gx[~keep] = 0.0
+    gy[~keep] = 0.0
     k = (window_px, window_px)
-    den = np.maximum(cv2.boxFilter(m, -1, k, normalize=False, borderType=cv2.BORDER_REPLICATE), 1e-6)
+    mk = keep.astype(np.float32)
+    den = np.maximum(cv2.boxFilter(mk, -1, k, normalize=False, borderType=cv2.BORDER_REPLICATE), 1e-6)
     gx = np.asarray(cv2.boxFilter(gx, -1, k, normalize=False, borderType=cv2.BORDER_REPLICATE) / den, np.float32)
     gy = np.asarray(cv2.boxFilter(gy, -1, k, normalize=False, borderType=cv2.BORDER_REPLICATE) / den, np.float32)
     fx, fy, cx, cy = intrinsics.fx, intrinsics.fy, intrinsics.cx, intrinsics.cy
