@@ -15,9 +15,10 @@ from numpy.typing import NDArray
 from scipy import ndimage
 
 from depthgram.frame import Intrinsics
+from depthgram.segment.label import label_stats_fused
 from depthgram.segment.objects import SceneObject
 
-__all__ = ["Stats", "label_stats", "make_objects", "relabel_small"]
+__all__ = ["Stats", "fused_stats", "label_stats", "make_objects", "relabel_small"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -30,6 +31,8 @@ class Stats:
         Pixel count, sum of depth (mm), of depth squared (mm²), of column and of row (px).
     sxz, syz : ndarray of float64 or None
         Sums of column x depth and row x depth, kept when intrinsics are wanted.
+    boxes : ndarray of int64, shape (n + 1, 4) or None
+        Inclusive (x0, y0, x1, y1) per label when already known; else taken from the labels.
     """
 
     count: NDArray[Any]
@@ -39,6 +42,7 @@ class Stats:
     sy: NDArray[Any]
     sxz: NDArray[Any] | None
     syz: NDArray[Any] | None
+    boxes: NDArray[np.int64] | None = None
 
 
 def label_stats(labels: NDArray[np.int32], depth_mm: NDArray[np.floating], n: int, *, metric: bool = False) -> Stats:
@@ -70,6 +74,22 @@ def label_stats(labels: NDArray[np.int32], depth_mm: NDArray[np.floating], n: in
     sxz = np.bincount(lab, weights=xs * z, minlength=m) if metric else None
     syz = np.bincount(lab, weights=ys * z, minlength=m) if metric else None
     return Stats(count, sz, szz, sx, sy, sxz, syz)
+
+
+def fused_stats(
+    labels: NDArray[np.int32], n: int, depth_mm: NDArray[np.float32], key: NDArray[Any], min_px: int
+) -> tuple[NDArray[np.int32], Stats, NDArray[np.float64]]:
+    """Drop labels under ``min_px`` pixels, renumber, and return their sums, boxes and keys."""
+    sums, boxes = label_stats_fused(labels, n, depth_mm, key)
+    keep = sums[:, 0] >= min_px
+    keep[0] = False
+    lut = np.zeros(n + 1, dtype=np.int32)
+    lut[keep] = np.arange(1, int(keep.sum()) + 1, dtype=np.int32)
+    sel = np.concatenate(([0], np.flatnonzero(keep)))
+    s = sums[sel]
+    stats = Stats(s[:, 0], s[:, 1], s[:, 2], s[:, 3], s[:, 4], s[:, 5], s[:, 6], boxes[sel])
+    out: NDArray[np.int32] = lut[labels] if n else labels
+    return out, stats, s[:, 7]
 
 
 def relabel_small(labels: NDArray[np.int32], count: NDArray[np.float64], min_px: int) -> NDArray[np.int32]:
@@ -111,7 +131,11 @@ def make_objects(
     """
     n = stats.count.size - 1
     total = labels.size
-    boxes = ndimage.find_objects(labels, max_label=n)
+    if stats.boxes is not None:
+        b = stats.boxes
+        boxes = [(slice(b[i, 1], b[i, 3] + 1), slice(b[i, 0], b[i, 2] + 1)) for i in range(1, n + 1)]
+    else:
+        boxes = ndimage.find_objects(labels, max_label=n)
     out: list[SceneObject] = []
     for i in range(1, n + 1):
         c = stats.count[i]

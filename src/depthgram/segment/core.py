@@ -9,7 +9,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from depthgram.frame import Intrinsics
-from depthgram.segment.attributes import label_stats, make_objects, relabel_small
+from depthgram.segment.attributes import fused_stats, label_stats, make_objects, relabel_small
 from depthgram.segment.config import SegmentConfig
 from depthgram.segment.histogram import Bands
 from depthgram.segment.objects import Histogram, SceneObject, Segmentation
@@ -113,12 +113,10 @@ def _facing_objects(
     hist_mask = ok if include is None else ok & include
     band, bands = band_image(depth, hist_mask, cfg)
     labels, n = threshold_labels(band, ok, cfg, include=include)
-    counts = np.bincount(labels.ravel(), minlength=n + 1).astype(np.float64)
-    labels = relabel_small(labels, counts, cfg.min_area_px(depth.size))
-    k = int(labels.max(initial=0))
-    stats = label_stats(labels, depth, k, metric=intrinsics is not None)
-    band_of = _band_of_labels(labels, band, k)
-    objects = make_objects(labels, stats, depth_labels=band_of, intrinsics=intrinsics)
+    labels, stats, band_of = fused_stats(labels, n, depth, band, cfg.min_area_px(depth.size))
+    if intrinsics is None:
+        stats = replace(stats, sxz=None, syz=None)
+    objects = make_objects(labels, stats, depth_labels=band_of.astype(np.int64), intrinsics=intrinsics)
     return labels, objects, bands
 
 
