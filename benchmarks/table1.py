@@ -17,6 +17,7 @@ import sys
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -97,9 +98,7 @@ def run_table1(
         for name, kw in methods:
             cfg = SegmentConfig(**kw)
 
-            def run(cfg: SegmentConfig = cfg) -> Any:
-                return segment(f.depth, valid=f.valid, intrinsics=f.intrinsics, config=cfg)
-
+            run = partial(segment, f.depth, valid=f.valid, intrinsics=f.intrinsics, config=cfg)
             seg, ms = _time(run, repeat)
             base = base or ms
             ev = evaluate(seg.labels, sim.instances, valid=f.valid, truth_ids=ids)
@@ -150,9 +149,7 @@ def _real_rows(methods: Sequence[tuple[str, dict[str, Any]]], repeat: int) -> li
         for name, kw in methods:
             cfg = SegmentConfig(**kw)
 
-            def run(cfg: SegmentConfig = cfg) -> Any:
-                return segment(f.depth, valid=f.valid, intrinsics=f.intrinsics, config=cfg)
-
+            run = partial(segment, f.depth, valid=f.valid, intrinsics=f.intrinsics, config=cfg)
             seg, ms = _time(run, max(1, repeat // 2))
             base = base or ms
             kinds = sorted({o.kind for o in seg.objects})
