@@ -163,9 +163,14 @@ def predict_cost(
 
 
 @njit(cache=True)
-def _at_border(f: NDArray[np.float64], j: int, b: float, width: float, height: float) -> bool:
+def _crossing_axes(f: NDArray[np.float64], j: int, b: float, width: float, height: float) -> tuple[bool, bool]:
+    """Whether object ``j`` can be crossing the left/right and the top/bottom border.
+
+    An object touching exactly one of two opposite borders can be entering or leaving
+    through it; one touching both (a wall, a floor) spans the view on that axis and cannot.
+    """
     x0, y0, x1, y1 = f[j, F_X0], f[j, F_X0 + 1], f[j, F_X0 + 2], f[j, F_X0 + 3]
-    return bool(x0 <= b or y0 <= b or x1 >= width - 1 - b or y1 >= height - 1 - b)
+    return (x0 <= b) != (x1 >= width - 1 - b), (y0 <= b) != (y1 >= height - 1 - b)
 
 
 @njit(cache=True)
@@ -234,24 +239,39 @@ def step(
         jump = max(ma_new / ma_run, ma_run / ma_new) if ma_run > 0 and ma_new > 0 else np.nan
         prev = s[i, STATUS]
         status = VISIBLE
-        if _at_border(f, c, border, width, height):
-            # Hysteresis: an object keeps entering (leaving) while its area does not reverse,
+        horiz, vert = _crossing_axes(f, c, border, width, height)
+        if horiz or vert:
+            # Entering or leaving needs the area AND the extent across the touched border to
+            # change: a wall at the border whose area changes because something passes in
+            # front of it keeps its extent and stays visible. Sizes compared at the fitted
+            # depth, so that approaching is not read as entering.
+            scale = z_ref / s[i, ZFIT]
+            ew = (f[c, F_X0 + 2] - f[c, F_X0] + 1.0) / (s[i, X1] - s[i, X0] + 1.0) * scale - 1.0
+            eh = (f[c, F_X0 + 3] - f[c, F_X0 + 1] + 1.0) / (s[i, Y1] - s[i, Y0] + 1.0) * scale - 1.0
+            ext = max(ew if horiz else -np.inf, eh if vert else -np.inf)
+            ext_min = min(ew if horiz else np.inf, eh if vert else np.inf)
+            # Hysteresis: an object keeps entering (leaving) while its size does not reverse,
             # so a slow entry is not cut into entering/visible flicker.
-            if change > thr or (prev == ENTERING and change >= 0):
+            if (change > thr and ext > thr) or (prev == ENTERING and change >= 0 and ext >= 0):
                 status = ENTERING
-            elif change < -thr or (prev == LEAVING and change <= 0):
+            elif (change < -thr and ext_min < -thr) or (prev == LEAVING and change <= 0 and ext_min <= 0):
                 status = LEAVING
         valid = z_ok and not (jump > max_jump) and (fit_border > 0 or status == VISIBLE)
         if valid:
             qz[i, nq - 1] = zo
         dcx = (f[c, F_CX] - s[i, CX]) / steps
         dcy = (f[c, F_CY] - s[i, CY]) / steps
-        if s[i, HITS] >= 2:
-            s[i, VX] = 0.5 * s[i, VX] + 0.5 * dcx
-            s[i, VY] = 0.5 * s[i, VY] + 0.5 * dcy
-        else:
-            s[i, VX] = dcx
-            s[i, VY] = dcy
+        # While the visible area changes (partial occlusion, entering, leaving, a split) the
+        # center of the visible part moves for reasons other than motion: keep the earlier
+        # image velocity then, so that an object passing behind another is looked for where
+        # it really goes.
+        if abs(change) <= thr:
+            if s[i, HITS] >= 2:
+                s[i, VX] = 0.5 * s[i, VX] + 0.5 * dcx
+                s[i, VY] = 0.5 * s[i, VY] + 0.5 * dcy
+            else:
+                s[i, VX] = dcx
+                s[i, VY] = dcy
         s[i, CX] = f[c, F_CX]
         s[i, CY] = f[c, F_CY]
         for q in range(4):
@@ -278,7 +298,8 @@ def step(
         obj_row[c] = i
         zo = f[c, F_Z]
         z_ok = np.isfinite(zo) and zo > 0
-        status = ENTERING if (not first and _at_border(f, c, border, width, height)) else VISIBLE
+        horiz, vert = _crossing_axes(f, c, border, width, height)
+        status = ENTERING if (not first and (horiz or vert)) else VISIBLE
         s[i, ID] = next_id + (i - n)
         s[i, HITS] = 1.0
         s[i, MISSED] = 0.0
