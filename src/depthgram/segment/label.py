@@ -18,7 +18,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-__all__ = ["ACTIVE", "BLOCK", "HOLE", "label_keyed", "label_stats_fused"]
+__all__ = ["ACTIVE", "BLOCK", "HOLE", "label_keyed", "label_stats_fused", "plane_sums"]
 
 #: Pixel states for :func:`label_keyed`: a hole may be bridged, an active pixel is labelled,
 #: a blocking pixel (valid, but not part of any component) stops a bridge.
@@ -214,3 +214,48 @@ def label_keyed(
     s = np.ascontiguousarray(state, dtype=np.int8)
     labels, n = _label(k, s, float(tol), float(rel), int(bridge))
     return labels, int(n)
+
+
+@njit(cache=True)
+def _plane_sums(
+    labels: NDArray[np.int32], n: int, depth: NDArray[np.float32], fx: float, fy: float, cx: float, cy: float
+) -> NDArray[np.float64]:
+    h, w = labels.shape
+    out = np.zeros((n + 1, 9), np.float64)
+    for y in range(h):
+        v = (y - cy) / fy
+        for x in range(w):
+            i = labels[y, x]
+            if i == 0:
+                continue
+            u = (x - cx) / fx
+            q = 1.0 / depth[y, x]
+            out[i, 0] += u * u
+            out[i, 1] += u * v
+            out[i, 2] += u
+            out[i, 3] += v * v
+            out[i, 4] += v
+            out[i, 5] += 1.0
+            out[i, 6] += u * q
+            out[i, 7] += v * q
+            out[i, 8] += q
+    return out
+
+
+def plane_sums(
+    labels: NDArray[np.int32], n: int, depth_mm: NDArray[np.float32], fx: float, fy: float, cx: float, cy: float
+) -> NDArray[np.float64]:
+    """Normal-equation sums of the plane fit ``1/Z = alpha u' + beta v' + gamma`` per label.
+
+    Columns: u'u', u'v', u', v'v', v', 1, u'/Z, v'/Z, 1/Z with ``u' = (x - cx) / fx``,
+    ``v' = (y - cy) / fy`` (one pass; the bincount route took nine).
+    """
+    return _plane_sums(
+        np.ascontiguousarray(labels, np.int32),
+        int(n),
+        np.ascontiguousarray(depth_mm, np.float32),
+        float(fx),
+        float(fy),
+        float(cx),
+        float(cy),
+    )

@@ -17,11 +17,10 @@ import math
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy import ndimage
 
 from depthgram.frame import Intrinsics
 from depthgram.segment.attributes import label_stats, make_objects
-from depthgram.segment.label import ACTIVE, BLOCK, HOLE, label_keyed
+from depthgram.segment.label import ACTIVE, BLOCK, HOLE, label_keyed, plane_sums
 from depthgram.segment.objects import SceneObject
 from depthgram.segment.orientation import HORIZONTAL, VERTICAL
 
@@ -132,23 +131,15 @@ def plane_fits(
 
     Inverse depth is exactly affine in the normalised image coordinates for a plane
     (``1/Z = (n . ray) / d``), so the fit is linear: ``1/Z = alpha u' + beta v' + gamma`` from
-    nine weighted bincounts, then ``n = -(alpha, beta, gamma) / |.|`` and ``d = 1 / |.|``.
+    one compiled pass of sums, then ``n = -(alpha, beta, gamma) / |.|`` and ``d = 1 / |.|``.
     """
-    flat = labels.ravel()
-    idx = np.flatnonzero(flat)
-    lab = flat[idx]
     m = n + 1
-    ys, xs = np.divmod(idx, labels.shape[1])
-    u = (xs - cam.cx) / cam.fx
-    v = (ys - cam.cy) / cam.fy
-    w = 1.0 / depth_mm.ravel()[idx].astype(np.float64)
-    feats = (u, v, np.ones_like(u))
+    sums = plane_sums(labels, n, depth_mm, cam.fx, cam.fy, cam.cx, cam.cy)
     ata = np.empty((m, 3, 3))
-    atb = np.empty((m, 3))
-    for i in range(3):
-        atb[:, i] = np.bincount(lab, weights=feats[i] * w, minlength=m)
-        for j in range(i, 3):
-            ata[:, i, j] = ata[:, j, i] = np.bincount(lab, weights=feats[i] * feats[j], minlength=m)
+    ata[:, 0, 0], ata[:, 0, 1], ata[:, 0, 2] = sums[:, 0], sums[:, 1], sums[:, 2]
+    ata[:, 1, 0], ata[:, 1, 1], ata[:, 1, 2] = sums[:, 1], sums[:, 3], sums[:, 4]
+    ata[:, 2, 0], ata[:, 2, 1], ata[:, 2, 2] = sums[:, 2], sums[:, 4], sums[:, 5]
+    atb = sums[:, 6:9].copy()
     ata[0] = np.eye(3)
     atb[0] = (0.0, 0.0, 1.0)
     ata += np.eye(3) * 1e-12
@@ -229,8 +220,9 @@ def front_faces(
         return {}
     pairs = below[contact].astype(np.int64) * (is_support.size) + above[contact]
     uniq, cnt = np.unique(pairs, return_counts=True)
-    boxes = ndimage.find_objects(labels, max_label=n_facing)
-    widths = np.array([0] + [b[1].stop - b[1].start if b is not None else 0 for b in boxes], np.float64)
+    bx = label_stats(labels, depth_mm, n_facing if labels.max(initial=0) <= n_facing else int(labels.max())).boxes
+    assert bx is not None
+    widths = (bx[: n_facing + 1, 2] - bx[: n_facing + 1, 0] + 1).astype(np.float64)
     out: dict[int, int] = {}
     best: dict[int, int] = {}
     for key, c in zip(uniq.tolist(), cnt.tolist(), strict=True):
@@ -260,17 +252,17 @@ def on_support_planes(
     if n == 0 or not candidates.any():
         return out
     normal, off = plane_fits(labels, n, depth_mm, cam)
-    counts = np.bincount(labels.ravel(), minlength=n + 1)
-    boxes = ndimage.find_objects(labels, max_label=n)
+    st = label_stats(labels, depth_mm, n)
+    assert st.boxes is not None
     h, w = labels.shape
-    for i in np.flatnonzero(counts >= min_px):
-        if i == 0 or boxes[i - 1] is None:
+    for i in np.flatnonzero(st.count >= min_px):
+        if i == 0:
             continue
-        ys, xs = boxes[i - 1]
-        my = (ys.stop - ys.start) // 10 + 1
-        mx = (xs.stop - xs.start) // 10 + 1
-        y0, y1 = max(ys.start - my, 0), min(ys.stop + my, h)
-        x0, x1 = max(xs.start - mx, 0), min(xs.stop + mx, w)
+        bx0, by0, bx1, by1 = (int(v) for v in st.boxes[i])
+        my = (by1 - by0 + 1) // 10 + 1
+        mx = (bx1 - bx0 + 1) // 10 + 1
+        y0, y1 = max(by0 - my, 0), min(by1 + 1 + my, h)
+        x0, x1 = max(bx0 - mx, 0), min(bx1 + 1 + mx, w)
         # 1/Z predicted by the plane: -(n . ray) / d
         u = ((np.arange(x0, x1) - cam.cx) / cam.fx)[None, :]
         v = ((np.arange(y0, y1) - cam.cy) / cam.fy)[:, None]
