@@ -1,0 +1,70 @@
+"""depthgram view: play a recording through the pipeline in a live page in the browser."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from depthgram.commands._common import add_config_arguments, add_source_arguments
+
+NAME = "view"
+HELP = "live viewer in the browser: frames with outlines, sentence, tree, tracks, action plan and sound"
+
+_LOOPBACK = ("127.0.0.1", "localhost", "::1")
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    add_source_arguments(p)
+    add_config_arguments(p)
+    g = p.add_argument_group("viewer")
+    g.add_argument("--host", default="127.0.0.1",
+                   help="address to listen on (default 127.0.0.1: this machine only; the viewer has no login)")
+    g.add_argument("--port", type=int, default=8765, help="TCP port (0 picks a free one)")
+    g.add_argument("--no-browser", action="store_true", help="do not open a browser window")
+    g.add_argument("--speed", type=float, default=1.0, help="initial playback speed factor, in (0, 16]")
+    g.add_argument("--no-loop", action="store_true", help="pause at the end instead of starting over")
+    g.add_argument("--jpeg", action="store_true", help="send frames as JPEG instead of PNG (smaller, softer)")
+
+
+def run(args: argparse.Namespace) -> int:
+    import asyncio
+    import threading
+    import webbrowser
+
+    import uvicorn
+
+    from depthgram.commands._common import load_config, open_input, source_len
+    from depthgram.errors import InputError
+    from depthgram.views.server import Player, ViewerConfig, create_app, recording_name
+
+    if not 0 <= args.port <= 65535:
+        raise InputError(f"--port must be in 0..65535, got {args.port}")
+    src = open_input(args)
+    cfg = load_config(args)
+    viewer = ViewerConfig(fps=args.fps, speed=args.speed, loop=not args.no_loop,
+                          image_format="jpeg" if args.jpeg else "png")
+    player = Player(lambda: iter(src), recording_name(args.input), cfg, viewer,
+                    frames=source_len(src), fps=getattr(src, "fps", None))
+    if args.host not in _LOOPBACK:
+        print(f"depthgram view: warning: listening on {args.host}: anyone who can reach this address can "
+              "watch the recording and change the playback (there is no login)", file=sys.stderr)
+    server = uvicorn.Server(uvicorn.Config(create_app(player), host=args.host, port=args.port,
+                                           log_level="warning"))
+
+    def announce() -> None:
+        # The port is known only once the socket is bound (--port 0).
+        while not server.started:
+            if server.should_exit:
+                return
+            threading.Event().wait(0.05)
+        port = server.servers[0].sockets[0].getsockname()[1] if server.servers else args.port
+        host = f"[{args.host}]" if ":" in args.host else args.host
+        url = f"http://{host}:{port}/"
+        print(f"depthgram view: playing {args.input} at {url} (Ctrl-C stops)", file=sys.stderr)
+        if not args.no_browser:
+            webbrowser.open(url)
+
+    threading.Thread(target=announce, daemon=True).start()
+    asyncio.run(server.serve())
+    return 0
+

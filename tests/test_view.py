@@ -1,0 +1,263 @@
+"""The live viewer's server: page, static files, frame stream, controls and bad requests."""
+
+from __future__ import annotations
+
+import base64
+import itertools
+import json
+from collections.abc import Iterator
+from typing import Any
+
+import numpy as np
+import pytest
+
+pytest.importorskip("fastapi")
+pytest.importorskip("httpx")
+
+from fastapi.testclient import TestClient
+from starlette.websockets import WebSocketDisconnect
+
+from depthgram.errors import InputError
+from depthgram.frame import make_frame
+from depthgram.pipeline import Config, Pipeline
+from depthgram.sensor import simulate
+from depthgram.sources import open_source
+from depthgram.views.server import Player, ViewerConfig, create_app, recording_name, tree_lines
+
+SPEC = "sim:table?frames=4"
+
+
+def _sim_player(**viewer: Any) -> Player:
+    src = open_source(SPEC)
+    return Player(lambda: iter(src), recording_name(SPEC), Config(), ViewerConfig(**viewer),
+                  frames=len(src), fps=src.fps)
+
+
+def _frame(ws: Any, *, ack: bool = True, end: bool = False) -> dict[str, Any]:
+    """Next frame message (or end of recording when ``end``), acknowledged like the page does."""
+    while True:
+        msg = json.loads(ws.receive_text())
+        if end and msg["type"] == "end":
+            return msg
+        if msg["type"] == "frame":
+            if ack:
+                ws.send_text(json.dumps({"type": "ack", "index": msg["index"]}))
+            return msg
+
+
+def test_recording_name_and_tree_lines() -> None:
+    assert recording_name("sim:table?frames=4") == "sim-table"
+    assert recording_name("../shared/data/7scenes_redkitchen_seq/") == "7scenes_redkitchen_seq"
+    assert recording_name("C:\\rec\\a b.bag") == "a-b.bag"
+    tree = {"nodes": [
+        {"id": 0, "kind": "scene", "parent": None, "depth": None, "area": 100},
+        {"id": 1, "kind": "object", "parent": 0, "depth": 900.0, "area": 40},
+        {"id": 3, "kind": "object", "parent": 1, "depth": 950.0, "area": 5},
+        {"id": 2, "kind": "floor", "parent": 0, "depth": 2000.0, "area": 30},
+    ]}
+    assert [(n["id"], n["level"]) for n in tree_lines(tree)] == [(0, 0), (1, 1), (3, 2), (2, 1)]
+
+
+@pytest.mark.parametrize("kwargs", [{"speed": 0}, {"speed": 17}, {"fps": -1}, {"image_format": "gif"},
+                                    {"samplerate": 10}, {"min_width_px": 0}])
+def test_viewer_config_refuses_absurd_values(kwargs: dict[str, Any]) -> None:
+    with pytest.raises(InputError):
+        ViewerConfig(**kwargs)
+
+
+def test_index_page_and_static_files() -> None:
+    with TestClient(create_app(_sim_player(playing=False))) as client:
+        page = client.get("/")
+        assert page.status_code == 200 and "text/html" in page.headers["content-type"]
+        assert 'id="view"' in page.text and "data-objects" in page.text and "/static/viewer.js" in page.text
+        js = client.get("/static/viewer.js")
+        assert js.status_code == 200 and "javascript" in js.headers["content-type"]
+        assert "WebSocket" in js.text
+        assert client.get("/static/viewer.css").status_code == 200
+        assert client.get("/static/nothing.js").status_code == 404
+
+
+@pytest.mark.parametrize("path", [
+    "/static/../../pyproject.toml",
+    "/static/..%2F..%2Fpyproject.toml",
+    "/static/%2e%2e/%2e%2e/pyproject.toml",
+    "/static/%2e%2e%2f%2e%2e%2fpyproject.toml",
+    "/static/%252e%252e%252fpyproject.toml",
+    "/static/viewer.js/../../../../pyproject.toml",
+    "/static/..\\..\\pyproject.toml",
+    "/static//etc/passwd",
+])
+def test_static_never_leaves_its_folder(path: str) -> None:
+    with TestClient(create_app(_sim_player(playing=False))) as client:
+        r = client.get(path)
+        assert r.status_code == 404
+        assert "[project]" not in r.text and "root:" not in r.text
+        assert "error" in r.json()
+
+
+def test_stream_delivers_the_table_scene_with_its_true_objects() -> None:
+    sim = next(iter(simulate("table", 1)))
+    reference = Pipeline().process(sim.frame)
+    with TestClient(create_app(_sim_player(playing=False))) as client:
+        with client.websocket_connect("/ws/sim-table") as ws:
+            hello = json.loads(ws.receive_text())
+            assert hello["type"] == "hello" and hello["frames"] == 4 and hello["fps"] == pytest.approx(30.0)
+            assert client.post("/api/recordings/sim-table/step").json()["index"] == 0
+            msg = _frame(ws)
+    assert msg["index"] == 0 and msg["size"] == [176, 132] and msg["scale"] == 2
+    assert msg["objects"] == len(reference.segmentation.objects) == len(msg["record"]["objects"])
+    assert msg["record"]["sentence"] == reference.sentence
+    assert msg["image"].startswith("data:image/png;base64,")
+    png = base64.b64decode(msg["image"].split(",", 1)[1])
+    assert png[:8] == b"\x89PNG\r\n\x1a\n"
+    # Every compact true object (cup, box, ball, bottle) is on the page: one object whose
+    # center is within 6 px of the truth and whose area is within 40 % of it.
+    objects = msg["record"]["objects"]
+    for t in sim.truth:
+        if t.kind != "object" or t.area > 0.1 * 176 * 132:
+            continue
+        near = [o for o in objects if np.hypot(o["center"][0] - t.center[0], o["center"][1] - t.center[1]) < 6
+                and abs(o["area"] - t.area) < 0.4 * t.area]
+        assert len(near) == 1, (t.name, t.center, t.area)
+    assert {"actions", "channel", "warnings"} <= set(msg["plan"])
+    assert msg["tree"][0]["level"] == 0 and all(n["level"] >= 1 for n in msg["tree"][1:])
+
+
+def test_play_pause_step_round_trip() -> None:
+    with TestClient(create_app(_sim_player(playing=True, loop=True))) as client:
+        with client.websocket_connect("/ws/sim-table") as ws:
+            json.loads(ws.receive_text())
+            first = _frame(ws)
+            second = _frame(ws)
+            assert second["index"] == (first["index"] + 1) % 4 or second["dropped"] > first["dropped"]
+            state = client.post("/api/recordings/sim-table/pause").json()
+            assert state["playing"] is False
+            # pause returns once the frame in progress is pushed: drain up to it, then nothing more
+            msg = second
+            while msg["index"] != state["index"]:
+                msg = _frame(ws)
+            stepped = client.post("/api/recordings/sim-table/step").json()
+            assert stepped["index"] == (state["index"] + 1) % 4 and stepped["playing"] is False
+            after = _frame(ws)
+            assert after["index"] == stepped["index"] and after["playing"] is False
+
+
+def test_parameter_change_takes_effect_on_the_next_frame() -> None:
+    frames = list(open_source(SPEC))
+    ref = Pipeline()
+    ref.process(frames[0])
+    changed = Config().replace(segment={"method": "threshold", "min_area": 50, "fraction": 0.2, "bin_mm": 20})
+    ref.config = changed
+    expected = ref.process(frames[1])
+    with TestClient(create_app(_sim_player(playing=False))) as client:
+        with client.websocket_connect("/ws/sim-table") as ws:
+            json.loads(ws.receive_text())
+            client.post("/api/recordings/sim-table/step")
+            before = _frame(ws)
+            r = client.put("/api/recordings/sim-table/params",
+                           json={"method": "threshold", "min_area": 50, "fraction": 0.2, "bin_mm": 20})
+            assert r.status_code == 200
+            assert r.json()["params"] == {"method": "threshold", "min_area": 50, "fraction": 0.2, "bin_mm": 20}
+            client.post("/api/recordings/sim-table/step")
+            after = _frame(ws)
+    assert before["index"] == 0 and after["index"] == 1
+    assert after["objects"] == len(expected.segmentation.objects) != before["objects"]
+    assert after["record"]["sentence"] == expected.sentence
+
+
+def test_a_page_that_is_behind_gets_the_newest_frame_and_the_count_of_missed_ones() -> None:
+    with TestClient(create_app(_sim_player(playing=False))) as client:
+        with client.websocket_connect("/ws/sim-table") as ws:
+            json.loads(ws.receive_text())
+            for _ in range(3):  # the page acknowledges none of these
+                client.post("/api/recordings/sim-table/step")
+            first = _frame(ws, ack=True)
+            newest = _frame(ws)
+    assert first["index"] == 0 and first["dropped"] == 0
+    assert newest["index"] == 2 and newest["page_dropped"] == 1 and newest["dropped"] == 1
+
+
+def _cheap_frames(n: int) -> Iterator[Any]:
+    yy, xx = np.mgrid[0:30, 0:40]
+    for i in range(n):
+        depth = np.where((xx - 10 - i % 20) ** 2 + (yy - 15) ** 2 < 36, 800.0, 2000.0).astype(np.float32)
+        yield make_frame(depth, index=i, time_s=i / 1000.0, name=f"cheap#{i}")
+
+
+def test_server_skips_frames_when_behind_and_counts_every_one() -> None:
+    # 1000 frames/s: processing a frame takes longer than its 1 ms period, reading one does not.
+    player = Player(lambda: _cheap_frames(120), "cheap", Config(),
+                    ViewerConfig(fps=1000.0, loop=False, min_width_px=40), frames=120)
+    seen = []
+    with TestClient(create_app(player)) as client:
+        with client.websocket_connect("/ws/cheap") as ws:
+            json.loads(ws.receive_text())
+            while (msg := _frame(ws, end=True))["type"] == "frame":
+                seen.append(msg)
+            state = client.get("/api/recordings/cheap").json()
+    assert msg["ended"] is True and state["ended"] is True
+    # every frame not shown is counted, including those skipped after the last one shown
+    gaps = sum(b["index"] - a["index"] - 1 for a, b in itertools.pairwise(seen))
+    gaps += seen[0]["index"] + 119 - seen[-1]["index"]
+    assert seen[-1]["dropped"] > 0
+    assert seen[-1]["dropped"] == seen[-1]["server_dropped"] + seen[-1]["page_dropped"]
+    assert gaps == state["dropped"] + seen[-1]["page_dropped"]
+    assert state["processed"] + state["dropped"] == 120
+
+
+def test_sound_is_sent_to_pages_that_turn_it_on_and_lasts_as_long_as_the_frames() -> None:
+    pytest.importorskip("depthgram.sound", reason="the sound stage is not installed")
+    with TestClient(create_app(_sim_player(playing=False, loop=False, samplerate=8000))) as client:
+        with client.websocket_connect("/ws/sim-table") as ws:
+            json.loads(ws.receive_text())
+            ws.send_text(json.dumps({"type": "sound", "on": True}))
+            assert json.loads(ws.receive_text()) == {"type": "sound", "on": True, "available": True}
+            client.post("/api/recordings/sim-table/play")
+            msgs = []
+            while (msg := _frame(ws, end=True))["type"] == "frame":
+                msgs.append(msg)
+    assert msgs[-1]["index"] == 3
+    samples = 0
+    for m in msgs:
+        a = m["audio"]
+        assert a["samplerate"] == 8000 and a["channels"] == 2
+        for chunk in a["chunks"]:
+            pcm = np.frombuffer(base64.b64decode(chunk), "<i2")
+            assert pcm.size % 2 == 0 and np.abs(pcm).max() < 32767
+            samples += pcm.size // 2
+    # The 4 frames at 30 frames/s last 4/30 s, skipped frames included: the sound is continuous.
+    assert abs(samples - 4 * 8000 / 30) <= 1
+
+
+@pytest.mark.parametrize(("method", "path", "body", "status", "needle"), [
+    ("get", "/api/recordings/nope", None, 404, "unknown recording"),
+    ("post", "/api/recordings/nope/play", None, 404, "unknown recording"),
+    ("post", "/api/recordings/sim-table/rewind", None, 404, "unknown action"),
+    ("put", "/api/recordings/sim-table/params", {"min_area": -1}, 422, "min_area"),
+    ("put", "/api/recordings/sim-table/params", {"method": "x"}, 422, "method"),
+    ("put", "/api/recordings/sim-table/params", {"no_such": 1}, 422, "unknown setting"),
+    ("put", "/api/recordings/sim-table/params", {}, 422, "params"),
+    ("put", "/api/recordings/sim-table/speed", {"value": 0}, 422, "speed"),
+    ("put", "/api/recordings/sim-table/speed", {"value": "fast"}, 422, "speed"),
+    ("put", "/api/recordings/sim-table/speed", b"{not json", 400, "JSON"),
+])
+def test_bad_requests_get_a_clear_json_error(method: str, path: str, body: Any, status: int, needle: str) -> None:
+    with TestClient(create_app(_sim_player(playing=False))) as client:
+        if isinstance(body, bytes):
+            r = client.request(method.upper(), path, content=body)
+        elif body is not None:
+            r = client.request(method.upper(), path, json=body)
+        else:
+            r = client.request(method.upper(), path)
+        assert r.status_code == status, r.text
+        assert needle in r.json()["error"]
+        # a refused change leaves the settings as they were
+        state = client.get("/api/recordings/sim-table").json()
+        assert state["params"]["method"] == "slices" and state["speed"] == 1.0
+
+
+def test_unknown_recording_stream_is_refused() -> None:
+    with TestClient(create_app(_sim_player(playing=False))) as client:
+        with pytest.raises(WebSocketDisconnect) as info, client.websocket_connect("/ws/nope") as ws:
+            ws.receive_text()
+        assert info.value.code == 4404
