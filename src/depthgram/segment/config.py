@@ -64,6 +64,10 @@ class SegmentConfig:
     oblique_deg : float
         A surface whose normal is within this angle (degrees) of the vertical image axis is a
         horizontal support (floor, ceiling, table top); within it of the horizontal axis, a wall.
+    min_spread : float
+        An oblique surface spreads its depth over a plateau of the histogram (paper, section 3):
+        a floor, ceiling or wall piece whose depth standard deviation is under this fraction of
+        its mean depth is handled as facing the sensor (the flank of a mug near the camera).
     normal_window_px : int
         Side (px) of the box window over which surface orientation is estimated.
     jump_rel : float
@@ -89,6 +93,7 @@ class SegmentConfig:
     slice_aperture: float = 0.10
     slice_directions: str = "both"
     oblique_deg: float = 35.0
+    min_spread: float = 0.05
     normal_window_px: int = 7
     jump_rel: float = 0.05
     region_tol_mm: float = 20.0
@@ -122,6 +127,8 @@ class SegmentConfig:
             raise bad("fraction", self.fraction, "a share in [0, 0.5] (the paper uses 0.10)")
         if not 0.0 <= self.min_prominence < 1.0:
             raise bad("min_prominence", self.min_prominence, "a fraction of the valid pixels in [0, 1)")
+        if not 0.0 <= self.min_spread < 1.0:
+            raise bad("min_spread", self.min_spread, "a fraction of the mean depth in [0, 1)")
         if not 0.0 <= self.smooth_bins <= 50.0:
             raise bad("smooth_bins", self.smooth_bins, "a sigma in bins in [0, 50]")
         if not (isinstance(self.fill_holes_px, int) and 0 <= self.fill_holes_px <= 64):

@@ -159,9 +159,13 @@ def _slices(
             classes[near] = cls
             lab, n = support_components(depth, ok, classes, cls, jump_rel=cfg.jump_rel, bridge=cfg.fill_holes_px)
             lab, n = merge_coplanar(lab, n, depth, cam, min_fit_px=max(min_px // 2, 10))
-        counts = np.bincount(lab.ravel(), minlength=n + 1).astype(np.float64)
-        small = counts < min_px
+        st = label_stats(lab, depth, n)
+        counts = st.count
+        mean = st.sz / np.maximum(counts, 1)
+        std = np.sqrt(np.maximum(st.szz / np.maximum(counts, 1) - mean * mean, 0))
+        small = (counts < min_px) | (std < cfg.min_spread * mean)
         small[0] = False
+        counts = np.where(small, 0, counts)
         classes[small[lab]] = FACING
         lab = relabel_small(lab, counts, min_px)
         support_maps.append((cls, lab, int(lab.max(initial=0))))

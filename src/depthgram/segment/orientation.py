@@ -94,15 +94,18 @@ def orientation_field(
     inv3 = np.asarray(
         cv2.boxFilter(inv, -1, (3, 3), normalize=False, borderType=cv2.BORDER_REPLICATE) / den3, np.float32
     )
+    # the mean is defined wherever a 3 x 3 neighbour has a reading, which bridges a sieve of
+    # dropouts (registered structured light keeps one pixel in four)
+    has = den3 > 0.5
     step = max(1, window_px // 2)
-    gx = _one_sided(inv3, valid, step)
-    gy = np.ascontiguousarray(_one_sided(np.ascontiguousarray(inv3.T), valid.T, step).T)
+    gx = _one_sided(inv3, has, step)
+    gy = np.ascontiguousarray(_one_sided(np.ascontiguousarray(inv3.T), np.ascontiguousarray(has.T), step).T)
     # average the gradient over valid pixels only; holes neither pull it to zero nor fake edges.
     # Pixels whose slope is steeper than 80 degrees from the line of sight are left out too: on
     # both sides of an occlusion edge (a smoothed or flying pixel) they would fake a steep plane.
     fx, fy = intrinsics.fx, intrinsics.fy
     steep = np.float32(math.tan(math.radians(80.0)))
-    keep = valid & (np.abs(fx * gx) <= steep * inv) & (np.abs(fy * gy) <= steep * inv)
+    keep = has & (np.abs(fx * gx) <= steep * inv3) & (np.abs(fy * gy) <= steep * inv3)
     gx[~keep] = 0.0
     gy[~keep] = 0.0
     k = (window_px, window_px)
@@ -115,7 +118,7 @@ def orientation_field(
     b = fy * gy
     u = ((np.arange(w, dtype=np.float32) - cx) / fx)[None, :]
     v = ((np.arange(h, dtype=np.float32) - cy) / fy)[:, None]
-    c = inv - a * u - b * v
+    c = inv3 - a * u - b * v
     norm = np.sqrt(a * a + b * b + c * c) + 1e-12
     cos_t = math.cos(math.radians(oblique_deg))
     cls = np.zeros((h, w), np.int8)
