@@ -273,3 +273,22 @@ def test_motions_are_ordinary_motion_objects() -> None:
     assert m == expected and repr(m) == repr(expected) and hash(m) == hash(expected)
     with pytest.raises(dataclasses.FrozenInstanceError):
         m.ttc = 0.0  # type: ignore[misc]
+
+
+def test_depth_jump_restarts_the_queue_instead_of_reading_speed() -> None:
+    # A still object whose segment suddenly covers a surface 300 mm behind (15 %, inside
+    # the matching gate): without the restart the fit would read metres per second.
+    tr = Tracker()
+    vs = []
+    for k in range(10):
+        z = 2000.0 if k < 5 else 2300.0
+        m = tr.update([box(1, 320, 240, 80, 80, z)], k / FPS, (W, H)).motions[1]
+        vs.append(m.v_radial)
+    assert m.track_id == 1
+    assert vs[5] is None  # one valid entry after the restart
+    assert all(v == pytest.approx(0.0, abs=1e-9) for v in vs[6:])
+    off = Tracker(TrackerConfig(max_depth_jump=float("inf")))
+    for k in range(7):
+        z = 2000.0 if k < 5 else 2300.0
+        m = off.update([box(1, 320, 240, 80, 80, z)], k / FPS, (W, H)).motions[1]
+    assert m.v_radial is not None and m.v_radial > 2000.0  # what the restart prevents

@@ -62,6 +62,11 @@ class TrackerConfig:
         A detection whose depth-compensated area differs from the track's running area by
         more than this factor is a split or merge by segmentation; its mean depth is biased
         and is kept out of the velocity fit (dimensionless, > 1).
+    max_depth_jump : float
+        A detection whose mean depth is further than this fraction of the predicted depth
+        from the track's predicted path (per frame since the last detection) restarts the
+        queue: the segment now covers another surface, and fitting across the jump would
+        read it as a fast motion (dimensionless, > 0; ``inf`` disables).
     fit_border_entries : bool
         Whether mean depths of entering or leaving frames enter the velocity fit. Off by
         default: a partly visible object's mean depth is biased by what part is seen.
@@ -88,6 +93,7 @@ class TrackerConfig:
     border_px: int = 2
     border_area_change: float = 0.05
     max_area_jump: float = 1.25
+    max_depth_jump: float = 0.03
     fit_border_entries: bool = False
     min_speed: float = 50.0
     min_speed_per_frame: float = 2.0
@@ -113,6 +119,9 @@ class TrackerConfig:
         _check(0 < self.max_center_frac <= 2, "max_center_frac", self.max_center_frac, "in (0, 2]")
         _check(self.max_depth_change > 0, "max_depth_change", self.max_depth_change, "> 0")
         _check(self.max_area_ratio > 1, "max_area_ratio", self.max_area_ratio, "> 1")
+        j = self.max_depth_jump
+        ok = isinstance(j, int | float) and not isinstance(j, bool) and not math.isnan(j) and j > 0
+        _check(ok, "max_depth_jump", j, "a number > 0 (inf disables)")
         _check(self.max_area_jump > 1, "max_area_jump", self.max_area_jump, "> 1")
         _check(self.min_iou <= 1, "min_iou", self.min_iou, "in [0, 1]")
         _check(isinstance(self.fit_border_entries, bool), "fit_border_entries", self.fit_border_entries, "a bool")

@@ -45,6 +45,8 @@ class BodyScore:
         earlier valid frames and reported a velocity while the body was fully visible.
     v_truth : tuple of float
         The true radial velocities (mm/s) at those frames.
+    id_by_frame : tuple of (int, int)
+        (frame index, primary track id) for every tracked frame.
     """
 
     name: str
@@ -54,6 +56,7 @@ class BodyScore:
     id_switches: int
     v_errors: tuple[float, ...]
     v_truth: tuple[float, ...]
+    id_by_frame: tuple[tuple[int, int], ...] = ()
 
 
 @dataclass(frozen=True)
@@ -249,6 +252,7 @@ def evaluate_tracking(
                 continue
             rec.tracked += 1
             rec.ids.append(motion.track_id)
+            rec.frames.append(fr.index)
             n_valid = sum(z is not None for _, z in queues.get(seg_id, ()))
             steady = len(rec.v_hist) > settle and max(rec.v_hist[-settle - 1 :]) == min(rec.v_hist[-settle - 1 :])
             if motion.status == "visible" and motion.v_radial is not None and n_valid >= settle and steady:
@@ -267,6 +271,7 @@ class _Record:
     err: list[float] = field(default_factory=list)
     tru: list[float] = field(default_factory=list)
     v_hist: list[float] = field(default_factory=list)
+    frames: list[int] = field(default_factory=list)
 
     def score(self) -> BodyScore:
         switches = sum(a != b for a, b in zip(self.ids, self.ids[1:], strict=False))
@@ -278,4 +283,5 @@ class _Record:
             id_switches=switches,
             v_errors=tuple(self.err),
             v_truth=tuple(self.tru),
+            id_by_frame=tuple(zip(self.frames, self.ids, strict=True)),
         )

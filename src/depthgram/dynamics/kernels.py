@@ -196,12 +196,12 @@ def step(
     This is the project's own bookkeeping (queues, statuses, split/merge and border tests),
     hand-written in one compiled pass because it runs every frame on a few dozen rows.
     ``p`` holds border_px, border_area_change, max_area_jump, fit_border_entries,
-    min_speed (in v's unit), min_hits, max_missed.
+    min_speed (in v's unit), min_hits, max_missed, max_depth_jump.
 
     Returns the track row of each object, the reported velocity and time to collision of
     every row, which rows die this frame, and the number of new tracks.
     """
-    border, thr, max_jump, fit_border, min_speed, min_hits, max_missed = p
+    border, thr, max_jump, fit_border, min_speed, min_hits, max_missed, depth_jump = p
     m = f.shape[0]
     nq = qt.shape[1]
     # Every queue advances one slot; detections fill the newest one below.
@@ -257,6 +257,13 @@ def step(
             elif (change < -thr and ext_min < -thr) or (prev == LEAVING and change <= 0 and ext_min <= 0):
                 status = LEAVING
         valid = z_ok and not (jump > max_jump) and (fit_border > 0 or status == VISIBLE)
+        if valid and np.isfinite(p_depth) and abs(zo - p_depth) > depth_jump * p_depth * steps:
+            # The mean depth left the predicted path by more than any motion explains: the
+            # segment now covers another surface (or the object jolted). Older entries no
+            # longer describe the same thing, so the queue restarts from this one.
+            for j in range(nq - 1):
+                qz[i, j] = np.nan
+            s[i, V] = np.nan
         if valid:
             qz[i, nq - 1] = zo
         dcx = (f[c, F_CX] - s[i, CX]) / steps

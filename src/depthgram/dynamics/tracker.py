@@ -144,7 +144,7 @@ class Tracker:
         self._cost_params = cost_params(c)
         self._step_params = np.array(
             [c.border_px, c.border_area_change, c.max_area_jump, float(c.fit_border_entries), 0.0,
-             c.min_hits, c.max_missed],
+             c.min_hits, c.max_missed, c.max_depth_jump],
             dtype=np.float64,
         )  # fmt: skip
         self.reset()
