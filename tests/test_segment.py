@@ -93,8 +93,9 @@ def test_histogram_cuts_follow_the_10_percent_rule_both_readings() -> None:
     }
     for cut_from, (lower, upper) in expected.items():
         cfg = SegmentConfig(bin_mm=10.0, smooth_bins=0.0, min_prominence=0.05, cut_from=cut_from)
-        bins, edges = bin_index(img, ok, cfg)
-        bands = depth_bands(bins, edges, img.size, cfg)
+        bins, edges, counts = bin_index(img, ok, cfg)
+        assert counts.sum() == img.size and bins.min() == 0
+        bands = depth_bands(counts, edges, cfg)
         assert bands.histogram.peaks.tolist() == pytest.approx([1030.0, 1330.0])
         assert bands.lower.tolist() == pytest.approx(lower)
         assert bands.upper.tolist() == pytest.approx(upper)

@@ -110,9 +110,8 @@ def _facing_objects(
     intrinsics: Intrinsics | None,
     cfg: SegmentConfig,
 ) -> tuple[NDArray[np.int32], list[SceneObject], Bands]:
-    hist_mask = ok if include is None else ok & include
-    band, bands = band_image(depth, hist_mask, cfg)
-    labels, n = threshold_labels(band, ok, cfg, include=include)
+    band, state, bands = band_image(depth, ok, cfg, include=include)
+    labels, n = threshold_labels(band, state, cfg)
     labels, stats, band_of = fused_stats(labels, n, depth, band, cfg.min_area_px(depth.size))
     if intrinsics is None:
         stats = replace(stats, sxz=None, syz=None)

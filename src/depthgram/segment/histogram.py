@@ -19,6 +19,7 @@ from numpy.typing import NDArray
 from scipy.ndimage import gaussian_filter1d
 from scipy.signal import find_peaks
 
+from depthgram.segment.binning import bin_pixels, depth_range
 from depthgram.segment.config import SegmentConfig
 from depthgram.segment.objects import Histogram
 
@@ -26,30 +27,29 @@ __all__ = ["Bands", "bin_index", "depth_bands"]
 
 
 def bin_index(
-    depth_mm: NDArray[np.floating], valid: NDArray[np.bool_], config: SegmentConfig
-) -> tuple[NDArray[np.intp], NDArray[np.float64]]:
-    """Histogram bin of every pixel and the bin edges (mm).
+    depth_mm: NDArray[np.float32], valid: NDArray[np.bool_], config: SegmentConfig
+) -> tuple[NDArray[np.int32], NDArray[np.float64], NDArray[np.int64]]:
+    """Histogram bin of every pixel, the bin edges (mm) and the counts per bin.
 
     Invalid pixels get bin -1. With ``depth_dependent_bins`` the edges are geometric, so a
     bin is ``bin_mm`` wide at ``ref_depth_mm`` and proportional to depth elsewhere.
     """
-    z = depth_mm[valid]
-    if z.size == 0:
-        return np.full(depth_mm.shape, -1, np.intp), np.zeros(1)
-    lo, hi = float(z.min()), float(z.max())
-    out = np.full(depth_mm.shape, -1, np.intp)
+    depth = np.ascontiguousarray(depth_mm, np.float32)
+    ok = np.ascontiguousarray(valid, np.bool_)
+    lo, hi, n = depth_range(depth, ok)
+    if n == 0:
+        return np.full(depth.shape, -1, np.int32), np.zeros(1), np.zeros(0, np.int64)
     if config.depth_dependent_bins:
         step = math.log1p(config.bin_mm / config.ref_depth_mm)
         l0 = math.log(lo)
         nb = int((math.log(hi) - l0) / step) + 1
-        out[valid] = ((np.log(z) - l0) / step).astype(np.intp)
+        bins, counts = bin_pixels(depth, ok, l0, step, True, nb)
         edges = np.exp(l0 + step * np.arange(nb + 1))
     else:
         nb = int((hi - lo) / config.bin_mm) + 1
-        out[valid] = ((z - lo) / config.bin_mm).astype(np.intp)
+        bins, counts = bin_pixels(depth, ok, lo, config.bin_mm, False, nb)
         edges = lo + config.bin_mm * np.arange(nb + 1)
-    np.minimum(out, nb - 1, out=out)
-    return out, edges
+    return bins, edges, counts
 
 
 class Bands:
@@ -85,11 +85,10 @@ class Bands:
         return np.searchsorted(self.upper, np.asarray(depth_mm), side="left")
 
 
-def depth_bands(bins: NDArray[np.intp], edges: NDArray[np.float64], n_valid: int, config: SegmentConfig) -> Bands:
-    """Histogram, peaks and cuts of a frame whose pixels were binned by :func:`bin_index`."""
+def depth_bands(counts: NDArray[np.int64], edges: NDArray[np.float64], config: SegmentConfig) -> Bands:
+    """Peaks and cuts of a histogram from :func:`bin_index`."""
     nb = edges.size - 1
-    flat = bins.ravel()
-    counts = np.bincount(flat[flat >= 0], minlength=nb)[:nb].astype(np.int64) if nb > 0 else np.zeros(0, np.int64)
+    n_valid = int(counts.sum())
     if nb == 0 or n_valid == 0:
         empty = np.zeros(0)
         return Bands(Histogram(edges, counts, empty, empty), np.full(max(nb, 1), -1, np.int32), empty)

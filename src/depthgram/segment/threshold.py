@@ -9,45 +9,35 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
+from depthgram.segment.binning import band_state
 from depthgram.segment.config import SegmentConfig
 from depthgram.segment.histogram import Bands, bin_index, depth_bands
-from depthgram.segment.label import ACTIVE, BLOCK, HOLE, label_keyed
+from depthgram.segment.label import label_keyed
 
 __all__ = ["band_image", "threshold_labels"]
 
 
 def band_image(
-    depth_mm: NDArray[np.floating], valid: NDArray[np.bool_], config: SegmentConfig
-) -> tuple[NDArray[np.int32], Bands]:
-    """Band index of every pixel (-1 for invalid pixels and pixels between bands) and the bands."""
-    bins, edges = bin_index(depth_mm, valid, config)
-    bands = depth_bands(bins, edges, int(np.count_nonzero(valid)), config)
-    band = bands.lut[bins]
-    band[bins < 0] = -1
-    return band, bands
-
-
-def threshold_labels(
-    band: NDArray[np.int32],
+    depth_mm: NDArray[np.float32],
     valid: NDArray[np.bool_],
     config: SegmentConfig,
     *,
     include: NDArray[np.bool_] | None = None,
-) -> tuple[NDArray[np.int32], int]:
-    """Connected same-band components, holes of up to ``fill_holes_px`` bridged.
+) -> tuple[NDArray[np.float32], NDArray[np.int8], Bands]:
+    """Band of every pixel, the labeller state, and the bands.
 
-    Parameters
-    ----------
-    band : ndarray of int32, shape (H, W)
-        From :func:`band_image`.
-    valid : ndarray of bool
-        Pixels with a reading; the others are holes that may be bridged.
-    include : ndarray of bool, optional
-        Only these pixels are labelled (the others, when valid, block a bridge).
+    The histogram is taken over the valid pixels in ``include`` (all valid pixels by default);
+    pixels outside a band or outside ``include`` are not labelled but block hole bridging.
     """
-    state = np.where(valid, np.int8(BLOCK), np.int8(HOLE))
-    active = band >= 0
-    if include is not None:
-        active &= include
-    state[active] = ACTIVE
+    hist_mask = valid if include is None else valid & include
+    bins, edges, counts = bin_index(depth_mm, hist_mask, config)
+    bands = depth_bands(counts, edges, config)
+    band, state = band_state(bins, bands.lut, valid, include)
+    return band, state, bands
+
+
+def threshold_labels(
+    band: NDArray[np.float32], state: NDArray[np.int8], config: SegmentConfig
+) -> tuple[NDArray[np.int32], int]:
+    """Connected same-band components (one pass for all bands), holes of up to ``fill_holes_px`` bridged."""
     return label_keyed(band, state, tol=0.0, bridge=config.fill_holes_px)

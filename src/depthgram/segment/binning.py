@@ -1,0 +1,107 @@
+"""Compiled per-pixel passes of histogram thresholding: binning with the histogram, band lookup.
+
+Each is one raster pass where numpy needs several (a boolean gather of the valid pixels, a
+scaling, a cast, a scatter back, a bincount, a lookup, a mask for the labeller): measured about
+4x faster at 640 x 480 (``benchmarks/bench_segmentation.py --profile``).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+from numpy.typing import NDArray
+
+from depthgram.segment.label import ACTIVE, BLOCK, HOLE
+
+__all__ = ["band_state", "bin_pixels", "depth_range"]
+
+
+@njit(cache=True)
+def _range(depth: NDArray[np.float32], valid: NDArray[np.bool_]) -> tuple[float, float, int]:
+    h, w = depth.shape
+    lo = np.inf
+    hi = -np.inf
+    n = 0
+    for y in range(h):
+        for x in range(w):
+            if valid[y, x]:
+                z = depth[y, x]
+                n += 1
+                if z < lo:
+                    lo = z
+                if z > hi:
+                    hi = z
+    return lo, hi, n
+
+
+@njit(cache=True)
+def _bins(
+    depth: NDArray[np.float32], valid: NDArray[np.bool_], lo: float, step: float, log: bool, nb: int
+) -> tuple[NDArray[np.int32], NDArray[np.int64]]:
+    h, w = depth.shape
+    out = np.full((h, w), -1, np.int32)
+    counts = np.zeros(nb, np.int64)
+    for y in range(h):
+        for x in range(w):
+            if not valid[y, x]:
+                continue
+            z = depth[y, x]
+            b = int(((math.log(z) if log else z) - lo) / step)
+            if b >= nb:
+                b = nb - 1
+            out[y, x] = b
+            counts[b] += 1
+    return out, counts
+
+
+@njit(cache=True)
+def _band_state(
+    bins: NDArray[np.int32], lut: NDArray[np.int32], valid: NDArray[np.bool_], include: NDArray[np.bool_], use: bool
+) -> tuple[NDArray[np.float32], NDArray[np.int8]]:
+    h, w = bins.shape
+    band = np.full((h, w), -1.0, np.float32)
+    state = np.zeros((h, w), np.int8)
+    for y in range(h):
+        for x in range(w):
+            if not valid[y, x]:
+                state[y, x] = HOLE
+                continue
+            b = bins[y, x]
+            k = lut[b] if b >= 0 else -1
+            if k >= 0 and (not use or include[y, x]):
+                band[y, x] = k
+                state[y, x] = ACTIVE
+            else:
+                state[y, x] = BLOCK
+    return band, state
+
+
+def depth_range(depth_mm: NDArray[np.float32], valid: NDArray[np.bool_]) -> tuple[float, float, int]:
+    """Smallest and largest valid depth (mm) and the number of valid pixels."""
+    lo, hi, n = _range(depth_mm, valid)
+    return float(lo), float(hi), int(n)
+
+
+def bin_pixels(
+    depth_mm: NDArray[np.float32], valid: NDArray[np.bool_], lo: float, step: float, log: bool, nb: int
+) -> tuple[NDArray[np.int32], NDArray[np.int64]]:
+    """Bin of every valid pixel (-1 elsewhere) and the histogram counts.
+
+    The bin is ``floor((z - lo) / step)``, or ``floor((ln z - lo) / step)`` when ``log``,
+    clipped to ``nb - 1``.
+    """
+    return _bins(depth_mm, valid, float(lo), float(step), bool(log), int(nb))
+
+
+def band_state(
+    bins: NDArray[np.int32], lut: NDArray[np.int32], valid: NDArray[np.bool_], include: NDArray[np.bool_] | None
+) -> tuple[NDArray[np.float32], NDArray[np.int8]]:
+    """Band of each pixel (-1 outside every band) and its labeller state.
+
+    Pixels without a reading are holes; valid pixels outside a band, or outside ``include``,
+    block; the rest are active.
+    """
+    inc = include if include is not None else valid
+    return _band_state(bins, lut, valid, inc, include is not None)
