@@ -257,7 +257,8 @@ def step(
             elif (change < -thr and ext_min < -thr) or (prev == LEAVING and change <= 0 and ext_min <= 0):
                 status = LEAVING
         valid = z_ok and not (jump > max_jump) and (fit_border > 0 or status == VISIBLE)
-        if valid and np.isfinite(p_depth) and abs(zo - p_depth) > depth_jump * p_depth * steps:
+        restart = valid and np.isfinite(p_depth) and abs(zo - p_depth) > depth_jump * p_depth * steps
+        if restart:
             # The mean depth left the predicted path by more than any motion explains: the
             # segment now covers another surface (or the object jolted). Older entries no
             # longer describe the same thing, so the queue restarts from this one.
@@ -291,6 +292,8 @@ def step(
             s[i, MAREA] = ma_new
         else:
             s[i, MAREA] = 0.7 * ma_run + 0.3 * ma_new
+        if restart:  # sizes are compared at the new depth from now on
+            s[i, MAREA] = area * zo * zo
         s[i, LABEL] = f[c, F_LABEL]
         s[i, STATUS] = status
         s[i, HITS] += 1.0
