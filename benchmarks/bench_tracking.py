@@ -1,7 +1,7 @@
 """Cost of one tracker update, and tracking quality on simulated and real sequences.
 
-Run ``python benchmarks/bench_tracking.py`` (``--quick`` for fewer frames, ``--no-quality``
-for timing only). Prints microseconds per :meth:`depthgram.dynamics.Tracker.update` for 5,
+Run ``.venv/bin/python benchmarks/bench_tracking.py`` (``--quick`` for fewer frames,
+``--no-quality`` for timing only). Prints microseconds per :meth:`depthgram.dynamics.Tracker.update` for 5,
 30 and 100 objects (target: under 200 µs for 30), then, when the simulator and segmentation
 are available, velocity error, identity switches and lost tracks on the ``approach`` and
 ``crossing`` scenes, and the distribution of |v_radial| on the real 7-Scenes sequence.
@@ -71,9 +71,71 @@ def timing_rows(counts: Sequence[int] = (5, 30, 100), frames: int = 300, repeats
     return rows
 
 
+def sim_rows(frames: int = 90, seed: int = 1) -> list[dict[str, object]]:
+    """Tracking quality on the simulated ``approach`` and ``crossing`` scenes.
+
+    Returns
+    -------
+    list of dict
+        ``scene``, ``segmenter``, ``within`` (share of velocity readings within 5 % or
+        2 mm/frame), ``err_p50``/``err_p95`` (mm/s), ``switches``, ``lost`` (frames).
+    """
+    from depthgram.dynamics import evaluate_tracking
+
+    rows: list[dict[str, object]] = []
+    for scene, segmenter in (("approach", "segment"), ("crossing", "segment"), ("crossing", "truth")):
+        sc = evaluate_tracking(scene, frames, seed=seed, segmenter=segmenter)
+        p50, p95 = sc.v_error_percentiles()
+        rows.append(
+            {"scene": scene, "segmenter": segmenter, "within": sc.within(0.05, 60.0), "err_p50": p50,
+             "err_p95": p95, "switches": sc.id_switches, "lost": sc.lost_frames,
+             "ids": {b.name: b.track_ids for b in sc.bodies}}
+        )  # fmt: skip
+    return rows
+
+
+def real_rows(frames: int = 300) -> dict[str, float] | None:
+    """|v_radial| on the real 7-Scenes sequence (static scene, camera about 0.2 m/s).
+
+    Returns None when ``../shared/data`` is absent.
+    """
+    from pathlib import Path
+
+    import cv2
+
+    from depthgram.frame import Intrinsics, make_frame
+    from depthgram.segment import segment
+
+    folder = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "7scenes_redkitchen_seq" / "depth"
+    paths = sorted(folder.glob("*.png"))[:frames]
+    if not paths:
+        return None
+    tracker = Tracker()
+    speeds: list[float] = []
+    n_obj = 0
+    t_track = 0.0
+    for k, p in enumerate(paths):
+        raw = cv2.imread(str(p), cv2.IMREAD_UNCHANGED)
+        fr = make_frame(raw, invalid_values=(65535,), index=k, intrinsics=Intrinsics(585.0, 585.0, 320.0, 240.0))
+        seg = segment(fr.depth, valid=fr.valid, intrinsics=fr.intrinsics)
+        t0 = time.perf_counter()
+        upd = tracker.update(seg.objects, k / 30.0, fr.size)
+        t_track += time.perf_counter() - t0
+        n_obj += len(seg.objects)
+        speeds += [abs(m.v_radial) for m in upd.motions.values() if m.v_radial is not None]
+    v = np.array(speeds)
+    p50, p90, p99 = np.percentile(v, [50, 90, 99])
+    return {
+        "frames": float(len(paths)), "objects_per_frame": n_obj / len(paths), "readings": float(len(v)),
+        "p50": float(p50), "p90": float(p90), "p99": float(p99), "max": float(v.max()),
+        "over_1m_s": float(np.mean(v > 1000.0)), "tracks": float(tracker._next_id - 1),
+        "us_per_update": 1e6 * t_track / len(paths),
+    }  # fmt: skip
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Print the figures; return 0."""
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
     p.add_argument("--quick", action="store_true", help="fewer frames")
     p.add_argument("--no-quality", action="store_true", help="timing only")
     args = p.parse_args(argv)
@@ -82,13 +144,26 @@ def main(argv: Sequence[str] | None = None) -> int:
     for r in timing_rows(frames=frames):
         n, us, alive = int(r["objects"]), r["us_per_update"], int(r["tracks_alive"])
         print(f"  {n:4d} objects: {us:8.1f} µs/update ({alive} tracks)")
-    if not args.no_quality:
-        try:
-            from quality_tracking import quality_report  # type: ignore[import-not-found]
-        except ImportError:
-            quality_report = None
-        if quality_report is not None:
-            quality_report(quick=args.quick)
+    if args.no_quality:
+        return 0
+    print("simulated scenes, 176 x 132 at 30 Hz (velocity target: within 5 % or 2 mm/frame after 3 frames)")
+    for r in sim_rows(frames=60 if args.quick else 90):
+        print(
+            f"  {r['scene']:9s} {r['segmenter']:8s} within {r['within']:.3f}  |err| p50 {r['err_p50']:.1f} "
+            f"p95 {r['err_p95']:.1f} mm/s  id switches {r['switches']}  lost frames {r['lost']}  ids {r['ids']}"
+        )
+    real = real_rows(frames)
+    if real is None:
+        print("real sequence: ../shared/data not found")
+    else:
+        print(
+            f"7-Scenes redkitchen, {int(real['frames'])} frames, {real['objects_per_frame']:.1f} objects/frame, "
+            f"{int(real['tracks'])} tracks, {real['us_per_update']:.0f} µs/update"
+        )
+        print(
+            f"  |v_radial| mm/s: p50 {real['p50']:.0f}  p90 {real['p90']:.0f}  p99 {real['p99']:.0f}  "
+            f"max {real['max']:.0f}  share > 1 m/s {real['over_1m_s']:.3f}  ({int(real['readings'])} readings)"
+        )
     return 0
 
 
