@@ -96,7 +96,7 @@ class SegmentConfig:
     min_spread: float = 0.05
     normal_window_px: int = 7
     jump_rel: float = 0.05
-    region_tol_mm: float = 20.0
+    region_tol_mm: float = 10.0
     region_relative: bool = True
 
     def __post_init__(self) -> None:

@@ -134,9 +134,7 @@ def _slices(
     depth: NDArray[np.float32], ok: NDArray[np.bool_], intrinsics: Intrinsics | None, cfg: SegmentConfig
 ) -> Segmentation:
     cam = intrinsics or default_intrinsics(depth.shape)
-    classes, _ = orientation_field(
-        depth, ok, cam, window_px=cfg.normal_window_px, oblique_deg=cfg.oblique_deg, jump_rel=cfg.jump_rel
-    )
+    classes = _orientation(depth, ok, cam, cfg)
     wanted = []
     if cfg.slice_directions in ("both", "horizontal"):
         wanted.append(HORIZONTAL)
@@ -234,6 +232,32 @@ def _slices(
     extras = _extras(bands)
     extras["classes"] = classes
     return Segmentation(labels, tuple(objects), bands.histogram, "slices", extras)
+
+
+def _orientation(
+    depth: NDArray[np.float32], ok: NDArray[np.bool_], cam: Intrinsics, cfg: SegmentConfig
+) -> NDArray[np.int8]:
+    """Orientation classes, estimated on every ``k``-th pixel for frames wider than 320 px.
+
+    Orientation is a property of surfaces many pixels wide, so a 2x (4x) subsampled frame gives
+    the same classes at a quarter (sixteenth) of the cost; the class map is then repeated back.
+    Support pixels are refined at full resolution afterwards (plane test, depth continuity).
+    """
+    h, w = depth.shape
+    k = 1 if w <= 320 else 2 if w <= 960 else 4
+    if k == 1:
+        sub_cam, d, v = cam, depth, ok
+    else:
+        sub_cam = Intrinsics(cam.fx / k, cam.fy / k, cam.cx / k, cam.cy / k)
+        d, v = np.ascontiguousarray(depth[::k, ::k]), np.ascontiguousarray(ok[::k, ::k])
+    cls, _ = orientation_field(
+        d, v, sub_cam, window_px=cfg.normal_window_px, oblique_deg=cfg.oblique_deg, jump_rel=cfg.jump_rel
+    )
+    if k == 1:
+        return cls
+    full = np.repeat(np.repeat(cls, k, axis=0), k, axis=1)[:h, :w]
+    full[~ok] = FACING
+    return np.ascontiguousarray(full)
 
 
 def _renumber(
