@@ -169,20 +169,25 @@ def _slices(
     facing = classes == FACING
     labels, objects, bands = _facing_objects(depth, ok, facing, intrinsics, cfg)
     next_id = len(objects) + 1
-    compounds: list[tuple[int, SceneObject]] = []
+    first_support = next_id
+    cls_of: dict[int, int] = {}
     for cls, lab, n in support_maps:
         if n == 0:
             continue
-        stats = label_stats(lab, depth, n, metric=True)
-        objs = make_objects(lab, stats, intrinsics=cam, first_id=next_id)
-        labels[lab > 0] = lab[lab > 0] + (next_id - 1)
+        on = lab > 0
+        labels[on] = lab[on] + (next_id - 1)
+        cls_of.update((i, cls) for i in range(next_id, next_id + n))
         next_id += n
-        compounds.extend((cls, o) for o in objs)
+    # one statistics pass for the supports (the facing objects are known already)
+    sup_labels = np.where(labels >= first_support, labels - (first_support - 1), 0).astype(np.int32)
+    sup_stats = label_stats(sup_labels, depth, next_id - first_support, metric=True)
+    compounds = [(cls_of[o.id], o) for o in make_objects(sup_labels, sup_stats, intrinsics=cam, first_id=first_support)]
     # only supports seen from above (floor, table tops) can have a front face below them
     horizontal_ids = np.array(
         [o.id for c, o in compounds if c == HORIZONTAL and o.centroid_mm and o.centroid_mm[1] > 0], np.int32
     )
-    fronts = front_faces(labels, depth, len(objects), horizontal_ids, jump_rel=cfg.jump_rel)
+    widths = np.array([0] + [o.bbox[2] - o.bbox[0] + 1 for o in objects], np.float64)
+    fronts = front_faces(labels, depth, widths, horizontal_ids, jump_rel=cfg.jump_rel)
     with_front = set(fronts.values())
     if fronts:
         lut = np.arange(next_id, dtype=np.int32)

@@ -126,8 +126,8 @@ def support_kind(cls: int, centroid_y_mm: float, is_lowest: bool) -> str:
 
 def plane_fits(
     labels: NDArray[np.int32], n: int, depth_mm: NDArray[np.float32], cam: Intrinsics
-) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Least-squares plane of each label: unit normal toward the sensor and offset (mm).
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """Least-squares plane of each label: unit normal toward the sensor, offset (mm), pixel count.
 
     Inverse depth is exactly affine in the normalised image coordinates for a plane
     (``1/Z = (n . ray) / d``), so the fit is linear: ``1/Z = alpha u' + beta v' + gamma`` from
@@ -145,7 +145,7 @@ def plane_fits(
     ata += np.eye(3) * 1e-12
     coef = np.linalg.solve(ata, atb[..., None])[..., 0]
     norm = np.maximum(np.linalg.norm(coef, axis=1), 1e-15)
-    return -coef / norm[:, None], 1.0 / norm
+    return -coef / norm[:, None], 1.0 / norm, sums[:, 5]
 
 
 def merge_coplanar(
@@ -166,13 +166,15 @@ def merge_coplanar(
     """
     if n < 2:
         return labels, n
-    normal, off = plane_fits(labels, n, depth_mm, cam)
+    normal, off, count = plane_fits(labels, n, depth_mm, cam)
     same_dir = normal @ normal.T > math.cos(math.radians(max_angle_deg))
     close = np.abs(off[:, None] - off[None, :]) <= max_offset_rel * np.maximum(off[:, None], off[None, :])
-    big = np.bincount(labels.ravel(), minlength=n + 1) >= min_fit_px
+    big = count >= min_fit_px
     join = same_dir & close & big[:, None] & big[None, :]
     join[0, :] = False
     join[:, 0] = False
+    if not np.triu(join, 1).any():
+        return labels, n
     parent = list(range(n + 1))
 
     def root(i: int) -> int:
@@ -193,7 +195,7 @@ def merge_coplanar(
 def front_faces(
     labels: NDArray[np.int32],
     depth_mm: NDArray[np.float32],
-    n_facing: int,
+    widths: NDArray[np.float64],
     horizontal_ids: NDArray[np.int32],
     *,
     jump_rel: float,
@@ -203,10 +205,12 @@ def front_faces(
 
     A table's front edge or a box's front face meets its top along the face's upper edge, at
     the same depth; an object standing on the support meets it along its base instead, and
-    its upper edge borders the support farther behind (a depth jump). Returns
+    its upper edge borders the support farther behind (a depth jump). Facing objects have ids
+    ``1..len(widths) - 1`` and bounding-box widths ``widths`` (px, index 0 unused). Returns
     ``{facing id: support id}`` for faces whose upper edge touches the support, without a
     depth jump, over at least ``min_contact`` of the face's width.
     """
+    n_facing = widths.size - 1
     if n_facing == 0 or horizontal_ids.size == 0:
         return {}
     below = labels[1:, :]
@@ -220,9 +224,6 @@ def front_faces(
         return {}
     pairs = below[contact].astype(np.int64) * (is_support.size) + above[contact]
     uniq, cnt = np.unique(pairs, return_counts=True)
-    bx = label_stats(labels, depth_mm, n_facing if labels.max(initial=0) <= n_facing else int(labels.max())).boxes
-    assert bx is not None
-    widths = (bx[: n_facing + 1, 2] - bx[: n_facing + 1, 0] + 1).astype(np.float64)
     out: dict[int, int] = {}
     best: dict[int, int] = {}
     for key, c in zip(uniq.tolist(), cnt.tolist(), strict=True):
@@ -251,7 +252,7 @@ def on_support_planes(
     out = np.zeros(labels.shape, bool)
     if n == 0 or not candidates.any():
         return out
-    normal, off = plane_fits(labels, n, depth_mm, cam)
+    normal, off, _ = plane_fits(labels, n, depth_mm, cam)
     st = label_stats(labels, depth_mm, n)
     assert st.boxes is not None
     h, w = labels.shape
