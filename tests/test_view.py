@@ -169,9 +169,11 @@ def test_a_page_that_is_behind_gets_the_newest_frame_and_the_count_of_missed_one
     with TestClient(create_app(_sim_player(playing=False))) as client:
         with client.websocket_connect("/ws/sim-table") as ws:
             json.loads(ws.receive_text())
-            for _ in range(3):  # the page acknowledges none of these
+            client.post("/api/recordings/sim-table/step")
+            first = _frame(ws, ack=False)  # the page is still drawing frame 0 ...
+            for _ in range(2):  # ... while frames 1 and 2 are ready
                 client.post("/api/recordings/sim-table/step")
-            first = _frame(ws, ack=True)
+            ws.send_text(json.dumps({"type": "ack", "index": 0}))
             newest = _frame(ws)
     assert first["index"] == 0 and first["dropped"] == 0
     assert newest["index"] == 2 and newest["page_dropped"] == 1 and newest["dropped"] == 1

@@ -222,6 +222,7 @@ class Player:
         self.latency_ms: float | None = None
         self.clients: set[_Client] = set()
         self._iter: Iterator[Frame] | None = None
+        self._held: Frame | None = None  # read, but paused before it could be shown
         self._wake = asyncio.Event()
         self._idle = asyncio.Event()
         self._steps: list[asyncio.Future[None]] = []
@@ -351,12 +352,20 @@ class Player:
                     await self._wait(wait)
                     continue  # re-check: paused, stepped or speed changed meanwhile
             self._idle.clear()
-            stepping = bool(self._steps)
             if self.ended:
                 self.ended = False
                 self._iter = None
+                self._held = None
                 self.pipeline.reset()
-            frame = await asyncio.to_thread(self._next_frame)
+            frame, self._held = self._held, None
+            if frame is None:
+                frame = await asyncio.to_thread(self._next_frame)
+            stepping = bool(self._steps)  # a step may have been asked for during the read
+            if frame is not None and not stepping and not self.playing:
+                # Paused while the frame was being read: keep it for the next play or step,
+                # so that a step after a pause shows the very next frame.
+                self._held = frame
+                continue
             if frame is None:
                 self.ended = True
                 self.playing = False
