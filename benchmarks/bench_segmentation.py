@@ -110,8 +110,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--profile", action="store_true", help="also profile slices at 640x480")
     p.add_argument("--sizes", default=",".join(f"{w}x{h}" for w, h in SIZES))
+    p.add_argument("--quick", action="store_true", help="176x132 and 640x480 only")
     args = p.parse_args(argv)
-    sizes = [tuple(int(v) for v in s.split("x")) for s in args.sizes.split(",")]
+    spec = "176x132,640x480" if args.quick else args.sizes
+    sizes = [tuple(int(v) for v in s.split("x")) for s in spec.split(",")]
     print(f"one core, {os.cpu_count()} cpus visible; best of repeated runs")
     print(format_rows(run_bench([(s[0], s[1]) for s in sizes])))
     if args.profile:

@@ -202,7 +202,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument("--readings", action="store_true", help="also the two readings of the 10%% rule")
     p.add_argument("--sweep", action="store_true", help="also region growing at several tolerances")
     p.add_argument("--no-real", action="store_true", help="skip the real recordings")
+    p.add_argument("--quick", action="store_true", help="one timed run, simulator scenes only")
     args = p.parse_args(argv)
+    if args.quick:
+        args.repeat, args.no_real = 1, True
     w, h = (int(v) for v in args.size.lower().split("x"))
     methods = list(METHODS)
     if args.readings:

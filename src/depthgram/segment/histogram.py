@@ -6,8 +6,8 @@ last peak, up to the end). The band of a peak runs from a leading cut to a trail
 the peak (``cut_from="peak"``); pixels between bands are background in the paper
 (``gap_pixels="background"``), or go to the band on their side of the minimum (``nearest``).
 
-Measured on the simulator's seeded ``table`` scene (``benchmarks/table1.py --readings``): see
-:func:`depthgram.segment.segment` for the figures of both readings.
+Both readings were measured on the simulator's seeded scenes (``benchmarks/table1.py
+--readings``); the figures are in the notes of :func:`depthgram.segment.segment`.
 """
 
 from __future__ import annotations
