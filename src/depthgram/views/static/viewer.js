@@ -183,6 +183,8 @@ function onFrame(msg) {
     if (canvas.width !== img.naturalWidth || canvas.height !== img.naturalHeight) {
       canvas.width = img.naturalWidth;
       canvas.height = img.naturalHeight;
+      // Small sensors (176 x 132) are shown at twice the sent picture, kept sharp by CSS.
+      canvas.style.width = canvas.width < 480 ? `${2 * canvas.width}px` : "";
     }
     ctx.drawImage(img, 0, 0);
     drawOverlay(msg);
