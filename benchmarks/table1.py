@@ -44,6 +44,10 @@ READINGS: tuple[tuple[str, dict[str, Any]], ...] = (
         {"method": "threshold", "cut_from": "peak", "gap_pixels": "background"},
     ),
     ("slices, depth-dependent bins", {"depth_dependent_bins": True}),
+    ("slices, horizontal slices only", {"slice_directions": "horizontal"}),
+    ("slices, vertical slices only", {"slice_directions": "vertical"}),
+    ("slices, aperture 5% of the object", {"slice_aperture": 0.05}),
+    ("slices, aperture 20% of the object", {"slice_aperture": 0.20}),
 )
 #: Scene name -> frame index used (crossing: both movers in view at t = 1 s).
 SCENES = {"table": 0, "corridor": 0, "crossing": 30}

@@ -192,3 +192,29 @@ def test_region_growing_reference() -> None:
     ramp[:, 50:] += 100
     assert len(region_grow(ramp, tol_mm=10, relative=False, min_area=1).objects) == 2
     assert segment(ramp, method="region", region_tol_mm=10, region_relative=False, min_area=1).method == "region"
+
+
+def test_gap_pixels_between_bands_are_background_only_on_request() -> None:
+    # two flat objects whose depth spreads overlap thinly: a few pixels fall between the bands
+    z = np.full((40, 60), 1000.0, np.float32)
+    z[:, 30:] = 1400.0
+    # a seam at 1025 mm: 10 mm bins from 1000, peak 0 at bin 0, following minimum bin 1 (first
+    # empty), band 0 ends at 0 + 0.9 * 1 -> bin 0, band 1 starts at 40 - 0.9 * 39 = 4.9 -> bin 5:
+    # bins 1..4 are the gap
+    z[:, 28:30] = 1025.0
+    keep = segment(z, method="threshold", min_area=1, smooth_bins=0.0, min_prominence=0.05)
+    drop = segment(z, method="threshold", min_area=1, smooth_bins=0.0, min_prominence=0.05, gap_pixels="background")
+    assert not drop.labels[:, 28:30].any() and drop.labels[:, :28].all() and drop.labels[:, 30:].all()
+    assert keep.labels[:, 28:30].all()
+    lower, upper = drop.extras["bands_mm"].T  # type: ignore[union-attr]
+    assert upper[0] < 1025 < lower[1]
+
+
+def test_depth_dependent_bins_widen_with_depth() -> None:
+    cfg = SegmentConfig(bin_mm=10.0, depth_dependent_bins=True, ref_depth_mm=1000.0)
+    z = np.array([[500.0, 1000.0, 4000.0]], np.float32)
+    _, edges, _ = bin_index(z, np.ones(z.shape, bool), cfg)
+    widths = np.diff(edges)
+    # geometric edges: width proportional to depth, 10 mm at 1 m
+    near, far = widths[0], widths[-1]
+    assert near == pytest.approx(5.0, rel=0.02) and far == pytest.approx(40.0, rel=0.02)
