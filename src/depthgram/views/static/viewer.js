@@ -47,7 +47,7 @@ function fillParams(p) {
 }
 
 function drawOverlay(msg) {
-  const s = msg.scale;
+  const s = msg.drawScale;
   const h = canvas.height;
   const plan = msg.plan || {};
   // The clearance channel: the free columns as a green band; red across the bottom when blocked.
@@ -63,8 +63,13 @@ function drawOverlay(msg) {
     ctx.lineTo((plan.channel.center_col + 0.5) * s, h * 0.6);
     ctx.stroke();
   } else if (plan.channel_checked) {
-    ctx.fillStyle = "rgba(230, 40, 40, 0.5)";
-    ctx.fillRect(0, h - 8, canvas.width, 8);
+    ctx.fillStyle = "rgba(230, 30, 30, 0.85)";
+    ctx.fillRect(0, h - 18, canvas.width, 18);
+    ctx.fillStyle = "#ffffff";
+    ctx.font = "bold 12px system-ui, sans-serif";
+    ctx.textAlign = "center";
+    ctx.textBaseline = "middle";
+    ctx.fillText("no clear channel", canvas.width / 2, h - 9);
   }
   const actions = {};
   for (const a of plan.actions || []) actions[a.object] = a.action;
@@ -180,13 +185,16 @@ function playAudio(a) {
 function onFrame(msg) {
   const img = new Image();
   img.onload = () => {
-    if (canvas.width !== img.naturalWidth || canvas.height !== img.naturalHeight) {
-      canvas.width = img.naturalWidth;
-      canvas.height = img.naturalHeight;
-      // Small sensors (176 x 132) are shown at twice the sent picture, kept sharp by CSS.
-      canvas.style.width = canvas.width < 480 ? `${2 * canvas.width}px` : "";
+    // Small sensors (176 x 132) are drawn at twice the sent picture; the ids and the channel
+    // are drawn at that size too, so that text stays sharp.
+    const k = img.naturalWidth < 480 ? 2 : 1;
+    if (canvas.width !== k * img.naturalWidth || canvas.height !== k * img.naturalHeight) {
+      canvas.width = k * img.naturalWidth;
+      canvas.height = k * img.naturalHeight;
     }
-    ctx.drawImage(img, 0, 0);
+    ctx.imageSmoothingEnabled = false;
+    ctx.drawImage(img, 0, 0, canvas.width, canvas.height);
+    msg.drawScale = msg.scale * k;
     drawOverlay(msg);
     showPanels(msg);
     showStatus(msg);
