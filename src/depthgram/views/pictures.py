@@ -22,7 +22,7 @@ from numpy.typing import NDArray
 from depthgram.frame import Frame
 from depthgram.segment.objects import Histogram, Segmentation
 
-__all__ = ["draw_histogram", "draw_overlay", "draw_tracks", "overlay_image"]
+__all__ = ["draw_histogram", "draw_overlay", "draw_tracks", "label_anchor", "overlay_image"]
 
 
 def overlay_image(frame: Frame, seg: Segmentation, *, scale: int = 0) -> NDArray[np.uint8]:
@@ -67,6 +67,20 @@ def overlay_image(frame: Frame, seg: Segmentation, *, scale: int = 0) -> NDArray
     return np.ascontiguousarray(rgb)
 
 
+def label_anchor(labels: NDArray[np.integer], object_id: int) -> tuple[float, float]:
+    """The object's pixel farthest from its outline: inside it even when it wraps another object.
+
+    The image center of a wall with a hand in front of it lies on the hand; text placed there
+    would sit on the wrong object and on the hand's own label.
+    """
+    mask = (labels == object_id).astype(np.uint8)
+    if not mask.any():
+        return 0.0, 0.0
+    dist = cv2.distanceTransform(np.pad(mask, 1), cv2.DIST_L2, 3)[1:-1, 1:-1]
+    y, x = np.unravel_index(int(np.argmax(dist)), dist.shape)
+    return float(x), float(y)
+
+
 def draw_overlay(
     frame: Frame,
     seg: Segmentation,
@@ -81,13 +95,14 @@ def draw_overlay(
     fig, ax = plt.subplots(figsize=(img.shape[1] / 100, img.shape[0] / 100 + 0.4), dpi=100)
     ax.imshow(img)
     for o in seg.objects:
+        x, y = label_anchor(seg.labels, o.id)
         text = f"#{o.id} {o.kind}\n{o.depth:.0f} mm, A={o.area}"
         m = motions.get(o.id) if motions else None
         if m is not None and getattr(m, "v_radial", None) is not None:
             unit = "mm/f" if m.per_frame else "mm/s"
             text += f"\nv={m.v_radial:+.0f} {unit}"
         ax.text(
-            (o.center[0] + 0.5) * s, (o.center[1] + 0.5) * s, text, color="white", fontsize=7,
+            (x + 0.5) * s, (y + 0.5) * s, text, color="white", fontsize=7,
             ha="center", va="center", bbox={"facecolor": "black", "alpha": 0.55, "pad": 1.5, "edgecolor": "none"},
         )
     ax.set_axis_off()
