@@ -337,12 +337,14 @@ class Player:
         loop_clock = time.monotonic
         due = loop_clock()
         advanced = 0  # frames of the recording since the last pushed one (for the audio duration)
+        fresh = True  # the next frame is the first since playback (re)started
         while True:
             want = bool(self._steps) or (self.playing and bool(self.clients))
             if not want:
                 self._idle.set()
                 await self._wait(None)
                 due = loop_clock()
+                fresh = True
                 continue
             period = 1.0 / (self.fps * self.speed)
             if not self._steps:
@@ -390,7 +392,16 @@ class Player:
             self.processed += 1
             for c in self.clients:
                 c.offer(payload, audio)
-            due = max(due + period, loop_clock() - period)
+            now = loop_clock()
+            if fresh:
+                # The clock starts once the first frame is out: start-up costs (imports, compiled
+                # kernels) are not a backlog to skip through.
+                due, fresh = now + period, False
+            elif self._read_s >= period:
+                # Skipping cannot help a source slower than real time: play slower, no backlog.
+                due = max(due + period, now - period)
+            else:
+                due += period
             if stepping:
                 self._finish_steps(1)
 
