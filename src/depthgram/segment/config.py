@@ -12,8 +12,9 @@ __all__ = ["METHODS", "SegmentConfig"]
 
 #: Segmentation methods: ``threshold`` (the paper's global histogram), ``slices`` (global
 #: histogram for surfaces facing the sensor plus slicing for floor, ceiling, walls and supports),
-#: ``region`` (region growing, the paper's reference).
-METHODS = ("slices", "threshold", "region")
+#: ``region`` (region growing, the paper's reference), ``paper`` (the paper's slicing literally:
+#: per-slice histograms joined by successive depth labels, no surface normals).
+METHODS = ("slices", "threshold", "region", "paper")
 
 
 @dataclass(frozen=True)
@@ -77,6 +78,9 @@ class SegmentConfig:
         Region growing: largest depth difference (mm) between joined neighbours.
     region_relative : bool
         Region growing: when True the tolerance scales with depth (``region_tol_mm`` per metre).
+    paper_min_slices : int
+        ``paper`` method: fewest successive slices (>= 2) over which a run's depth must move the
+        same way by more than one histogram bin to count as an oblique surface.
     """
 
     method: str = "slices"
@@ -98,6 +102,7 @@ class SegmentConfig:
     jump_rel: float = 0.05
     region_tol_mm: float = 10.0
     region_relative: bool = True
+    paper_min_slices: int = 3
 
     def __post_init__(self) -> None:
         def bad(name: str, value: object, expected: str) -> InputError:
@@ -135,6 +140,8 @@ class SegmentConfig:
             raise bad("fill_holes_px", self.fill_holes_px, "an integer number of pixels in [0, 64]")
         if not (isinstance(self.normal_window_px, int) and 3 <= self.normal_window_px <= 101):
             raise bad("normal_window_px", self.normal_window_px, "an integer number of pixels in [3, 101]")
+        if not (isinstance(self.paper_min_slices, int) and 2 <= self.paper_min_slices <= 1000):
+            raise bad("paper_min_slices", self.paper_min_slices, "an integer number of slices in [2, 1000]")
 
     def with_overrides(self, **overrides: Any) -> SegmentConfig:
         """A copy with some fields replaced; unknown names raise :class:`InputError`."""

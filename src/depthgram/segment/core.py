@@ -14,6 +14,7 @@ from depthgram.segment.config import SegmentConfig
 from depthgram.segment.histogram import Bands
 from depthgram.segment.objects import Histogram, SceneObject, Segmentation
 from depthgram.segment.orientation import FACING, HORIZONTAL, VERTICAL, default_intrinsics, orientation_field
+from depthgram.segment.paper_slices import paper_slices
 from depthgram.segment.region import region_grow
 from depthgram.segment.slices import (
     front_faces,
@@ -107,6 +108,8 @@ def segment(
         return Segmentation(np.zeros(depth.shape, np.int32), (), empty, cfg.method, {"bands_mm": np.zeros((0, 2))})
     if cfg.method == "threshold":
         return _threshold(depth, ok, intrinsics, cfg)
+    if cfg.method == "paper":
+        return paper_slices(depth, ok, intrinsics, cfg)
     return _slices(depth, ok, intrinsics, cfg)
 
 
