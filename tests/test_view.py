@@ -231,6 +231,28 @@ def test_sound_is_sent_to_pages_that_turn_it_on_and_lasts_as_long_as_the_frames(
     assert abs(samples - 4 * 8000 / 30) <= 1
 
 
+def test_a_broken_frame_pauses_playback_and_tells_the_page_which_frame() -> None:
+    def broken() -> Iterator[Any]:
+        frames = _cheap_frames(3)
+        yield next(frames)
+        yield next(frames)
+        raise InputError("cheap/frame-2.png: truncated PNG, expected 40 x 30 uint16")
+
+    player = Player(broken, "broken", Config(), ViewerConfig(fps=30.0, loop=False, min_width_px=40), frames=3)
+    with TestClient(create_app(player)) as client:
+        with client.websocket_connect("/ws/broken") as ws:
+            json.loads(ws.receive_text())
+            shown = []
+            while (msg := json.loads(ws.receive_text()))["type"] == "frame":
+                shown.append(msg["index"])
+                ws.send_text(json.dumps({"type": "ack"}))
+            ws.send_text("not json")  # ignored, the connection stays open
+            state = client.get("/api/recordings/broken").json()
+    assert shown == [0, 1]
+    assert msg["type"] == "error" and "frame-2.png: truncated PNG" in msg["message"] and "after 1" in msg["message"]
+    assert state["playing"] is False and state["error"] == msg["message"]
+
+
 @pytest.mark.parametrize(("method", "path", "body", "status", "needle"), [
     ("get", "/api/recordings/nope", None, 404, "unknown recording"),
     ("post", "/api/recordings/nope/play", None, 404, "unknown recording"),

@@ -96,6 +96,11 @@ def test_page_shows_frames_and_pause_then_step_advances_one_frame(server: str) -
             nxt = (k + 1) % 12
             page.wait_for_function(f"document.getElementById('view').dataset.frame === '{nxt}'", timeout=10000)
             assert _state(server)["index"] == nxt and _state(server)["playing"] is False
+            # Sound on, play: the page schedules the server's audio in Web Audio.
+            page.check("#sound")
+            page.click("#play")
+            page.wait_for_function("Number(document.getElementById('view').dataset.audio) > 0.1", timeout=20000)
+            page.click("#pause")
             # A bad value typed in the form is refused with the server's message.
             page.fill("#min_area", "-1")
             page.click("#apply")

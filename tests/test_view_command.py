@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import socket
 import subprocess
 import sys
 import time
@@ -47,6 +48,17 @@ def test_view_serves_the_page_and_the_api_on_loopback() -> None:
         with pytest.raises(urllib.error.HTTPError) as info:
             urllib.request.urlopen(url + "api/recordings/other", timeout=10)
         assert info.value.code == 404
+        # Traversal attempts sent byte for byte (no client-side normalisation of "..").
+        host, port = url[len("http://"):].rstrip("/").split(":")
+        for target in ("/static/../../pyproject.toml", "/static/%2e%2e/%2e%2e/pyproject.toml",
+                       "/static/..%2f..%2fpyproject.toml", "/static/%2E%2E%5C%2E%2E%5Cpyproject.toml"):
+            with socket.create_connection((host, int(port)), timeout=10) as conn:
+                conn.sendall(f"GET {target} HTTP/1.1\r\nHost: {host}\r\nConnection: close\r\n\r\n".encode())
+                reply = b""
+                while chunk := conn.recv(65536):
+                    reply += chunk
+            assert reply.startswith(b"HTTP/1.1 404"), (target, reply[:80])
+            assert b"[project]" not in reply
     finally:
         proc.terminate()
         proc.wait(10)

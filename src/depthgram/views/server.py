@@ -220,6 +220,7 @@ class Player:
         self.processed = 0
         self.dropped = 0  # frames the player skipped because it was behind
         self.latency_ms: float | None = None
+        self.error: str | None = None  # why playback last stopped on its own, if it did
         self.clients: set[_Client] = set()
         self._iter: Iterator[Frame] | None = None
         self._held: Frame | None = None  # read, but paused before it could be shown
@@ -248,6 +249,7 @@ class Player:
             "dropped": self.dropped,
             "clients": len(self.clients),
             "latency_ms": self.latency_ms,
+            "error": self.error,
             "params": {"method": seg.method, "min_area": seg.min_area, "fraction": seg.fraction,
                        "bin_mm": seg.bin_mm},
             "sound_available": self.sound_available,
@@ -361,7 +363,11 @@ class Player:
                 self.pipeline.reset()
             frame, self._held = self._held, None
             if frame is None:
-                frame = await asyncio.to_thread(self._next_frame)
+                try:
+                    frame = await asyncio.to_thread(self._next_frame)
+                except Exception as exc:  # a broken file mid-recording: say so, keep serving
+                    self._fail(f"{self.name}: reading the frame after {self.index}: {exc}")
+                    continue
             stepping = bool(self._steps)  # a step may have been asked for during the read
             if frame is not None and not stepping and not self.playing:
                 # Paused while the frame was being read: keep it for the next play or step,
@@ -385,8 +391,14 @@ class Player:
                 continue
             if self.config is not self.pipeline.config:
                 self.pipeline.config = self.config  # tracks survive a parameter change
-            payload, audio = await asyncio.to_thread(self._render, frame, advanced / (self.fps * self.speed),
-                                                     not stepping)
+            # Sound only while playing: a step has no duration to fill.
+            sound = not stepping and any(c.sound for c in self.clients)
+            try:
+                payload, audio = await asyncio.to_thread(self._render, frame, advanced / (self.fps * self.speed),
+                                                         sound)
+            except Exception as exc:
+                self._fail(f"{frame.name or self.name}: frame {frame.index}: {exc}")
+                continue
             advanced = 0
             self.index = frame.index
             self.processed += 1
@@ -404,6 +416,14 @@ class Player:
                 due += period
             if stepping:
                 self._finish_steps(1)
+
+    def _fail(self, message: str) -> None:
+        """Pause and tell every page why; the server stays up for another try."""
+        self.error = message
+        self.playing = False
+        self._finish_steps()
+        for c in self.clients:
+            c.notify({"type": "error", "message": message})
 
     def _finish_steps(self, n: int | None = None) -> None:
         done = self._steps if n is None else self._steps[:n]
@@ -437,12 +457,13 @@ class Player:
             "tree": tree_lines(tree_to_dict(result.tree)),
             "plan": plan_to_dict(result.plan),
             "latency_ms": self.latency_ms,
+            "error": self.error,
             "server_dropped": self.dropped,
             "playing": self.playing,
             "speed": self.speed,
         }
         audio = None
-        if with_sound and any(c.sound for c in self.clients):
+        if with_sound:
             audio = self._sonify(result, duration_s)
         return payload, audio
 
@@ -566,7 +587,10 @@ def create_app(player: Player) -> FastAPI:
 
         async def receive() -> None:
             while True:
-                msg = json.loads(await ws.receive_text())
+                try:
+                    msg = json.loads(await ws.receive_text())
+                except json.JSONDecodeError:
+                    continue  # not from our page; nothing to answer
                 kind = msg.get("type") if isinstance(msg, dict) else None
                 if kind == "ack":
                     client.ready.set()

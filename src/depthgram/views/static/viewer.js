@@ -11,6 +11,7 @@ let name = null;
 let socket = null;
 let audio = null; // AudioContext, created on the user's click (browsers require a gesture)
 let audioNext = 0; // time at which the next audio chunk starts (s, AudioContext clock)
+let audioTotal = 0; // seconds of sound scheduled so far (exposed as data-audio)
 const shown = []; // arrival times of recent frames, for the displayed rate
 
 function fmt(v, nd = 0) {
@@ -179,6 +180,8 @@ function playAudio(a) {
     audioNext = Math.max(audioNext, audio.currentTime + 0.05);
     src.start(audioNext);
     audioNext += buf.duration;
+    audioTotal += buf.duration;
+    view.dataset.audio = audioTotal.toFixed(3);
   }
 }
 
@@ -217,6 +220,10 @@ function connect() {
       if (!msg.sound_available) $("sound").disabled = true;
     } else if (msg.type === "frame") {
       onFrame(msg);
+    } else if (msg.type === "error") {
+      showError(msg.message);
+    } else if (msg.type === "end") {
+      $("status").textContent += " · end of recording";
     }
   };
   socket.onclose = () => {
