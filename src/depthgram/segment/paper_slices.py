@@ -31,6 +31,7 @@ Choices where the paper is silent
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -95,14 +96,15 @@ def slice_segments(
         Number of segments.
     """
     length = depth_mm.shape[0 if horizontal else 1]
+    slice_config = replace(config, min_prominence=config.paper_prominence)
     key = np.full(depth_mm.shape, -1.0, np.float32)
     state = np.where(valid, np.int8(BLOCK), np.int8(HOLE))
     offset = 0
     for start in range(0, length, aperture):
         band_of_slice = slice(start, start + aperture)
         sl = (band_of_slice, slice(None)) if horizontal else (slice(None), band_of_slice)
-        bins, edges, counts = bin_index(depth_mm[sl], valid[sl], config)
-        bands = depth_bands(counts, edges, config)
+        bins, edges, counts = bin_index(depth_mm[sl], valid[sl], slice_config)
+        bands = depth_bands(counts, edges, slice_config)
         if bands.n == 0:
             continue
         band = np.where(bins >= 0, bands.lut[np.maximum(bins, 0)], -1)
@@ -173,15 +175,22 @@ def _first_by(key: NDArray[np.int64], count: NDArray[np.int64], size: int) -> ND
     return out
 
 
-def _steady_signs(chain: list[int], depth: NDArray[np.float64], step_mm: float, min_slices: int) -> list[int]:
+def _steady_signs(
+    chain: list[int], depth: NDArray[np.float64], spread: NDArray[np.float64], step_mm: float, min_slices: int
+) -> list[int]:
     """Sign of the steady run each chain member belongs to (0: none).
 
-    Hand-written because the rule is the paper's own idea: the depth moves by more than one
-    histogram bin the same way at each of at least ``min_slices - 1`` successive steps.
+    Hand-written because the rule is the paper's own idea: at each of at least
+    ``min_slices - 1`` successive steps the depth moves the same way by more than one histogram
+    bin and by more than half the two segments' depth ranges, so that successive segments sit in
+    successive depth bands. A piece of a plateau (a wall cut across its running direction) has a
+    wide range and moves less than that from slice to slice.
     """
     d = depth[chain]
     steps = np.diff(d)
-    signs = np.where(steps > step_mm, 1, np.where(steps < -step_mm, -1, 0))
+    # sqrt(3) * std is half the width of a uniform spread: the ranges overlap by under half
+    limit = np.maximum(step_mm, math.sqrt(3) / 2 * (spread[chain][:-1] + spread[chain][1:]))
+    signs = np.where(steps > limit, 1, np.where(steps < -limit, -1, 0))
     out = [0] * len(chain)
     i = 0
     while i < signs.size:
@@ -227,6 +236,7 @@ def slice_runs(
     count = np.maximum(st.count, 1)
     depth = st.sz / count
     depth[0] = 0.0
+    spread = np.sqrt(np.maximum(st.szz / count - depth * depth, 0.0))
     dl = np.asarray(bands.depth_label(depth), np.int64)
     pos = (st.sy if horizontal else st.sx) / count
     slice_index = (pos // aperture).astype(np.int64)
@@ -248,7 +258,7 @@ def slice_runs(
         while nxt[chain[-1]]:
             chain.append(int(nxt[chain[-1]]))
         if len(chain) >= config.paper_min_slices:
-            sign[chain] = _steady_signs(chain, depth, config.bin_mm, config.paper_min_slices)
+            sign[chain] = _steady_signs(chain, depth, spread, config.bin_mm, config.paper_min_slices)
     # steady segments of the same sign that touch with compatible labels form one super-object
     keep = (sign[a] != 0) & (sign[a] == sign[b])
     graph = coo_matrix((np.ones(int(keep.sum())), (a[keep], b[keep])), shape=(n + 1, n + 1))
@@ -290,9 +300,9 @@ def paper_slices(
     intrinsics : Intrinsics, optional
         When given, ``centroid_mm`` and ``area_mm2`` are filled.
     config : SegmentConfig
-        ``slice_aperture`` (px when >= 1, else fraction of the image height for horizontal
-        slices and of its width for vertical ones), ``slice_directions``, ``paper_min_slices``
-        and the histogram parameters.
+        ``paper_aperture`` (px when >= 1, else fraction of the image height for horizontal
+        slices and of its width for vertical ones), ``slice_directions``, ``paper_min_slices``,
+        ``paper_prominence`` and the histogram parameters.
 
     Returns
     -------
@@ -308,8 +318,10 @@ def paper_slices(
     directions = [d for d in (True, False) if config.slice_directions in ("both", "horizontal" if d else "vertical")]
     claimed = np.zeros(depth_mm.shape, bool)
     found: list[tuple[bool, int, SliceRuns, NDArray[np.int32]]] = []
+    apertures: dict[str, int] = {}
     for horizontal in directions:
-        ap = aperture_px(config.slice_aperture, h if horizontal else w)
+        ap = aperture_px(config.paper_aperture, h if horizontal else w)
+        apertures["rows" if horizontal else "columns"] = ap
         runs = slice_runs(depth_mm, valid, bands, config, horizontal=horizontal, aperture=ap)
         if runs.n_groups == 0:
             continue
@@ -368,7 +380,7 @@ def paper_slices(
     labels = lut[labels]
     extras: dict[str, object] = {
         "bands_mm": np.stack([bands.lower, bands.upper], axis=1) if bands.lower.size else np.zeros((0, 2)),
-        "aperture_px": {("rows" if hz else "columns"): ap for hz, ap, _, _ in found},
+        "aperture_px": apertures,
     }
     return Segmentation(labels, tuple(out), bands.histogram, "paper", extras)
 
