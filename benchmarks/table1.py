@@ -7,7 +7,8 @@ multiple of thresholding. On the real recordings in ../shared/data (no masks): o
 share of valid pixels labelled, time.
 
 Run: ``.venv/bin/python benchmarks/table1.py`` (``--readings`` adds the paper's two readings of
-the 10 % rule and the gap-pixel choice; ``--size 640x480`` for another resolution).
+the 10 % rule and the gap-pixel choice; ``--paper`` the paper's own slicing at several apertures
+and directions; ``--size 640x480`` for another resolution).
 """
 
 from __future__ import annotations
@@ -34,6 +35,14 @@ METHODS: tuple[tuple[str, dict[str, Any]], ...] = (
     ("thresholding", {"method": "threshold"}),
     ("thresholding + slicing", {"method": "slices"}),
     ("region growing", {"method": "region", "region_tol_mm": 10.0}),
+    ("paper slicing (3%, both)", {"method": "paper"}),
+)
+#: The paper's own slicing (``method="paper"``) at several apertures (fraction of the frame
+#: height / width) and directions: "several directions and slice aperture sizes must be tried".
+PAPER_READINGS: tuple[tuple[str, dict[str, Any]], ...] = tuple(
+    (f"paper slicing ({100 * ap:g}%, {d})", {"method": "paper", "paper_aperture": ap, "slice_directions": d})
+    for ap in (0.05, 0.10, 0.20)
+    for d in ("horizontal", "vertical", "both")
 )
 READINGS: tuple[tuple[str, dict[str, Any]], ...] = (
     ("slices, cut 10% before minimum, gaps background", {"gap_pixels": "background"}),
@@ -205,6 +214,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument("--repeat", type=int, default=5, help="timed runs per method")
     p.add_argument("--readings", action="store_true", help="also the two readings of the 10%% rule")
     p.add_argument("--sweep", action="store_true", help="also region growing at several tolerances")
+    p.add_argument("--paper", action="store_true", help="also the paper's slicing, 3 apertures x 3 directions")
     p.add_argument("--no-real", action="store_true", help="skip the real recordings")
     p.add_argument("--quick", action="store_true", help="one timed run, simulator scenes only")
     args = p.parse_args(argv)
@@ -214,6 +224,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     methods = list(METHODS)
     if args.readings:
         methods += [(n, {"method": "slices", **kw}) for n, kw in READINGS]
+    if args.paper:
+        methods += list(PAPER_READINGS)
     if args.sweep:
         methods += [(f"region growing {t:g} mm/m", {"method": "region", "region_tol_mm": t}) for t in (5, 20, 40)]
     rows = run_table1(size=(w, h), seed=args.seed, repeat=args.repeat, methods=methods, real=not args.no_real)
