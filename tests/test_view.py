@@ -39,6 +39,9 @@ def _frame(ws: Any, *, ack: bool = True, end: bool = False) -> dict[str, Any]:
         msg = json.loads(ws.receive_text())
         if end and msg["type"] == "end":
             return msg
+        # fail loudly rather than wait forever for a frame that will not come
+        assert msg["type"] != "error", msg["message"]
+        assert msg["type"] != "end", "the recording ended"
         if msg["type"] == "frame":
             if ack:
                 ws.send_text(json.dumps({"type": "ack", "index": msg["index"]}))
@@ -285,3 +288,26 @@ def test_unknown_recording_stream_is_refused() -> None:
         with pytest.raises(WebSocketDisconnect) as info, client.websocket_connect("/ws/nope") as ws:
             ws.receive_text()
         assert info.value.code == 4404
+
+
+def test_real_recording_streams_at_its_own_size_with_the_pipeline_objects(shared_data: Any) -> None:
+    seq = shared_data / "7scenes_redkitchen_seq"
+    src = open_source(seq)
+    frames = [f for _, f in zip(range(2), src, strict=False)]
+    pipe = Pipeline()
+    expected = [pipe.process(f) for f in frames]
+    player = Player(lambda: iter(src), recording_name(str(seq)), Config(), ViewerConfig(playing=False),
+                    frames=len(src), fps=src.fps)
+    with TestClient(create_app(player)) as client:
+        with client.websocket_connect("/ws/7scenes_redkitchen_seq") as ws:
+            hello = json.loads(ws.receive_text())
+            shown = []
+            for _ in range(2):
+                client.post("/api/recordings/7scenes_redkitchen_seq/step")
+                shown.append(_frame(ws))
+    # PROVENANCE.md: 300 frames of 640 x 480 at 30 Hz
+    assert hello["frames"] == 300
+    for msg, ref in zip(shown, expected, strict=True):
+        assert msg["size"] == [640, 480] and msg["scale"] == 1
+        assert msg["objects"] == len(ref.segmentation.objects)
+        assert msg["record"]["sentence"] == ref.sentence

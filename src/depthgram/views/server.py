@@ -18,8 +18,16 @@ HTTP interface (all JSON errors are ``{"error": message}`` with a 4xx status):
 - ``POST /api/recordings/{name}/play|pause|step``; ``PUT /api/recordings/{name}/speed``
   (``{"value": 2}``) and ``PUT /api/recordings/{name}/params`` (``{"method": "threshold",
   "min_area": 50}``: settings of the ``[segment]`` section, effective on the next frame);
-- ``WS /ws/{name}``: frames as JSON text messages; the page answers ``{"type": "ack"}`` after
-  drawing each one and ``{"type": "sound", "on": true}`` to receive audio.
+- ``WS /ws/{name}``: JSON text messages ``hello`` (the state), ``frame`` (picture as a PNG data
+  URL, the record of :meth:`~depthgram.pipeline.SceneResult.to_record`, the tree as an indented
+  list, the plan of :func:`depthgram.act.plan_to_dict`, drop counts and, for pages with sound on,
+  the audio as base64 little-endian PCM16 stereo), ``end`` and ``error``. The page answers
+  ``{"type": "ack"}`` after drawing each frame and ``{"type": "sound", "on": true}`` for audio.
+
+Sound is rendered on the server by :class:`depthgram.sound.Sonifier`, the same code as
+``depthgram sonify``, rather than re-synthesised in Web Audio: one mapping, one implementation,
+and what is heard in the browser is what the WAV file holds. It costs about 2.9 kB of PCM16 per
+frame at 22050 samples/s and 30 frames/s.
 """
 
 from __future__ import annotations
@@ -263,6 +271,7 @@ class Player:
     def play(self) -> None:
         """Resume (from the start again when the recording had ended)."""
         self.playing = True
+        self.error = None
         self._wake.set()
 
     async def pause(self) -> None:
@@ -274,6 +283,7 @@ class Player:
     async def step(self) -> None:
         """Pause, then process and push exactly one more frame; return once it is pushed."""
         self.playing = False
+        self.error = None
         fut: asyncio.Future[None] = asyncio.get_running_loop().create_future()
         self._steps.append(fut)
         self._wake.set()
@@ -336,6 +346,15 @@ class Player:
             await asyncio.wait_for(self._wake.wait(), timeout)
 
     async def _run(self) -> None:
+        while True:
+            try:
+                await self._play_loop()
+            except asyncio.CancelledError:
+                raise
+            except Exception as exc:  # never leave pause/step waiting on a dead loop
+                self._fail(f"{self.name}: playback stopped after frame {self.index}: {exc}")
+
+    async def _play_loop(self) -> None:
         loop_clock = time.monotonic
         due = loop_clock()
         advanced = 0  # frames of the recording since the last pushed one (for the audio duration)
