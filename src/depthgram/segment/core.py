@@ -9,9 +9,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from depthgram.frame import Intrinsics
-from depthgram.segment.attributes import fused_stats, label_stats, make_objects, relabel_small
+from depthgram.segment.attributes import Stats, label_stats, make_objects, relabel_small
 from depthgram.segment.config import SegmentConfig
-from depthgram.segment.histogram import Bands
+from depthgram.segment.histogram import Bands, bin_index, depth_bands
+from depthgram.segment.label import label_bands_stats
 from depthgram.segment.objects import Histogram, SceneObject, Segmentation
 from depthgram.segment.orientation import FACING, HORIZONTAL, VERTICAL, default_intrinsics, orientation_field
 from depthgram.segment.paper_slices import paper_slices
@@ -24,7 +25,6 @@ from depthgram.segment.slices import (
     support_components,
     support_kind,
 )
-from depthgram.segment.threshold import band_image, threshold_labels
 from depthgram.segment.validate import check_depth
 
 __all__ = ["segment"]
@@ -129,12 +129,27 @@ def _facing_objects(
     intrinsics: Intrinsics | None,
     cfg: SegmentConfig,
 ) -> tuple[NDArray[np.int32], list[SceneObject], Bands]:
-    band, state, bands = band_image(depth, ok, cfg, include=include)
-    labels, n = threshold_labels(band, state, cfg)
-    labels, stats, band_of = fused_stats(labels, n, depth, band, cfg.min_area_px(depth.size))
-    if intrinsics is None:
-        stats = replace(stats, sxz=None, syz=None)
-    objects = make_objects(labels, stats, depth_labels=band_of.astype(np.int64), intrinsics=intrinsics)
+    # the bands come from the histogram; labelling reads each pixel's band through the
+    # bin -> band table and gathers the statistics in the same pass (no band image, no
+    # separate statistics pass, no relabelling pass for the small components)
+    hist_mask = ok if include is None else ok & include
+    bins, edges, counts = bin_index(depth, hist_mask, cfg, zero_outside=include is None)
+    bands = depth_bands(counts, edges, cfg)
+    labels, _, sums, boxes = label_bands_stats(
+        bins, bands.lut, ok, include, depth, bridge=cfg.fill_holes_px, min_px=cfg.min_area_px(depth.size)
+    )
+    metric = intrinsics is not None
+    stats = Stats(
+        sums[:, 0],
+        sums[:, 1],
+        sums[:, 2],
+        sums[:, 3],
+        sums[:, 4],
+        sums[:, 5] if metric else None,
+        sums[:, 6] if metric else None,
+        boxes,
+    )
+    objects = make_objects(labels, stats, depth_labels=sums[:, 7].astype(np.int64), intrinsics=intrinsics)
     return labels, objects, bands
 
 

@@ -27,16 +27,17 @@ __all__ = ["Bands", "bin_index", "depth_bands"]
 
 
 def bin_index(
-    depth_mm: NDArray[np.float32], valid: NDArray[np.bool_], config: SegmentConfig
+    depth_mm: NDArray[np.float32], valid: NDArray[np.bool_], config: SegmentConfig, *, zero_outside: bool = False
 ) -> tuple[NDArray[np.int32], NDArray[np.float64], NDArray[np.int64]]:
     """Histogram bin of every pixel, the bin edges (mm) and the counts per bin.
 
     Invalid pixels get bin -1. With ``depth_dependent_bins`` the edges are geometric, so a
     bin is ``bin_mm`` wide at ``ref_depth_mm`` and proportional to depth elsewhere.
+    ``zero_outside``: see :func:`depthgram.segment.binning.depth_range`.
     """
     depth = np.ascontiguousarray(depth_mm, np.float32)
     ok = np.ascontiguousarray(valid, np.bool_)
-    lo, hi, n = depth_range(depth, ok)
+    lo, hi, n = depth_range(depth, ok, zero_outside=zero_outside)
     if n == 0:
         return np.full(depth.shape, -1, np.int32), np.zeros(1), np.zeros(0, np.int64)
     if config.depth_dependent_bins:

@@ -19,7 +19,16 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-__all__ = ["ACTIVE", "BLOCK", "HOLE", "label_keyed", "label_stats_fused", "plane_sums"]
+__all__ = [
+    "ACTIVE",
+    "BLOCK",
+    "HOLE",
+    "label_bands_stats",
+    "label_keyed",
+    "label_keyed_stats",
+    "label_stats_fused",
+    "plane_sums",
+]
 
 #: Pixel states for :func:`label_keyed`: a hole may be bridged, an active pixel is labelled,
 #: a blocking pixel (valid, but not part of any component) stops a bridge.
@@ -50,64 +59,185 @@ def _union(parent: NDArray[np.int32], a: int, b: int) -> int:
 
 
 @njit(cache=True)
-def _label(
+def _label_runs(
     key: NDArray[np.float32],
     state: NDArray[np.int8],
+    bins: NDArray[np.int32],
+    lut: NDArray[np.int32],
+    valid: NDArray[np.bool_],
+    include: NDArray[np.bool_],
+    from_bins: bool,
+    use_include: bool,
     tol: float,
     rel: float,
     bridge: int,
-) -> tuple[NDArray[np.int32], int]:
-    # classic two-pass labelling with provisional labels: a pixel takes its left or upper
-    # neighbour's label, and only a meeting of two different labels costs a union
-    h, w = key.shape
-    lab = np.zeros((h, w), dtype=np.int32)
-    parent = np.zeros(h * w // 2 + 2, dtype=np.int32)
+    depth: NDArray[np.float32],
+    stats: bool,
+) -> tuple[NDArray[np.int32], NDArray[np.int32], int, NDArray[np.float64], NDArray[np.int32]]:
+    # First pass of a two-pass labeller with provisional labels. Each column remembers its last
+    # pixel with a reading (row, label, key) and the row scan its last one, so the neighbour
+    # across a bridged hole is found in O(1) instead of by walking back over the holes. A pixel
+    # takes its left or upper neighbour's label; only a meeting of two labels costs a union.
+    # With `stats`, sums are gathered per run of one label along a row and flushed once per run.
+    # With `from_bins` the key and state come from the histogram bin of each pixel through the
+    # bin -> band table (no band image is written).
+    if from_bins:
+        h, w = bins.shape
+    else:
+        h, w = state.shape
+    lab = np.zeros((h, w), np.int32)
+    # one provisional label per pixel at most; np.empty only reserves the memory, the pages
+    # of labels never used are never touched (growing the tables inside the loop instead made
+    # numba count references on every pixel: 3x slower)
+    cap = h * w + 1
+    parent = np.empty(cap, np.int32)
+    sums = np.empty((cap if stats else 1, 8), np.float64)
+    boxes = np.empty((cap if stats else 1, 4), np.int32)
+    reach = bridge + 1
+    col_row = np.full(w, -reach - 1, np.int64)
+    col_lab = np.zeros(w, np.int32)
+    col_key = np.zeros(w, np.float32)
     nxt = 1
     for y in range(h):
+        last_x = -reach - 1
+        last_lab = 0
+        last_key = np.float32(0.0)
+        run = 0
+        c = 0.0
+        sz = 0.0
+        szz = 0.0
+        sx = 0.0
+        sxz = 0.0
+        rx0 = 0
+        rx1 = 0
+        rk = np.float32(0.0)
+        merged_up = 0
         for x in range(w):
-            if state[y, x] != ACTIVE:
+            if from_bins:
+                if not valid[y, x]:
+                    continue
+                b = bins[y, x]
+                kb = lut[b] if b >= 0 else -1
+                active = kb >= 0 and (not use_include or include[y, x])
+                kp = np.float32(kb)
+            else:
+                s = state[y, x]
+                if s == HOLE:
+                    continue
+                active = s == ACTIVE
+                kp = key[y, x]
+            if not active:
+                last_x = x
+                last_lab = 0
+                col_row[x] = y
+                col_lab[x] = 0
                 continue
-            kp = key[y, x]
             lim = tol + rel * abs(kp)
             left = 0
-            for d in range(1, bridge + 2):
-                xx = x - d
-                if xx < 0:
-                    break
-                s = state[y, xx]
-                if s == HOLE:
-                    continue
-                if s == ACTIVE and abs(key[y, xx] - kp) <= lim:
-                    left = lab[y, xx]
-                break
+            if last_lab != 0 and x - last_x <= reach and abs(last_key - kp) <= lim:
+                left = last_lab
             up = 0
-            for d in range(1, bridge + 2):
-                yy = y - d
-                if yy < 0:
-                    break
-                s = state[yy, x]
-                if s == HOLE:
-                    continue
-                if s == ACTIVE and abs(key[yy, x] - kp) <= lim:
-                    up = lab[yy, x]
-                break
+            cl = col_lab[x]
+            if cl != 0 and y - col_row[x] <= reach and abs(col_key[x] - kp) <= lim:
+                up = cl
             if left == 0 and up == 0:
-                if nxt >= parent.size:  # a checkerboard of tiny sets: grow the table
-                    bigger = np.zeros(parent.size * 2, dtype=np.int32)
-                    bigger[: parent.size] = parent
-                    parent = bigger
+                merged_up = 0
                 parent[nxt] = nxt
-                lab[y, x] = nxt
+                if stats:
+                    sums[nxt, :] = 0.0
+                    boxes[nxt, 0] = w
+                    boxes[nxt, 1] = y
+                    boxes[nxt, 2] = -1
+                    boxes[nxt, 3] = -1
+                lab_here = nxt
                 nxt += 1
             elif up == 0 or up == left:
-                lab[y, x] = left
+                lab_here = left
             elif left == 0:
-                lab[y, x] = up
+                lab_here = up
+                merged_up = up
             else:
-                lab[y, x] = left
-                _union(parent, left, up)
-    # roots are the smallest provisional label of a set, met first in raster order
-    final = np.zeros(nxt, dtype=np.int32)
+                lab_here = left
+                # along a run under one upper label the union is done once, not per pixel
+                if up != merged_up:
+                    _union(parent, left, up)
+                    merged_up = up
+            lab[y, x] = lab_here
+            last_x = x
+            last_lab = lab_here
+            last_key = kp
+            col_row[x] = y
+            col_lab[x] = lab_here
+            col_key[x] = kp
+            if stats:
+                if lab_here != run:
+                    if run != 0:
+                        _flush(sums, boxes, run, c, sz, szz, sx, sxz, y, rx0, rx1, rk)
+                    run = lab_here
+                    c = 0.0
+                    sz = 0.0
+                    szz = 0.0
+                    sx = 0.0
+                    sxz = 0.0
+                    rx0 = x
+                    rk = kp
+                z = np.float64(depth[y, x])
+                c += 1.0
+                sz += z
+                szz += z * z
+                sx += x
+                sxz += x * z
+                rx1 = x
+        if stats and run != 0:
+            _flush(sums, boxes, run, c, sz, szz, sx, sxz, y, rx0, rx1, rk)
+    return lab, parent, nxt, sums, boxes
+
+
+@njit(cache=True, inline="always")
+def _flush(
+    sums: NDArray[np.float64],
+    boxes: NDArray[np.int32],
+    i: int,
+    c: float,
+    sz: float,
+    szz: float,
+    sx: float,
+    sxz: float,
+    y: int,
+    x0: int,
+    x1: int,
+    k: float | np.float32,
+) -> None:
+    sums[i, 0] += c
+    sums[i, 1] += sz
+    sums[i, 2] += szz
+    sums[i, 3] += sx
+    sums[i, 4] += c * y
+    sums[i, 5] += sxz
+    sums[i, 6] += sz * y
+    sums[i, 7] = k
+    if x0 < boxes[i, 0]:
+        boxes[i, 0] = x0
+    if x1 > boxes[i, 2]:
+        boxes[i, 2] = x1
+    boxes[i, 3] = y  # rows are scanned in order: the latest row is the lowest
+
+
+@njit(cache=True)
+def _resolve(
+    lab: NDArray[np.int32],
+    parent: NDArray[np.int32],
+    nxt: int,
+    psums: NDArray[np.float64],
+    pboxes: NDArray[np.int32],
+    min_px: int,
+    stats: bool,
+) -> tuple[NDArray[np.int32], int, NDArray[np.float64], NDArray[np.int64]]:
+    # second pass: provisional labels -> sets numbered in raster order of their first pixel
+    # (the root of a set is its smallest provisional label); with `stats`, the sums of each set
+    # are added up, sets under `min_px` pixels dropped, and the rest renumbered, all before the
+    # one relabelling pass over the image
+    final = np.zeros(nxt, np.int32)
     n = 0
     for i in range(1, nxt):
         r = _find(parent, i)
@@ -116,11 +246,48 @@ def _label(
             final[i] = n
         else:
             final[i] = final[r]
+    sums = np.zeros((n + 1, 8), np.float64)
+    boxes = np.empty((n + 1, 4), np.int64)
+    if stats:
+        boxes[:, 0] = lab.shape[1]
+        boxes[:, 1] = lab.shape[0]
+        boxes[:, 2] = -1
+        boxes[:, 3] = -1
+        for i in range(1, nxt):
+            f = final[i]
+            for k in range(7):
+                sums[f, k] += psums[i, k]
+            sums[f, 7] = psums[i, 7]
+            boxes[f, 0] = min(boxes[f, 0], pboxes[i, 0])
+            boxes[f, 1] = min(boxes[f, 1], pboxes[i, 1])
+            boxes[f, 2] = max(boxes[f, 2], pboxes[i, 2])
+            boxes[f, 3] = max(boxes[f, 3], pboxes[i, 3])
+        newid = np.zeros(n + 1, np.int32)
+        k = 0
+        for j in range(1, n + 1):
+            if sums[j, 0] >= min_px:
+                k += 1
+                newid[j] = k
+                if k != j:
+                    sums[k] = sums[j]
+                    boxes[k] = boxes[j]
+        for i in range(1, nxt):
+            final[i] = newid[final[i]]
+        n = k
+        sums = sums[: n + 1].copy()
+        boxes = boxes[: n + 1].copy()
+    sums[0] = 0.0
+    h, w = lab.shape
+    boxes[0, 0] = w
+    boxes[0, 1] = h
+    boxes[0, 2] = -1
+    boxes[0, 3] = -1
     for y in range(h):
         for x in range(w):
-            if lab[y, x]:
-                lab[y, x] = final[lab[y, x]]
-    return lab, n
+            v = lab[y, x]
+            if v:
+                lab[y, x] = final[v]
+    return lab, n, sums, boxes
 
 
 @njit(cache=True)
@@ -213,8 +380,80 @@ def label_keyed(
     """
     k = np.ascontiguousarray(key, dtype=np.float32)
     s = np.ascontiguousarray(state, dtype=np.int8)
-    labels, n = _label(k, s, float(tol), float(rel), int(bridge))
+    i2, b2, f2 = _dummies()
+    lab, parent, nxt, ps, pb = _label_runs(
+        k, s, i2, i2[0], b2, b2, False, False, float(tol), float(rel), int(bridge), f2, False
+    )
+    labels, n, _, _ = _resolve(lab, parent, nxt, ps, pb, 0, False)
     return labels, int(n)
+
+
+def label_keyed_stats(
+    key: NDArray[Any],
+    state: NDArray[np.int8],
+    depth_mm: NDArray[np.float32],
+    *,
+    tol: float = 0.0,
+    rel: float = 0.0,
+    bridge: int = 0,
+    min_px: int = 1,
+) -> tuple[NDArray[np.int32], int, NDArray[np.float64], NDArray[np.int64]]:
+    """:func:`label_keyed`, components under ``min_px`` pixels dropped, with their statistics.
+
+    Same labels as ``label_keyed`` followed by dropping small components and renumbering the
+    rest 1..n in order, and the same sums and boxes as :func:`label_stats_fused` on them, but
+    the sums are gathered during labelling (no second statistics pass over the image).
+
+    Returns
+    -------
+    labels : ndarray of int32, shape (H, W)
+    n : int
+        Number of components kept.
+    sums : ndarray of float64, shape (n + 1, 8)
+        As :func:`label_stats_fused`, column 7 holding the key of each component.
+    boxes : ndarray of int64, shape (n + 1, 4)
+        Inclusive (x0, y0, x1, y1).
+    """
+    k = np.ascontiguousarray(key, dtype=np.float32)
+    s = np.ascontiguousarray(state, dtype=np.int8)
+    z = np.ascontiguousarray(depth_mm, dtype=np.float32)
+    i2, b2, _ = _dummies()
+    lab, parent, nxt, ps, pb = _label_runs(
+        k, s, i2, i2[0], b2, b2, False, False, float(tol), float(rel), int(bridge), z, True
+    )
+    labels, n, sums, boxes = _resolve(lab, parent, nxt, ps, pb, int(min_px), True)
+    return labels, int(n), sums, boxes
+
+
+def label_bands_stats(
+    bins: NDArray[np.int32],
+    lut: NDArray[np.int32],
+    valid: NDArray[np.bool_],
+    include: NDArray[np.bool_] | None,
+    depth_mm: NDArray[np.float32],
+    *,
+    bridge: int = 0,
+    min_px: int = 1,
+) -> tuple[NDArray[np.int32], int, NDArray[np.float64], NDArray[np.int64]]:
+    """Same-band components straight from histogram bins, with their statistics.
+
+    Equal to :func:`label_keyed_stats` on the band image and state of
+    :func:`depthgram.segment.binning.band_state` (``tol=0``), without writing either image:
+    the band of a pixel is ``lut[bins]``, pixels without a reading are holes, valid pixels
+    outside every band or outside ``include`` block. Column 7 of ``sums`` is the band.
+    """
+    i2, b2, f2 = _dummies()
+    inc = include if include is not None else b2
+    lab, parent, nxt, ps, pb = _label_runs(
+        f2, i2.astype(np.int8), bins, lut, valid, inc, True, include is not None, 0.0, 0.0, int(bridge), depth_mm, True
+    )
+    labels, n, sums, boxes = _resolve(lab, parent, nxt, ps, pb, int(min_px), True)
+    return labels, int(n), sums, boxes
+
+
+def _dummies() -> tuple[NDArray[np.int32], NDArray[np.bool_], NDArray[np.float32]]:
+    """Stand-ins for the arrays a mode of :func:`_label_runs` does not read (numba wants types)."""
+    return np.zeros((1, 1), np.int32), np.zeros((1, 1), np.bool_), np.zeros((1, 1), np.float32)
 
 
 @njit(cache=True)
