@@ -105,6 +105,7 @@ def test_stream_delivers_the_table_scene_with_its_true_objects() -> None:
         with client.websocket_connect("/ws/sim-table") as ws:
             hello = json.loads(ws.receive_text())
             assert hello["type"] == "hello" and hello["frames"] == 4 and hello["fps"] == pytest.approx(30.0)
+            assert {"slices", "threshold", "region"} <= set(hello["methods"])
             assert client.post("/api/recordings/sim-table/step").json()["index"] == 0
             msg = _frame(ws)
     assert msg["index"] == 0 and msg["size"] == [176, 132] and msg["scale"] == 2

@@ -101,6 +101,15 @@ def test_page_shows_frames_and_pause_then_step_advances_one_frame(server: str) -
             page.click("#play")
             page.wait_for_function("Number(document.getElementById('view').dataset.audio) > 0.1", timeout=20000)
             page.click("#pause")
+            # The method list comes from the server; choosing one applies from the next frame.
+            assert "threshold" in page.locator("#method option").all_inner_texts()
+            page.select_option("#method", "threshold")
+            page.click("#apply")
+            page.wait_for_function("document.getElementById('method').value === 'threshold'")
+            deadline = time.monotonic() + 10
+            while _state(server)["params"]["method"] != "threshold":
+                assert time.monotonic() < deadline, "method change did not reach the server"
+                time.sleep(0.05)
             # A bad value typed in the form is refused with the server's message.
             page.fill("#min_area", "-1")
             page.click("#apply")

@@ -54,6 +54,7 @@ from starlette.exceptions import HTTPException as StarletteHTTPException
 from depthgram.errors import InputError
 from depthgram.frame import Frame
 from depthgram.pipeline import Config, Pipeline, SceneResult
+from depthgram.segment import METHODS
 
 __all__ = ["STATIC_DIR", "Player", "ViewerConfig", "create_app", "recording_name", "tree_lines"]
 
@@ -261,6 +262,7 @@ class Player:
             "params": {"method": seg.method, "min_area": seg.min_area, "fraction": seg.fraction,
                        "bin_mm": seg.bin_mm},
             "sound_available": self.sound_available,
+            "methods": list(METHODS),
         }
 
     @property

@@ -35,7 +35,8 @@ async function api(method, path, body) {
     return null;
   }
   showError("");
-  fillParams(data.params);
+  // Only a settings answer refills the form: a late answer to a pause must not undo an edit.
+  if (path === "/params") fillParams(data.params);
   return data;
 }
 
@@ -63,6 +64,18 @@ function drawOverlay(msg) {
     ctx.moveTo((plan.channel.center_col + 0.5) * s, h);
     ctx.lineTo((plan.channel.center_col + 0.5) * s, h * 0.6);
     ctx.stroke();
+    if (plan.channel.free_mm !== null) {
+      ctx.font = "bold 12px system-ui, sans-serif";
+      ctx.textAlign = "center";
+      ctx.textBaseline = "bottom";
+      ctx.fillStyle = "rgba(0, 0, 0, 0.65)";
+      const label = `free ${fmt(plan.channel.free_mm)} mm`;
+      const x = (plan.channel.center_col + 0.5) * s;
+      const w = ctx.measureText(label).width + 8;
+      ctx.fillRect(x - w / 2, h * 0.6 - 18, w, 16);
+      ctx.fillStyle = "#7dff9a";
+      ctx.fillText(label, x, h * 0.6 - 3);
+    }
   } else if (plan.channel_checked) {
     ctx.fillStyle = "rgba(230, 30, 30, 0.85)";
     ctx.fillRect(0, h - 18, canvas.width, 18);
@@ -216,6 +229,8 @@ function connect() {
     if (msg.type === "hello") {
       $("recording").textContent = `${msg.name}${msg.frames ? ` · ${msg.frames} frames` : ""} · ${fmt(msg.fps, 1)} frames/s`;
       $("speed").value = String(msg.speed);
+      // The methods the installed segmentation offers, not a list frozen into the page.
+      $("method").replaceChildren(...msg.methods.map((m) => new Option(m, m)));
       fillParams(msg.params);
       if (!msg.sound_available) $("sound").disabled = true;
     } else if (msg.type === "frame") {
