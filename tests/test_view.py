@@ -25,12 +25,18 @@ from depthgram.sources import open_source
 from depthgram.views.server import Player, ViewerConfig, create_app, recording_name, tree_lines
 
 SPEC = "sim:table?frames=4"
+WS = "ws://127.0.0.1:8765"  # full URL: the test client's WebSocket otherwise says Host: testserver
 
 
 def _sim_player(**viewer: Any) -> Player:
     src = open_source(SPEC)
     return Player(lambda: iter(src), recording_name(SPEC), Config(), ViewerConfig(**viewer),
                   frames=len(src), fps=src.fps)
+
+
+def _client(app: Any) -> TestClient:
+    # The app answers only to loopback host names (DNS rebinding), so the client says 127.0.0.1.
+    return TestClient(app, base_url="http://127.0.0.1:8765")
 
 
 def _frame(ws: Any, *, ack: bool = True, end: bool = False) -> dict[str, Any]:
@@ -69,7 +75,7 @@ def test_viewer_config_refuses_absurd_values(kwargs: dict[str, Any]) -> None:
 
 
 def test_index_page_and_static_files() -> None:
-    with TestClient(create_app(_sim_player(playing=False))) as client:
+    with _client(create_app(_sim_player(playing=False))) as client:
         page = client.get("/")
         assert page.status_code == 200 and "text/html" in page.headers["content-type"]
         assert 'id="view"' in page.text and "data-objects" in page.text and "/static/viewer.js" in page.text
@@ -91,7 +97,7 @@ def test_index_page_and_static_files() -> None:
     "/static//etc/passwd",
 ])
 def test_static_never_leaves_its_folder(path: str) -> None:
-    with TestClient(create_app(_sim_player(playing=False))) as client:
+    with _client(create_app(_sim_player(playing=False))) as client:
         r = client.get(path)
         assert r.status_code == 404
         assert "[project]" not in r.text and "root:" not in r.text
@@ -101,8 +107,8 @@ def test_static_never_leaves_its_folder(path: str) -> None:
 def test_stream_delivers_the_table_scene_with_its_true_objects() -> None:
     sim = next(iter(simulate("table", 1)))
     reference = Pipeline().process(sim.frame)
-    with TestClient(create_app(_sim_player(playing=False))) as client:
-        with client.websocket_connect("/ws/sim-table") as ws:
+    with _client(create_app(_sim_player(playing=False))) as client:
+        with client.websocket_connect(WS + "/ws/sim-table") as ws:
             hello = json.loads(ws.receive_text())
             assert hello["type"] == "hello" and hello["frames"] == 4 and hello["fps"] == pytest.approx(30.0)
             assert {"slices", "threshold", "region"} <= set(hello["methods"])
@@ -128,8 +134,8 @@ def test_stream_delivers_the_table_scene_with_its_true_objects() -> None:
 
 
 def test_play_pause_step_round_trip() -> None:
-    with TestClient(create_app(_sim_player(playing=True, loop=True))) as client:
-        with client.websocket_connect("/ws/sim-table") as ws:
+    with _client(create_app(_sim_player(playing=True, loop=True))) as client:
+        with client.websocket_connect(WS + "/ws/sim-table") as ws:
             json.loads(ws.receive_text())
             first = _frame(ws)
             second = _frame(ws)
@@ -153,8 +159,8 @@ def test_parameter_change_takes_effect_on_the_next_frame() -> None:
     changed = Config().replace(segment={"method": "threshold", "min_area": 50, "fraction": 0.2, "bin_mm": 20})
     ref.config = changed
     expected = ref.process(frames[1])
-    with TestClient(create_app(_sim_player(playing=False))) as client:
-        with client.websocket_connect("/ws/sim-table") as ws:
+    with _client(create_app(_sim_player(playing=False))) as client:
+        with client.websocket_connect(WS + "/ws/sim-table") as ws:
             json.loads(ws.receive_text())
             client.post("/api/recordings/sim-table/step")
             before = _frame(ws)
@@ -170,8 +176,8 @@ def test_parameter_change_takes_effect_on_the_next_frame() -> None:
 
 
 def test_a_page_that_is_behind_gets_the_newest_frame_and_the_count_of_missed_ones() -> None:
-    with TestClient(create_app(_sim_player(playing=False))) as client:
-        with client.websocket_connect("/ws/sim-table") as ws:
+    with _client(create_app(_sim_player(playing=False))) as client:
+        with client.websocket_connect(WS + "/ws/sim-table") as ws:
             json.loads(ws.receive_text())
             client.post("/api/recordings/sim-table/step")
             first = _frame(ws, ack=False)  # the page is still drawing frame 0 ...
@@ -195,8 +201,8 @@ def test_server_skips_frames_when_behind_and_counts_every_one() -> None:
     player = Player(lambda: _cheap_frames(120), "cheap", Config(),
                     ViewerConfig(fps=1000.0, loop=False, min_width_px=40), frames=120)
     seen = []
-    with TestClient(create_app(player)) as client:
-        with client.websocket_connect("/ws/cheap") as ws:
+    with _client(create_app(player)) as client:
+        with client.websocket_connect(WS + "/ws/cheap") as ws:
             json.loads(ws.receive_text())
             while (msg := _frame(ws, end=True))["type"] == "frame":
                 seen.append(msg)
@@ -213,8 +219,8 @@ def test_server_skips_frames_when_behind_and_counts_every_one() -> None:
 
 def test_sound_is_sent_to_pages_that_turn_it_on_and_lasts_as_long_as_the_frames() -> None:
     pytest.importorskip("depthgram.sound", reason="the sound stage is not installed")
-    with TestClient(create_app(_sim_player(playing=False, loop=False, samplerate=8000))) as client:
-        with client.websocket_connect("/ws/sim-table") as ws:
+    with _client(create_app(_sim_player(playing=False, loop=False, samplerate=8000))) as client:
+        with client.websocket_connect(WS + "/ws/sim-table") as ws:
             json.loads(ws.receive_text())
             ws.send_text(json.dumps({"type": "sound", "on": True}))
             assert json.loads(ws.receive_text()) == {"type": "sound", "on": True, "available": True}
@@ -243,8 +249,8 @@ def test_a_broken_frame_pauses_playback_and_tells_the_page_which_frame() -> None
         raise InputError("cheap/frame-2.png: truncated PNG, expected 40 x 30 uint16")
 
     player = Player(broken, "broken", Config(), ViewerConfig(fps=30.0, loop=False, min_width_px=40), frames=3)
-    with TestClient(create_app(player)) as client:
-        with client.websocket_connect("/ws/broken") as ws:
+    with _client(create_app(player)) as client:
+        with client.websocket_connect(WS + "/ws/broken") as ws:
             json.loads(ws.receive_text())
             shown = []
             while (msg := json.loads(ws.receive_text()))["type"] == "frame":
@@ -270,7 +276,7 @@ def test_a_broken_frame_pauses_playback_and_tells_the_page_which_frame() -> None
     ("put", "/api/recordings/sim-table/speed", b"{not json", 400, "JSON"),
 ])
 def test_bad_requests_get_a_clear_json_error(method: str, path: str, body: Any, status: int, needle: str) -> None:
-    with TestClient(create_app(_sim_player(playing=False))) as client:
+    with _client(create_app(_sim_player(playing=False))) as client:
         if isinstance(body, bytes):
             r = client.request(method.upper(), path, content=body)
         elif body is not None:
@@ -285,8 +291,8 @@ def test_bad_requests_get_a_clear_json_error(method: str, path: str, body: Any, 
 
 
 def test_unknown_recording_stream_is_refused() -> None:
-    with TestClient(create_app(_sim_player(playing=False))) as client:
-        with pytest.raises(WebSocketDisconnect) as info, client.websocket_connect("/ws/nope") as ws:
+    with _client(create_app(_sim_player(playing=False))) as client:
+        with pytest.raises(WebSocketDisconnect) as info, client.websocket_connect(WS + "/ws/nope") as ws:
             ws.receive_text()
         assert info.value.code == 4404
 
@@ -299,8 +305,8 @@ def test_real_recording_streams_at_its_own_size_with_the_pipeline_objects(shared
     expected = [pipe.process(f) for f in frames]
     player = Player(lambda: iter(src), recording_name(str(seq)), Config(), ViewerConfig(playing=False),
                     frames=len(src), fps=src.fps)
-    with TestClient(create_app(player)) as client:
-        with client.websocket_connect("/ws/7scenes_redkitchen_seq") as ws:
+    with _client(create_app(player)) as client:
+        with client.websocket_connect(WS + "/ws/7scenes_redkitchen_seq") as ws:
             hello = json.loads(ws.receive_text())
             shown = []
             for _ in range(2):
@@ -312,3 +318,33 @@ def test_real_recording_streams_at_its_own_size_with_the_pipeline_objects(shared
         assert msg["size"] == [640, 480] and msg["scale"] == 1
         assert msg["objects"] == len(ref.segmentation.objects)
         assert msg["record"]["sentence"] == ref.sentence
+
+
+def test_other_sites_and_other_host_names_are_refused() -> None:
+    with _client(create_app(_sim_player(playing=False))) as client:
+        evil = {"Origin": "http://evil.example"}
+        r = client.post("/api/recordings/sim-table/play", headers=evil)
+        assert r.status_code == 403 and "evil.example" in r.json()["error"]
+        assert client.put("/api/recordings/sim-table/speed", json={"value": 2}, headers=evil).status_code == 403
+        assert client.get("/api/recordings/sim-table").json()["speed"] == 1.0
+        with pytest.raises(WebSocketDisconnect) as info, \
+                client.websocket_connect(WS + "/ws/sim-table", headers=evil) as ws:
+            ws.receive_text()
+        assert info.value.code == 4403
+        # the page's own origin is welcome
+        own = {"Origin": "http://127.0.0.1:8765"}
+        assert client.post("/api/recordings/sim-table/play", headers=own).status_code == 200
+    # A foreign name resolving to 127.0.0.1 (DNS rebinding) is refused, [::1] and localhost are not.
+    app = create_app(_sim_player(playing=False))
+    with TestClient(app, base_url="http://rebound.example:8765") as client:
+        r = client.get("/api/recordings")
+        assert r.status_code == 400 and "rebound.example" in r.json()["error"]
+        with pytest.raises(WebSocketDisconnect) as info, \
+                client.websocket_connect("ws://rebound.example:8765/ws/sim-table") as ws:
+            ws.receive_text()
+        assert info.value.code == 4400
+    for base in ("http://[::1]:8765", "http://localhost:8765"):
+        with TestClient(create_app(_sim_player(playing=False)), base_url=base) as client:
+            assert client.get("/api/recordings").status_code == 200
+    with TestClient(create_app(_sim_player(playing=False), allowed_hosts=None)) as client:
+        assert client.get("/api/recordings").status_code == 200

@@ -35,7 +35,7 @@ def run(args: argparse.Namespace) -> int:
 
     from depthgram.commands._common import load_config, open_input, source_len
     from depthgram.errors import InputError
-    from depthgram.views.server import Player, ViewerConfig, create_app, recording_name
+    from depthgram.views.server import LOOPBACK_HOSTS, Player, ViewerConfig, create_app, recording_name
 
     if not 0 <= args.port <= 65535:
         raise InputError(f"--port must be in 0..65535, got {args.port}")
@@ -48,7 +48,13 @@ def run(args: argparse.Namespace) -> int:
     if args.host not in _LOOPBACK:
         print(f"depthgram view: warning: listening on {args.host}: anyone who can reach this address can "
               "watch the recording and change the playback (there is no login)", file=sys.stderr)
-    server = uvicorn.Server(uvicorn.Config(create_app(player), host=args.host, port=args.port,
+    if args.host in _LOOPBACK:
+        hosts: tuple[str, ...] | None = LOOPBACK_HOSTS
+    elif args.host in ("0.0.0.0", "::", ""):
+        hosts = None  # every address of the machine: any name may reach it
+    else:
+        hosts = (*LOOPBACK_HOSTS, args.host)
+    server = uvicorn.Server(uvicorn.Config(create_app(player, allowed_hosts=hosts), host=args.host, port=args.port,
                                            log_level="warning"))
 
     def announce() -> None:

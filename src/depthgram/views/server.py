@@ -39,10 +39,11 @@ import json
 import math
 import re
 import time
-from collections.abc import AsyncIterator, Callable, Iterator
+from collections.abc import AsyncIterator, Callable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
+from urllib.parse import urlsplit
 
 import cv2
 import numpy as np
@@ -56,7 +57,7 @@ from depthgram.frame import Frame
 from depthgram.pipeline import Config, Pipeline, SceneResult
 from depthgram.segment import METHODS
 
-__all__ = ["STATIC_DIR", "Player", "ViewerConfig", "create_app", "recording_name", "tree_lines"]
+__all__ = ["LOOPBACK_HOSTS", "STATIC_DIR", "Player", "ViewerConfig", "create_app", "recording_name", "tree_lines"]
 
 #: The page's files. Only files present here when the app is created are ever served.
 STATIC_DIR = Path(__file__).with_name("static")
@@ -505,10 +506,64 @@ def _json_error(status: int, message: str) -> JSONResponse:
     return JSONResponse({"error": message}, status_code=status)
 
 
-def create_app(player: Player) -> FastAPI:
+#: Host names that reach this machine only; the default set of allowed ``Host`` headers.
+LOOPBACK_HOSTS = ("127.0.0.1", "localhost", "::1")
+
+
+def _host_name(host_header: str) -> str:
+    """``Host`` header without its port: ``[::1]:8765`` -> ``::1``, ``localhost:8765`` -> ``localhost``."""
+    h = host_header.strip().lower()
+    if h.startswith("["):
+        return h[1:].partition("]")[0]
+    return h.rpartition(":")[0] if h.count(":") == 1 else h
+
+
+def _same_origin(headers: Any) -> bool:
+    """True when a request carries no ``Origin`` (not from a web page) or comes from this server's own page.
+
+    Browsers let any web site open a WebSocket to 127.0.0.1 or send a simple POST there; the
+    Origin they attach is the only way to tell our page from someone else's.
+    """
+    origin = headers.get("origin")
+    if origin is None:
+        return True
+    return urlsplit(origin).netloc.lower() == str(headers.get("host", "")).lower()
+
+
+class _AllowedHosts:
+    """Refuse requests whose ``Host`` is not one of ours (DNS rebinding: a foreign name that
+    resolves to 127.0.0.1 would otherwise reach the viewer with the browser's blessing)."""
+
+    def __init__(self, app: Any, hosts: Sequence[str]) -> None:
+        self.app = app
+        self.hosts = {h.lower().strip("[]") for h in hosts}
+
+    async def __call__(self, scope: Any, receive: Any, send: Any) -> None:
+        if scope["type"] in ("http", "websocket"):
+            host = dict(scope["headers"]).get(b"host", b"").decode("latin-1")
+            if _host_name(host) not in self.hosts:
+                if scope["type"] == "websocket":
+                    await send({"type": "websocket.close", "code": 4400, "reason": "host not allowed"})
+                    return
+                response = _json_error(400, f"host {host!r} is not served here; use {sorted(self.hosts)[0]}")
+                await response(scope, receive, send)
+                return
+        await self.app(scope, receive, send)
+
+
+def create_app(player: Player, *, allowed_hosts: Sequence[str] | None = LOOPBACK_HOSTS) -> FastAPI:
     """The FastAPI application serving one :class:`Player`.
 
     The player's loop starts with the app (its lifespan) and stops with it.
+
+    Parameters
+    ----------
+    player : Player
+        The recording's player.
+    allowed_hosts : sequence of str or None
+        Host names accepted in the ``Host`` header (any port); None accepts any (behind a
+        proxy, or in tests). Requests from another site's page (a foreign ``Origin``) are
+        refused either way.
     """
     # A whitelist taken once: a request names a file, it is never joined to a path.
     static_files = {p.name: p for p in STATIC_DIR.iterdir() if p.is_file()} if STATIC_DIR.is_dir() else {}
@@ -523,6 +578,12 @@ def create_app(player: Player) -> FastAPI:
             await player.stop()
 
     app = FastAPI(title="depthgram view", lifespan=lifespan, docs_url=None, redoc_url=None, openapi_url=None)
+    if allowed_hosts is not None:
+        app.add_middleware(_AllowedHosts, hosts=tuple(allowed_hosts))
+
+    def ours(request: Request) -> None:
+        if not _same_origin(request.headers):
+            raise StarletteHTTPException(403, f"requests from {request.headers.get('origin')} are not allowed")
 
     @app.exception_handler(StarletteHTTPException)
     async def http_error(_r: Request, exc: StarletteHTTPException) -> JSONResponse:
@@ -566,7 +627,8 @@ def create_app(player: Player) -> FastAPI:
         return player.state()
 
     @app.post("/api/recordings/{name}/{action}")
-    async def control(name: str, action: str) -> Any:
+    async def control(name: str, action: str, request: Request) -> Any:
+        ours(request)
         known(name)
         if action == "play":
             player.play()
@@ -580,6 +642,7 @@ def create_app(player: Player) -> FastAPI:
 
     @app.put("/api/recordings/{name}/speed")
     async def speed(name: str, request: Request) -> Any:
+        ours(request)
         known(name)
         data = await body(request)
         try:
@@ -590,6 +653,7 @@ def create_app(player: Player) -> FastAPI:
 
     @app.put("/api/recordings/{name}/params")
     async def params(name: str, request: Request) -> Any:
+        ours(request)
         known(name)
         try:
             player.set_params(await body(request))
@@ -599,6 +663,9 @@ def create_app(player: Player) -> FastAPI:
 
     @app.websocket("/ws/{name}")
     async def stream(ws: WebSocket, name: str) -> None:
+        if not _same_origin(ws.headers):
+            await ws.close(code=4403, reason="connections from other sites' pages are not allowed")
+            return
         if name != player.name:
             await ws.close(code=4404, reason=f"unknown recording {name!r}")
             return
