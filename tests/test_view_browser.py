@@ -86,12 +86,10 @@ def test_page_shows_frames_and_pause_then_step_advances_one_frame(server: str) -
             page.click("#play")
             page.wait_for_function("Number(document.getElementById('view').dataset.frame) >= 3", timeout=20000)
             page.click("#pause")
-            deadline = time.monotonic() + 10
-            while (state := _state(server))["playing"]:
-                assert time.monotonic() < deadline
-                time.sleep(0.05)
-            k = state["index"]
+            page.wait_for_function("document.getElementById('view').dataset.pausedAt !== undefined")
+            k = int(page.get_attribute("#view", "data-paused-at") or -1)
             page.wait_for_function(f"document.getElementById('view').dataset.frame === '{k}'", timeout=10000)
+            assert _state(server)["index"] == k and _state(server)["playing"] is False
             page.click("#step")
             nxt = (k + 1) % 12
             page.wait_for_function(f"document.getElementById('view').dataset.frame === '{nxt}'", timeout=10000)

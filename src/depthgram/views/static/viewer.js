@@ -37,6 +37,8 @@ async function api(method, path, body) {
   showError("");
   // Only a settings answer refills the form: a late answer to a pause must not undo an edit.
   if (path === "/params") fillParams(data.params);
+  // The server answers a pause once the frame in progress is out: that frame is where it stopped.
+  if (path === "/pause") view.dataset.pausedAt = String(data.index);
   return data;
 }
 
