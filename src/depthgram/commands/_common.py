@@ -4,11 +4,30 @@ from __future__ import annotations
 
 import argparse
 import sys
+from collections.abc import Iterator
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
-    from depthgram.pipeline import Config
+    from depthgram.pipeline import Config, SceneResult
     from depthgram.sources import Source
+
+
+def add_pipeline_arguments(p: argparse.ArgumentParser, *, stills: bool = False) -> None:
+    """INPUT, how to read it, the settings, --quiet, and with ``stills`` the --no-track switch."""
+    add_source_arguments(p)
+    add_config_arguments(p)
+    if stills:
+        p.add_argument("--no-track", action="store_true", help="treat frames as unrelated stills (no range flow)")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+
+
+def pipeline_results(args: argparse.Namespace, desc: str) -> tuple[Source, Iterator[SceneResult]]:
+    """Open the input, run the configured pipeline over it, with a progress bar."""
+    from depthgram.pipeline import Pipeline
+
+    src = open_input(args)
+    pipe = Pipeline(load_config(args), track=not getattr(args, "no_track", False))
+    return src, progress(pipe.run(src), total=source_len(src), desc=desc, quiet=args.quiet)
 
 
 def add_source_arguments(p: argparse.ArgumentParser) -> None:

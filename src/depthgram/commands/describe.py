@@ -7,29 +7,19 @@ import json
 import sys
 from pathlib import Path
 
-from depthgram.commands._common import (
-    add_config_arguments,
-    add_source_arguments,
-    load_config,
-    open_input,
-    progress,
-    source_len,
-)
+from depthgram.commands._common import add_pipeline_arguments, pipeline_results
 
 NAME = "describe"
 HELP = "describe every frame: objects, tree, sentence, motion (JSON lines or text)"
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    add_source_arguments(p)
-    add_config_arguments(p)
+    add_pipeline_arguments(p, stills=True)
     p.add_argument("--json", default=None, metavar="OUT.jsonl", help="write JSON lines here (default: stdout)")
     p.add_argument("--format", choices=["json", "text"], default="json",
                    help="json: one JSON line per frame; text: one sentence per frame")
     p.add_argument("--labels-dir", default=None, metavar="DIR",
                    help="write a 16-bit PNG label map per frame (pixel = object id)")
-    p.add_argument("--no-track", action="store_true", help="treat frames as unrelated stills (no range flow)")
-    p.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
 def label_file_name(frame_name: str, index: int) -> str:
@@ -42,16 +32,14 @@ def run(args: argparse.Namespace) -> int:
     import cv2
 
     from depthgram.errors import InputError
-    from depthgram.pipeline import Pipeline
 
-    src = open_input(args)
-    pipe = Pipeline(load_config(args), track=not args.no_track)
     labels_dir = Path(args.labels_dir) if args.labels_dir else None
     if labels_dir is not None:
         labels_dir.mkdir(parents=True, exist_ok=True)
     out = open(args.json, "w", encoding="utf-8") if args.json else sys.stdout
     try:
-        for result in progress(pipe.run(src), total=source_len(src), desc=NAME, quiet=args.quiet):
+        _, results = pipeline_results(args, NAME)
+        for result in results:
             if args.format == "text":
                 out.write(result.sentence + "\n")
             else:

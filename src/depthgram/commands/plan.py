@@ -5,33 +5,22 @@ from __future__ import annotations
 import argparse
 import json
 
-from depthgram.commands._common import (
-    add_config_arguments,
-    add_source_arguments,
-    load_config,
-    open_input,
-    progress,
-    source_len,
-)
+from depthgram.commands._common import add_pipeline_arguments, pipeline_results
 
 NAME = "plan"
 HELP = "print the action plan per frame: grasp / avoid per object, the clearance channel, ttc warnings"
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    add_source_arguments(p)
-    add_config_arguments(p)
+    add_pipeline_arguments(p)
     p.add_argument("--json", action="store_true", help="one JSON line per frame instead of text")
-    p.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
 def run(args: argparse.Namespace) -> int:
     from depthgram.act import plan_to_dict, plan_to_text
-    from depthgram.pipeline import Pipeline
 
-    src = open_input(args)
-    pipe = Pipeline(load_config(args))
-    for result in progress(pipe.run(src), total=source_len(src), desc=NAME, quiet=args.quiet):
+    _, results = pipeline_results(args, NAME)
+    for result in results:
         f = result.frame
         if args.json:
             print(json.dumps({"frame": f.index, "time_s": f.time_s, "source": f.name, **plan_to_dict(result.plan)}))

@@ -6,24 +6,15 @@ import argparse
 import sys
 import time
 
-from depthgram.commands._common import (
-    add_config_arguments,
-    add_source_arguments,
-    load_config,
-    open_input,
-    progress,
-    source_len,
-)
+from depthgram.commands._common import add_pipeline_arguments, load_config, open_input, progress, source_len
 
 NAME = "run"
 HELP = "play a recording at its frame rate (or --fast) and report per-frame latency and dropped frames"
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    add_source_arguments(p)
-    add_config_arguments(p)
+    add_pipeline_arguments(p)
     p.add_argument("--fast", action="store_true", help="as fast as possible instead of the recording's rate")
-    p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.add_argument("--print", dest="print_sentences", action="store_true", help="print each frame's sentence")
 
 

@@ -4,52 +4,40 @@ from __future__ import annotations
 
 import argparse
 
-from depthgram.commands._common import (
-    add_config_arguments,
-    add_source_arguments,
-    load_config,
-    open_input,
-    progress,
-    source_len,
-)
+from depthgram.commands._common import add_pipeline_arguments, load_config, pipeline_results
 
 NAME = "sonify"
 HELP = "render the scene to stereo audio for a listener (WAV), one scan per frame at the recording's rate"
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    add_source_arguments(p)
-    add_config_arguments(p)
+    add_pipeline_arguments(p)
     p.add_argument("--wav", required=True, metavar="OUT.wav", help="audio file to write")
     p.add_argument("--preset", default=None, help="sound mapping preset (overrides the config's [sound])")
     p.add_argument("--samplerate", type=int, default=22050, help="samples per second")
     p.add_argument("--still-duration", type=float, default=1.0, metavar="S",
                    help="seconds of sound for a single still frame, or per frame when no rate is known")
-    p.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
 def run(args: argparse.Namespace) -> int:
     import soundfile as sf
 
     from depthgram.errors import InputError
-    from depthgram.pipeline import Pipeline
     from depthgram.sound import Sonifier, SoundMapping
 
     if not 4000 <= args.samplerate <= 192000:
         raise InputError(f"--samplerate must be between 4000 and 192000, got {args.samplerate}")
     if not 0 < args.still_duration <= 60:
         raise InputError(f"--still-duration must be in (0, 60] s, got {args.still_duration}")
-    src = open_input(args)
-    cfg = load_config(args)
-    mapping = SoundMapping.preset(args.preset) if args.preset else cfg.sound
-    pipe = Pipeline(cfg)
+    mapping = SoundMapping.preset(args.preset) if args.preset else load_config(args).sound
+    src, results = pipeline_results(args, NAME)
     fps = getattr(src, "fps", None) or args.fps
     sonifier: Sonifier | None = None
     pending = None  # (tree, time_s) of the frame whose duration is known only when the next one arrives
     last_duration = 1.0 / fps if fps else args.still_duration
     # Streamed to disk frame by frame: a long recording never sits in memory as audio.
     with sf.SoundFile(args.wav, "w", samplerate=args.samplerate, channels=2, subtype="PCM_16") as wav:
-        for result in progress(pipe.run(src), total=source_len(src), desc=NAME, quiet=args.quiet):
+        for result in results:
             f = result.frame
             if sonifier is None:
                 sonifier = Sonifier(mapping, args.samplerate, f.size)

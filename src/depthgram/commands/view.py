@@ -14,6 +14,8 @@ _LOOPBACK = ("127.0.0.1", "localhost", "::1")
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.epilog = ("--fps also sets the playback rate at speed 1 (default: the recording's own rate, else 30 "
+                "frames/s). One server plays one recording; every open page shares its playback controls.")
     add_source_arguments(p)
     add_config_arguments(p)
     g = p.add_argument_group("viewer")
