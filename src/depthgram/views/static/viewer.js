@@ -230,6 +230,9 @@ function connect() {
     const msg = JSON.parse(ev.data);
     if (msg.type === "hello") {
       $("recording").textContent = `${msg.name}${msg.frames ? ` · ${msg.frames} frames` : ""} · ${fmt(msg.fps, 1)} frames/s`;
+      if (![...$("speed").options].some((o) => Number(o.value) === msg.speed)) {
+        $("speed").add(new Option(`${msg.speed}×`, String(msg.speed)));
+      }
       $("speed").value = String(msg.speed);
       // The methods the installed segmentation offers, not a list frozen into the page.
       $("method").replaceChildren(...msg.methods.map((m) => new Option(m, m)));
