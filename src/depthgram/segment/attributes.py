@@ -148,43 +148,58 @@ def make_objects(
     """
     n = stats.count.size - 1
     total = labels.size
+    if n <= 0:
+        return []
+    # every attribute is computed for all labels at once and turned into Python numbers in
+    # one .tolist() per column: per-object numpy scalar arithmetic and float() calls cost
+    # more than the statistics pass on small frames
+    cnt = stats.count[1:]
+    safe = np.maximum(cnt, 1.0)
+    mean = stats.sz[1:] / safe
+    std = np.sqrt(np.maximum(stats.szz[1:] / safe - mean * mean, 0.0))
     if stats.boxes is not None:
-        b = stats.boxes
-        boxes = [(slice(b[i, 1], b[i, 3] + 1), slice(b[i, 0], b[i, 2] + 1)) for i in range(1, n + 1)]
+        b = stats.boxes[1:]
+        x0, y0, x1, y1 = (b[:, j].tolist() for j in range(4))
+        present = (cnt > 0).tolist()
     else:
-        boxes = ndimage.find_objects(labels, max_label=n)
+        found = ndimage.find_objects(labels, max_label=n)
+        present = [(c > 0 and f is not None) for c, f in zip(cnt.tolist(), found, strict=True)]
+        x0 = [f[1].start if f is not None else 0 for f in found]
+        y0 = [f[0].start if f is not None else 0 for f in found]
+        x1 = [f[1].stop - 1 if f is not None else 0 for f in found]
+        y1 = [f[0].stop - 1 if f is not None else 0 for f in found]
+    metric = intrinsics is not None and stats.sxz is not None and stats.syz is not None
+    if metric:
+        assert intrinsics is not None and stats.sxz is not None and stats.syz is not None
+        fx, fy, cx, cy = intrinsics.fx, intrinsics.fy, intrinsics.cx, intrinsics.cy
+        gx = ((stats.sxz[1:] - cx * stats.sz[1:]) / fx / safe).tolist()
+        gy = ((stats.syz[1:] - cy * stats.sz[1:]) / fy / safe).tolist()
+        amm = (stats.szz[1:] / (fx * fy)).tolist()
+    mean_l = mean.tolist()
+    std_l = std.tolist()
+    cnt_l = cnt.tolist()
+    cx_l = (stats.sx[1:] / safe).tolist()
+    cy_l = (stats.sy[1:] / safe).tolist()
+    id_l = ids[1:].tolist() if ids is not None else list(range(first_id, first_id + n))
+    lab_l = depth_labels[1:].tolist() if depth_labels is not None else [0] * n
     out: list[SceneObject] = []
-    for i in range(1, n + 1):
-        c = stats.count[i]
-        box = boxes[i - 1]
-        if c <= 0 or box is None:
+    for j in range(n):
+        if not present[j]:
             continue
-        mean = stats.sz[i] / c
-        var = max(stats.szz[i] / c - mean * mean, 0.0)
-        centroid = None
-        area_mm2 = None
-        if intrinsics is not None and stats.sxz is not None and stats.syz is not None:
-            fx, fy, cx, cy = intrinsics.fx, intrinsics.fy, intrinsics.cx, intrinsics.cy
-            centroid = (
-                float((stats.sxz[i] - cx * stats.sz[i]) / fx / c),
-                float((stats.syz[i] - cy * stats.sz[i]) / fy / c),
-                float(mean),
-            )
-            area_mm2 = float(stats.szz[i] / (fx * fy))
-        ys, xs = box
+        c = cnt_l[j]
         out.append(
             SceneObject(
-                id=int(ids[i]) if ids is not None else first_id + i - 1,
-                kind=kinds[i] if kinds is not None else "object",
-                label=int(depth_labels[i]) if depth_labels is not None else 0,
-                depth=float(mean),
-                depth_std=float(np.sqrt(var)),
+                id=int(id_l[j]),
+                kind=kinds[j + 1] if kinds is not None else "object",
+                label=int(lab_l[j]),
+                depth=mean_l[j],
+                depth_std=std_l[j],
                 area=int(c),
-                area_fraction=float(c / total),
-                center=(float(stats.sx[i] / c), float(stats.sy[i] / c)),
-                bbox=(int(xs.start), int(ys.start), int(xs.stop - 1), int(ys.stop - 1)),
-                centroid_mm=centroid,
-                area_mm2=area_mm2,
+                area_fraction=c / total,
+                center=(cx_l[j], cy_l[j]),
+                bbox=(int(x0[j]), int(y0[j]), int(x1[j]), int(y1[j])),
+                centroid_mm=(gx[j], gy[j], mean_l[j]) if metric else None,
+                area_mm2=amm[j] if metric else None,
             )
         )
     return out

@@ -16,6 +16,18 @@ __all__ = ["METHODS", "SegmentConfig"]
 #: per-slice histograms joined by successive depth labels, no surface normals).
 METHODS = ("slices", "threshold", "region", "paper")
 
+#: (field, smallest, largest) of the numeric options checked by :class:`SegmentConfig`; a
+#: module constant so that validating a config (once per call with overrides) costs no dict.
+_RANGES = (
+    ("bin_mm", 0.01, 10_000.0),
+    ("ref_depth_mm", 1.0, 1e6),
+    ("min_area", 1e-9, 1e9),
+    ("slice_aperture", 1e-6, 1e6),
+    ("region_tol_mm", 1e-6, 1e5),
+    ("oblique_deg", 1.0, 60.0),
+    ("jump_rel", 1e-4, 10.0),
+)
+
 
 @dataclass(frozen=True)
 class SegmentConfig:
@@ -128,17 +140,9 @@ class SegmentConfig:
             raise bad("gap_pixels", self.gap_pixels, "'nearest' or 'background'")
         if self.slice_directions not in ("both", "horizontal", "vertical"):
             raise bad("slice_directions", self.slice_directions, "'both', 'horizontal' or 'vertical'")
-        positive = {
-            "bin_mm": (self.bin_mm, 0.01, 10_000.0),
-            "ref_depth_mm": (self.ref_depth_mm, 1.0, 1e6),
-            "min_area": (self.min_area, 1e-9, 1e9),
-            "slice_aperture": (self.slice_aperture, 1e-6, 1e6),
-            "region_tol_mm": (self.region_tol_mm, 1e-6, 1e5),
-            "oblique_deg": (self.oblique_deg, 1.0, 60.0),
-            "jump_rel": (self.jump_rel, 1e-4, 10.0),
-        }
-        for name, (value, lo, hi) in positive.items():
-            if not (isinstance(value, int | float) and math.isfinite(value) and lo <= value <= hi):
+        for name, lo, hi in _RANGES:
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and lo <= value <= hi):
                 raise bad(name, value, f"a number in [{lo}, {hi}]")
         if not 0.0 <= self.fraction <= 0.5:
             raise bad("fraction", self.fraction, "a share in [0, 0.5] (the paper uses 0.10)")

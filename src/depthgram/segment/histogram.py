@@ -96,31 +96,43 @@ def depth_bands(counts: NDArray[np.int64], edges: NDArray[np.float64], config: S
     smooth = gaussian_filter1d(counts.astype(np.float64), config.smooth_bins) if config.smooth_bins > 0 else counts
     # pad so that a peak in the first or last bin is found too
     padded = np.concatenate(([0.0], smooth, [0.0]))
-    peaks, _ = find_peaks(padded, prominence=max(config.min_prominence * n_valid, 1e-9))
-    peaks = peaks - 1
+    found, _ = find_peaks(padded, prominence=max(config.min_prominence * n_valid, 1e-9))
+    peaks = found - 1
     k = peaks.size
     lut = np.full(nb, -1, np.int32)
     centers = 0.5 * (edges[:-1] + edges[1:])
-    lower = np.zeros(k)
-    upper = np.zeros(k)
+    # the loop runs once per peak over Python ints and floats: with numpy scalars its
+    # bookkeeping cost more than the histogram itself on small frames
+    plist = peaks.tolist()
+    sm = smooth.tolist()
+    edge = edges.tolist()
+    lower_l: list[float] = []
+    upper_l: list[float] = []
     t = 1.0 - config.fraction if config.cut_from == "minimum" else config.fraction
+    nearest = config.gap_pixels == "nearest"
     prev_min = 0
-    for i, p in enumerate(peaks):
+    for i, p in enumerate(plist):
         # following minimum: lowest smoothed bin before the next peak (first one on ties)
-        stop = peaks[i + 1] if i + 1 < k else nb - 1
-        nxt = p + int(np.argmin(smooth[p : stop + 1])) if stop > p else p
+        stop = plist[i + 1] if i + 1 < k else nb - 1
+        if stop > p:
+            seg = sm[p : stop + 1]
+            nxt = p + seg.index(min(seg))
+        else:
+            nxt = p
         if i + 1 == k:
-            nxt = nb - 1 if smooth[nxt] > 0 else nxt
+            nxt = nb - 1 if sm[nxt] > 0 else nxt
         lo_bin = p - t * (p - prev_min)
         hi_bin = p + t * (nxt - p)
         first = max(math.ceil(lo_bin - 1e-9), 0)
         last = min(math.floor(hi_bin + 1e-9), nb - 1)
-        lower[i] = edges[first]
-        upper[i] = edges[last + 1]
-        if config.gap_pixels == "nearest":
+        lower_l.append(edge[first])
+        upper_l.append(edge[last + 1])
+        if nearest:
             # the gap on each side goes to this band up to the minimum (the next band overwrites it)
             first, last = prev_min if i else 0, nxt if i + 1 < k else nb - 1
         lut[first : last + 1] = i
         prev_min = nxt
+    lower = np.array(lower_l, np.float64)
+    upper = np.array(upper_l, np.float64)
     hist = Histogram(edges=edges, counts=counts, peaks=centers[peaks], cuts=upper)
     return Bands(hist, lut, lower)
