@@ -9,7 +9,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from depthgram.frame import Intrinsics
-from depthgram.segment.attributes import Stats, label_stats, make_objects, relabel_small
+from depthgram.segment.attributes import Stats, make_objects
 from depthgram.segment.config import SegmentConfig
 from depthgram.segment.histogram import Bands, bin_index, depth_bands
 from depthgram.segment.label import label_bands_stats
@@ -19,11 +19,11 @@ from depthgram.segment.paper_slices import paper_slices
 from depthgram.segment.region import region_grow
 from depthgram.segment.slices import (
     front_faces,
-    merge_coplanar,
-    on_support_planes,
+    near_planes,
+    planes_from_sums,
     slice_parts,
-    support_components,
     support_kind,
+    support_pieces,
 )
 from depthgram.segment.validate import check_depth
 
@@ -131,7 +131,7 @@ def _facing_objects(
     include: NDArray[np.bool_] | None,
     intrinsics: Intrinsics | None,
     cfg: SegmentConfig,
-) -> tuple[NDArray[np.int32], list[SceneObject], Bands]:
+) -> tuple[NDArray[np.int32], list[SceneObject], Bands, NDArray[np.float64], NDArray[np.int64]]:
     # the bands come from the histogram; labelling reads each pixel's band through the
     # bin -> band table and gathers the statistics in the same pass (no band image, no
     # separate statistics pass, no relabelling pass for the small components)
@@ -153,7 +153,7 @@ def _facing_objects(
         boxes,
     )
     objects = make_objects(labels, stats, depth_labels=sums[:, 7].astype(np.int64), intrinsics=intrinsics)
-    return labels, objects, bands
+    return labels, objects, bands, sums, boxes
 
 
 def _extras(bands: Bands) -> dict[str, object]:
@@ -163,7 +163,7 @@ def _extras(bands: Bands) -> dict[str, object]:
 def _threshold(
     depth: NDArray[np.float32], ok: NDArray[np.bool_], intrinsics: Intrinsics | None, cfg: SegmentConfig
 ) -> Segmentation:
-    labels, objects, bands = _facing_objects(depth, ok, None, intrinsics, cfg)
+    labels, objects, bands, _, _ = _facing_objects(depth, ok, None, intrinsics, cfg)
     return Segmentation(labels, tuple(objects), bands.histogram, "threshold", _extras(bands))
 
 
@@ -182,43 +182,28 @@ def _slices(
             classes[classes == cls] = FACING
     min_px = cfg.min_area_px(depth.size)
     # supports first: a piece of surface too small to matter goes back to the facing pixels
-    support_maps: list[tuple[int, NDArray[np.int32], int]] = []
-    for cls in wanted:
-        lab, n = support_components(depth, ok, classes, cls, jump_rel=cfg.jump_rel, bridge=cfg.fill_holes_px)
-        lab, n = merge_coplanar(lab, n, depth, cam, min_fit_px=max(min_px // 2, 10))
-        # noise makes some support pixels look facing; those lying on a big support's plane
-        # go back to it (an upright object meets that plane only along its base row)
-        near = on_support_planes(lab, n, depth, ok & (classes == FACING), cam, min_px=min_px, tol_rel=cfg.jump_rel / 2)
-        if near.any():
-            classes[near] = cls
-            lab, n = support_components(depth, ok, classes, cls, jump_rel=cfg.jump_rel, bridge=cfg.fill_holes_px)
-            lab, n = merge_coplanar(lab, n, depth, cam, min_fit_px=max(min_px // 2, 10))
-        st = label_stats(lab, depth, n)
-        counts = st.count
-        mean = st.sz / np.maximum(counts, 1)
-        std = np.sqrt(np.maximum(st.szz / np.maximum(counts, 1) - mean * mean, 0))
-        small = (counts < min_px) | (std < cfg.min_spread * mean)
-        small[0] = False
-        counts = np.where(small, 0, counts)
-        classes[small[lab]] = FACING
-        lab = relabel_small(lab, counts, min_px)
-        support_maps.append((cls, lab, int(lab.max(initial=0))))
+    support_maps = [_support_class(depth, ok, classes, cls, cam, cfg, min_px) for cls in wanted]
     facing = classes == FACING
-    labels, objects, bands = _facing_objects(depth, ok, facing, intrinsics, cfg)
+    labels, objects, bands, fsums, fboxes = _facing_objects(depth, ok, facing, intrinsics, cfg)
     next_id = len(objects) + 1
     first_support = next_id
+    # statistics of every id (facing objects, then supports) stacked: later steps add rows
+    # instead of taking them again from the label map
+    all_sums = [fsums[:, :7]]
+    all_boxes = [fboxes]
     cls_of: dict[int, int] = {}
-    for cls, lab, n in support_maps:
+    for cls, lab, n, sums, boxes in support_maps:
         if n == 0:
             continue
-        on = lab > 0
-        labels[on] = lab[on] + (next_id - 1)
+        labels += np.where(lab > 0, lab + np.int32(next_id - 1), np.int32(0))
         cls_of.update((i, cls) for i in range(next_id, next_id + n))
+        all_sums.append(sums[1:, :7])
+        all_boxes.append(boxes[1:])
         next_id += n
-    # one statistics pass for the supports (the facing objects are known already)
-    sup_labels = np.where(labels >= first_support, labels - (first_support - 1), 0).astype(np.int32)
-    sup_stats = label_stats(sup_labels, depth, next_id - first_support, metric=True)
-    compounds = [(cls_of[o.id], o) for o in make_objects(sup_labels, sup_stats, intrinsics=cam, first_id=first_support)]
+    total = np.concatenate(all_sums)
+    total_boxes = np.concatenate(all_boxes)
+    sup_stats = _stats_rows(total, total_boxes, np.r_[0, first_support:next_id])
+    compounds = [(cls_of[o.id], o) for o in make_objects(labels, sup_stats, intrinsics=cam, first_id=first_support)]
     # only supports seen from above (floor, table tops) can have a front face below them
     horizontal_ids = np.array(
         [o.id for c, o in compounds if c == HORIZONTAL and o.centroid_mm and o.centroid_mm[1] > 0], np.int32
@@ -226,22 +211,29 @@ def _slices(
     widths = np.array([0] + [o.bbox[2] - o.bbox[0] + 1 for o in objects], np.float64)
     fronts = front_faces(labels, depth, widths, horizontal_ids, jump_rel=cfg.jump_rel)
     with_front = set(fronts.values())
-    if fronts:
-        lut = np.arange(next_id, dtype=np.int32)
-        for f, sup in fronts.items():
-            lut[f] = sup
-        labels = lut[labels]
-        objects = [o for o in objects if o.id not in fronts]
-    objects, labels, remap = _renumber(objects, labels, compounds)
+    fold = np.arange(next_id, dtype=np.int32)
+    for f, sup in fronts.items():
+        fold[f] = sup
+        total[sup] += total[f]
+        total_boxes[sup, :2] = np.minimum(total_boxes[sup, :2], total_boxes[f, :2])
+        total_boxes[sup, 2:] = np.maximum(total_boxes[sup, 2:], total_boxes[f, 2:])
+    objects = [o for o in objects if o.id not in fronts]
+    # ids 1..n again after front faces were folded into their supports: facing objects first
+    old = [o.id for o in objects] + [o.id for _, o in compounds]
+    remap = {oid: new for new, oid in enumerate(old, start=1)}
+    renum = np.zeros(next_id, np.int32)
+    renum[old] = np.arange(1, len(old) + 1, dtype=np.int32)
+    labels = renum[fold][labels] if fronts else renum[labels]
+    objects = [replace(o, id=remap[o.id]) for o in objects]
     floor_ids = {o.id for c, o in compounds if c == HORIZONTAL and o.centroid_mm and o.centroid_mm[1] > 0}
     lowest = max(
         (o for c, o in compounds if o.id in floor_ids and o.id not in with_front),
         key=lambda o: o.centroid_mm[1] if o.centroid_mm is not None else 0.0,
         default=None,
     )
+    recount = _stats_rows(total, total_boxes, np.array([0, *old]))
     part_id = len(objects) + len(compounds) + 1
     keep_metric = intrinsics is not None
-    recount = label_stats(labels, depth, int(labels.max(initial=0)), metric=True)
     merged = {o.id: o for o in make_objects(labels, recount, intrinsics=cam)}
     for cls, o in compounds:
         new_id = remap[o.id]
@@ -276,6 +268,60 @@ def _slices(
     return Segmentation(labels, tuple(objects), bands.histogram, "slices", extras)
 
 
+def _support_class(
+    depth: NDArray[np.float32],
+    ok: NDArray[np.bool_],
+    classes: NDArray[np.int8],
+    cls: int,
+    cam: Intrinsics,
+    cfg: SegmentConfig,
+    min_px: int,
+) -> tuple[int, NDArray[np.int32], int, NDArray[np.float64], NDArray[np.int64]]:
+    """Supports of one orientation class, small or flat ones handed back to the facing pixels.
+
+    Updates ``classes`` in place. Returns the class, labels 1..n, n, and the statistics and
+    inclusive boxes of each support (row 0 unused).
+    """
+    fit_px = max(min_px // 2, 10)
+    lab, n, sums, boxes, planes = support_pieces(
+        depth, ok, classes, cls, cam, jump_rel=cfg.jump_rel, bridge=cfg.fill_holes_px, min_fit_px=fit_px
+    )
+    # noise makes some support pixels look facing; those lying on a big support's plane
+    # go back to it (an upright object meets that plane only along its base row)
+    candidates = ok & (classes == FACING)
+    if n and candidates.any():
+        normal, off, count = planes_from_sums(planes)
+        near = near_planes(normal, off, count, boxes, depth, candidates, cam, min_px=min_px, tol_rel=cfg.jump_rel / 2)
+        if near.any():
+            classes[near] = cls
+            lab, n, sums, boxes, planes = support_pieces(
+                depth, ok, classes, cls, cam, jump_rel=cfg.jump_rel, bridge=cfg.fill_holes_px, min_fit_px=fit_px
+            )
+    counts = sums[:, 0]
+    mean = sums[:, 1] / np.maximum(counts, 1)
+    std = np.sqrt(np.maximum(sums[:, 2] / np.maximum(counts, 1) - mean * mean, 0))
+    small = (counts < min_px) | (std < cfg.min_spread * mean)
+    small[0] = False
+    if small.any():
+        classes[small[lab]] = FACING
+    keep = ~small
+    keep[0] = False
+    if keep[1:].all():
+        return cls, lab, n, sums, boxes
+    lut = np.zeros(n + 1, dtype=np.int32)
+    lut[keep] = np.arange(1, int(keep.sum()) + 1, dtype=np.int32)
+    rows = np.concatenate(([0], np.flatnonzero(keep)))
+    return cls, lut[lab], rows.size - 1, sums[rows], boxes[rows]
+
+
+def _stats_rows(sums: NDArray[np.float64], boxes: NDArray[np.int64], rows: NDArray[np.intp]) -> Stats:
+    """Metric :class:`Stats` of the given rows of stacked sums (count, Z, Z², x, y, xZ, yZ)."""
+    s = sums[rows]
+    s[0] = 0.0
+    b = boxes[rows]
+    return Stats(s[:, 0], s[:, 1], s[:, 2], s[:, 3], s[:, 4], s[:, 5], s[:, 6], b)
+
+
 def _orientation(
     depth: NDArray[np.float32], ok: NDArray[np.bool_], cam: Intrinsics, cfg: SegmentConfig
 ) -> NDArray[np.int8]:
@@ -300,16 +346,3 @@ def _orientation(
     full = np.repeat(np.repeat(cls, k, axis=0), k, axis=1)[:h, :w]
     full[~ok] = FACING
     return np.ascontiguousarray(full)
-
-
-def _renumber(
-    objects: list[SceneObject], labels: NDArray[np.int32], compounds: list[tuple[int, SceneObject]]
-) -> tuple[list[SceneObject], NDArray[np.int32], dict[int, int]]:
-    """Ids 1..n again after front faces were folded into their supports: facing objects first."""
-    old = [o.id for o in objects] + [o.id for _, o in compounds]
-    lut = np.zeros(int(labels.max(initial=0)) + 1, np.int32)
-    remap = {}
-    for new, oid in enumerate(old, start=1):
-        lut[oid] = new
-        remap[oid] = new
-    return [replace(o, id=remap[o.id]) for o in objects], lut[labels], remap

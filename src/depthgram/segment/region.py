@@ -2,7 +2,7 @@
 
 Neighbouring valid pixels join while their depth difference stays under a tolerance (optionally
 growing with depth, since sensor noise does). This is unseeded region growing done with one
-union-find pass over the 4-neighbour graph (:func:`depthgram.segment.label.label_keyed`), so the
+union-find pass over the 4-neighbour graph (:func:`depthgram.segment.label.label_keyed_stats`), so the
 comparison with thresholding measures the method, not an interpreter loop.
 """
 
@@ -12,8 +12,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from depthgram.frame import Intrinsics
-from depthgram.segment.attributes import label_stats, make_objects, relabel_small
-from depthgram.segment.label import ACTIVE, HOLE, label_keyed
+from depthgram.segment.attributes import Stats, make_objects
+from depthgram.segment.label import ACTIVE, HOLE, label_keyed_stats
 from depthgram.segment.objects import Segmentation
 from depthgram.segment.validate import check_depth
 
@@ -57,13 +57,23 @@ def region_grow(
     """
     depth, ok = check_depth(depth_mm, valid)
     state = np.where(ok, np.int8(ACTIVE), np.int8(HOLE))
-    if relative:
-        labels, n = label_keyed(depth, state, tol=0.0, rel=tol_mm / 1000.0, bridge=fill_holes_px)
-    else:
-        labels, n = label_keyed(depth, state, tol=tol_mm, bridge=fill_holes_px)
     min_px = int(np.ceil(min_area)) if min_area >= 1 else max(1, int(np.ceil(min_area * depth.size)))
-    stats = label_stats(labels, depth, n)
-    labels = relabel_small(labels, stats.count, min_px)
-    stats = label_stats(labels, depth, int(labels.max(initial=0)), metric=intrinsics is not None)
+    # one labelling pass gathers every region's sums; regions under min_px are dropped and the
+    # rest renumbered in the same relabelling pass (no separate statistics passes)
+    tol, rel = (0.0, tol_mm / 1000.0) if relative else (tol_mm, 0.0)
+    labels, _, sums, boxes = label_keyed_stats(
+        depth, state, depth, tol=tol, rel=rel, bridge=fill_holes_px, min_px=min_px
+    )
+    metric = intrinsics is not None
+    stats = Stats(
+        sums[:, 0],
+        sums[:, 1],
+        sums[:, 2],
+        sums[:, 3],
+        sums[:, 4],
+        sums[:, 5] if metric else None,
+        sums[:, 6] if metric else None,
+        boxes,
+    )
     objects = make_objects(labels, stats, intrinsics=intrinsics)
     return Segmentation(labels=labels, objects=tuple(objects), histogram=None, method="region")

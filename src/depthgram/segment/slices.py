@@ -20,18 +20,22 @@ from numpy.typing import NDArray
 
 from depthgram.frame import Intrinsics
 from depthgram.segment.attributes import label_stats, make_objects
-from depthgram.segment.label import ACTIVE, BLOCK, HOLE, label_keyed, plane_sums
+from depthgram.segment.label import ACTIVE, BLOCK, HOLE, label_keyed, label_keyed_stats, plane_sums
 from depthgram.segment.objects import SceneObject
 from depthgram.segment.orientation import HORIZONTAL, VERTICAL
 
 __all__ = [
+    "coplanar_groups",
     "front_faces",
     "merge_coplanar",
+    "near_planes",
     "on_support_planes",
     "plane_fits",
+    "planes_from_sums",
     "slice_parts",
     "support_components",
     "support_kind",
+    "support_pieces",
 ]
 
 
@@ -133,8 +137,17 @@ def plane_fits(
     (``1/Z = (n . ray) / d``), so the fit is linear: ``1/Z = alpha u' + beta v' + gamma`` from
     one compiled pass of sums, then ``n = -(alpha, beta, gamma) / |.|`` and ``d = 1 / |.|``.
     """
-    m = n + 1
     sums = plane_sums(labels, n, depth_mm, cam.fx, cam.fy, cam.cx, cam.cy)
+    return planes_from_sums(sums)
+
+
+def planes_from_sums(sums: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """Unit normals, offsets (mm) and pixel counts from the sums of :func:`plane_sums` (row 0 unused).
+
+    The sums are additive, so the plane of a union of pieces comes from the sum of their rows
+    without another pass over the image.
+    """
+    m = sums.shape[0]
     ata = np.empty((m, 3, 3))
     ata[:, 0, 0], ata[:, 0, 1], ata[:, 0, 2] = sums[:, 0], sums[:, 1], sums[:, 2]
     ata[:, 1, 0], ata[:, 1, 1], ata[:, 1, 2] = sums[:, 1], sums[:, 3], sums[:, 4]
@@ -167,6 +180,31 @@ def merge_coplanar(
     if n < 2:
         return labels, n
     normal, off, count = plane_fits(labels, n, depth_mm, cam)
+    lut, m = coplanar_groups(
+        normal, off, count, max_angle_deg=max_angle_deg, max_offset_rel=max_offset_rel, min_fit_px=min_fit_px
+    )
+    if m == n:
+        return labels, n
+    out: NDArray[np.int32] = lut[labels]
+    return out, m
+
+
+def coplanar_groups(
+    normal: NDArray[np.float64],
+    off: NDArray[np.float64],
+    count: NDArray[np.float64],
+    *,
+    max_angle_deg: float = 10.0,
+    max_offset_rel: float = 0.08,
+    min_fit_px: int = 1,
+) -> tuple[NDArray[np.int32], int]:
+    """Piece -> group table of :func:`merge_coplanar` (row 0 unused, maps to 0) and the group count.
+
+    Groups are numbered 1..m in the order of their first piece.
+    """
+    n = normal.shape[0] - 1
+    if n < 2:
+        return np.arange(n + 1, dtype=np.int32), n
     same_dir = normal @ normal.T > math.cos(math.radians(max_angle_deg))
     close = np.abs(off[:, None] - off[None, :]) <= max_offset_rel * np.maximum(off[:, None], off[None, :])
     big = count >= min_fit_px
@@ -174,7 +212,7 @@ def merge_coplanar(
     join[0, :] = False
     join[:, 0] = False
     if not np.triu(join, 1).any():
-        return labels, n
+        return np.arange(n + 1, dtype=np.int32), n
     parent = list(range(n + 1))
 
     def root(i: int) -> int:
@@ -188,8 +226,7 @@ def merge_coplanar(
             parent[max(a, b)] = min(a, b)
     roots = np.array([root(i) for i in range(n + 1)])
     uniq, lut = np.unique(roots, return_inverse=True)
-    out: NDArray[np.int32] = lut.astype(np.int32)[labels]
-    return out, int(uniq.size - 1)
+    return lut.astype(np.int32), int(uniq.size - 1)
 
 
 def front_faces(
@@ -255,11 +292,28 @@ def on_support_planes(
     normal, off, _ = plane_fits(labels, n, depth_mm, cam)
     st = label_stats(labels, depth_mm, n)
     assert st.boxes is not None
-    h, w = labels.shape
-    for i in np.flatnonzero(st.count >= min_px):
+    return near_planes(normal, off, st.count, st.boxes, depth_mm, candidates, cam, min_px=min_px, tol_rel=tol_rel)
+
+
+def near_planes(
+    normal: NDArray[np.float64],
+    off: NDArray[np.float64],
+    count: NDArray[np.float64],
+    boxes: NDArray[np.int64],
+    depth_mm: NDArray[np.float32],
+    candidates: NDArray[np.bool_],
+    cam: Intrinsics,
+    *,
+    min_px: int,
+    tol_rel: float,
+) -> NDArray[np.bool_]:
+    """:func:`on_support_planes` from planes, pixel counts and boxes already known (row 0 unused)."""
+    out = np.zeros(depth_mm.shape, bool)
+    h, w = depth_mm.shape
+    for i in np.flatnonzero(count >= min_px):
         if i == 0:
             continue
-        bx0, by0, bx1, by1 = (int(v) for v in st.boxes[i])
+        bx0, by0, bx1, by1 = (int(v) for v in boxes[i])
         my = (by1 - by0 + 1) // 10 + 1
         mx = (bx1 - bx0 + 1) // 10 + 1
         y0, y1 = max(by0 - my, 0), min(by1 + 1 + my, h)
@@ -274,3 +328,53 @@ def on_support_planes(
             agree = np.abs(inv_pred * z - 1.0) <= tol_rel
         out[y0:y1, x0:x1] |= cand & agree & (inv_pred > 0)
     return out
+
+
+def support_pieces(
+    depth_mm: NDArray[np.float32],
+    valid: NDArray[np.bool_],
+    classes: NDArray[np.int8],
+    cls: int,
+    cam: Intrinsics,
+    *,
+    jump_rel: float,
+    bridge: int,
+    min_fit_px: int,
+) -> tuple[NDArray[np.int32], int, NDArray[np.float64], NDArray[np.int64], NDArray[np.float64]]:
+    """:func:`support_components` then :func:`merge_coplanar`, with statistics and plane sums.
+
+    One labelling pass gathers the sums of :func:`depthgram.segment.label.label_stats_fused`,
+    one pass the plane sums; pieces joined into one plane add their rows (the sums are
+    additive), so neither is taken again on the merged labels.
+
+    Returns
+    -------
+    labels, n
+        Merged components 1..n.
+    sums : ndarray (n + 1, 8), boxes : ndarray (n + 1, 4), planes : ndarray (n + 1, 9)
+        Statistics, inclusive boxes and plane sums per component (row 0 unused).
+    """
+    state = np.where(valid, np.int8(BLOCK), np.int8(HOLE))
+    state[classes == cls] = ACTIVE
+    labels, n, sums, boxes = label_keyed_stats(depth_mm, state, depth_mm, rel=jump_rel, bridge=bridge)
+    planes = plane_sums(labels, n, depth_mm, cam.fx, cam.fy, cam.cx, cam.cy)
+    if n < 2:
+        return labels, n, sums, boxes, planes
+    normal, off, count = planes_from_sums(planes)
+    lut, m = coplanar_groups(normal, off, count, min_fit_px=min_fit_px)
+    if m == n:
+        return labels, n, sums, boxes, planes
+    msums = np.zeros((m + 1, sums.shape[1]))
+    np.add.at(msums, lut, sums)
+    msums[:, 7] = 0.0
+    mplanes = np.zeros((m + 1, planes.shape[1]))
+    np.add.at(mplanes, lut, planes)
+    mboxes = np.empty((m + 1, 4), np.int64)
+    mboxes[:, :2] = np.iinfo(np.int64).max
+    mboxes[:, 2:] = -1
+    np.minimum.at(mboxes[:, 0], lut, boxes[:, 0])
+    np.minimum.at(mboxes[:, 1], lut, boxes[:, 1])
+    np.maximum.at(mboxes[:, 2], lut, boxes[:, 2])
+    np.maximum.at(mboxes[:, 3], lut, boxes[:, 3])
+    merged: NDArray[np.int32] = lut[labels]
+    return merged, m, msums, mboxes, mplanes
