@@ -86,6 +86,8 @@ class ReportWriter:
         )
 
     def _extend_series(self, result: SceneResult) -> None:
+        if not result.motions:
+            return  # unrelated stills: ids are not tracks, a plot over them would mean nothing
         s = self._series
         f = result.frame
         i = len(s.times)
