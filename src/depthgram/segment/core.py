@@ -14,7 +14,7 @@ from depthgram.segment.config import SegmentConfig
 from depthgram.segment.histogram import Bands, bin_index, depth_bands
 from depthgram.segment.label import label_bands_stats
 from depthgram.segment.objects import Histogram, SceneObject, Segmentation
-from depthgram.segment.orientation import FACING, HORIZONTAL, VERTICAL, default_intrinsics, orientation_field
+from depthgram.segment.orientation import FACING, HORIZONTAL, VERTICAL, default_intrinsics, orientation_classes
 from depthgram.segment.paper_slices import paper_slices
 from depthgram.segment.region import region_grow
 from depthgram.segment.slices import (
@@ -338,7 +338,7 @@ def _orientation(
     else:
         sub_cam = Intrinsics(cam.fx / k, cam.fy / k, cam.cx / k, cam.cy / k)
         d, v = np.ascontiguousarray(depth[::k, ::k]), np.ascontiguousarray(ok[::k, ::k])
-    cls, _ = orientation_field(
+    cls = orientation_classes(
         d, v, sub_cam, window_px=cfg.normal_window_px, oblique_deg=cfg.oblique_deg, jump_rel=cfg.jump_rel
     )
     if k == 1:

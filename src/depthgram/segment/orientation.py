@@ -15,6 +15,7 @@ import math
 
 import cv2
 import numpy as np
+from numba import njit
 from numpy.typing import NDArray
 
 from depthgram.frame import Intrinsics
@@ -45,9 +46,7 @@ def orientation_classes(
 
     See :func:`orientation_field` for the parameters.
     """
-    return orientation_field(
-        depth_mm, valid, intrinsics, window_px=window_px, oblique_deg=oblique_deg, jump_rel=jump_rel
-    )[0]
+    return _field(depth_mm, valid, intrinsics, window_px, oblique_deg, jump_rel, False)[0]
 
 
 def orientation_field(
@@ -84,6 +83,20 @@ def orientation_field(
         Unit surface normal in the camera frame (x right, y down, z forward), turned toward
         the sensor.
     """
+    cls, normals = _field(depth_mm, valid, intrinsics, window_px, oblique_deg, jump_rel, True)
+    assert normals is not None
+    return cls, normals
+
+
+def _field(
+    depth_mm: NDArray[np.float32],
+    valid: NDArray[np.bool_],
+    intrinsics: Intrinsics,
+    window_px: int,
+    oblique_deg: float,
+    jump_rel: float,
+    want_normals: bool,
+) -> tuple[NDArray[np.int8], NDArray[np.float32] | None]:
     h, w = depth_mm.shape
     inv = np.zeros_like(depth_mm)
     np.divide(1000.0, depth_mm, out=inv, where=valid)  # 1/m keeps float32 well scaled
@@ -126,6 +139,8 @@ def orientation_field(
     cls[np.abs(a) >= cos_t * norm] = VERTICAL
     jump = (_jumps(depth_mm, valid, jump_rel) | _jumps(depth_mm.T, valid.T, jump_rel).T).astype(np.uint8)
     cls[jump.astype(bool) | ~valid] = FACING
+    if not want_normals:  # segmentation needs the classes only
+        return cls, None
     # (a, b, c) . ray = 1/Z > 0 always, so its opposite is the normal turned toward the sensor
     sign = np.float32(-1.0) / norm
     normals = np.stack([a * sign, b * sign, c * sign], axis=-1).astype(np.float32)
@@ -139,17 +154,31 @@ def _jumps(z: NDArray[np.float32], valid: NDArray[np.bool_], jump_rel: float) ->
     steps two pixels before and after it: a floor seen at a grazing angle makes large but
     steady steps, an occlusion one isolated step (or two, with a flying pixel between).
     """
-    d = np.abs(np.diff(z, axis=1))
-    ok = valid[:, 1:] & valid[:, :-1]
-    d[~ok] = 0.0
-    big = d > jump_rel * np.maximum(z[:, 1:], z[:, :-1])
-    around = np.zeros_like(d)
-    around[:, 2:] = d[:, :-2]
-    np.maximum(around[:, :-2], d[:, 2:], out=around[:, :-2])
-    big &= d > 2.0 * around
-    out = np.zeros(z.shape, bool)
-    out[:, 1:] |= big
-    out[:, :-1] |= big
+    return _jumps_rows(np.ascontiguousarray(z), np.ascontiguousarray(valid), np.float32(jump_rel))
+
+
+@njit(cache=True)
+def _jumps_rows(z: NDArray[np.float32], valid: NDArray[np.bool_], rel: np.float32) -> NDArray[np.bool_]:
+    # one pass per row over the steps; the numpy version made seven full-frame temporaries
+    # (2 ms of the 7 ms orientation at 640 x 480). float32 throughout, as numpy computed it.
+    h, w = z.shape
+    out = np.zeros((h, w), np.bool_)
+    d = np.zeros(max(w - 1, 0), np.float32)
+    two = np.float32(2.0)
+    for y in range(h):
+        for x in range(w - 1):
+            d[x] = abs(z[y, x + 1] - z[y, x]) if valid[y, x + 1] and valid[y, x] else np.float32(0.0)
+        for x in range(w - 1):
+            if not d[x] > rel * max(z[y, x + 1], z[y, x]):
+                continue
+            around = np.float32(0.0)
+            if x >= 2:
+                around = d[x - 2]
+            if x + 2 < w - 1:
+                around = max(around, d[x + 2])
+            if d[x] > two * around:
+                out[y, x] = True
+                out[y, x + 1] = True
     return out
 
 
@@ -160,17 +189,23 @@ def _one_sided(inv: NDArray[np.float32], valid: NDArray[np.bool_], step: int) ->
     on the pixel's own surface, so a floor pixel next to a box keeps the floor's slope. Pixels
     whose neighbours both lack a reading get 0 (no evidence of a slope).
     """
-    fwd = np.zeros_like(inv)
-    fwd[:, :-step] = inv[:, step:] - inv[:, :-step]
-    okf = np.zeros_like(valid)
-    okf[:, :-step] = valid[:, step:] & valid[:, :-step]
-    bwd = np.zeros_like(inv)
-    bwd[:, step:] = fwd[:, :-step]
-    okb = np.zeros_like(valid)
-    okb[:, step:] = okf[:, :-step]
-    big = np.float32(np.inf)
-    f = np.where(okf, fwd, big)
-    b = np.where(okb, bwd, big)
-    g = np.where(np.abs(f) <= np.abs(b), f, b)
-    g[~(okf | okb)] = 0.0
-    return (g / step).astype(np.float32)
+    return _one_sided_rows(np.ascontiguousarray(inv), np.ascontiguousarray(valid), step)
+
+
+@njit(cache=True)
+def _one_sided_rows(inv: NDArray[np.float32], valid: NDArray[np.bool_], step: int) -> NDArray[np.float32]:
+    # one pass instead of ten full-frame numpy temporaries; same float32 arithmetic
+    h, w = inv.shape
+    out = np.zeros((h, w), np.float32)
+    fstep = np.float32(step)
+    for y in range(h):
+        for x in range(w):
+            okf = x + step < w and valid[y, x + step] and valid[y, x]
+            okb = x - step >= 0 and valid[y, x] and valid[y, x - step]
+            if not (okf or okb):
+                continue
+            f = inv[y, x + step] - inv[y, x] if okf else np.float32(np.inf)
+            b = inv[y, x] - inv[y, x - step] if okb else np.float32(np.inf)
+            g = f if abs(f) <= abs(b) else b
+            out[y, x] = g / fstep
+    return out

