@@ -18,6 +18,7 @@ from depthgram.segment.orientation import FACING, HORIZONTAL, VERTICAL, default_
 from depthgram.segment.paper_slices import paper_slices
 from depthgram.segment.region import region_grow
 from depthgram.segment.slices import (
+    drop_pieces,
     front_faces,
     near_planes,
     planes_from_sums,
@@ -293,7 +294,7 @@ def _support_class(
         normal, off, count = planes_from_sums(planes)
         near = near_planes(normal, off, count, boxes, depth, candidates, cam, min_px=min_px, tol_rel=cfg.jump_rel / 2)
         if near.any():
-            classes[near] = cls
+            np.copyto(classes, np.int8(cls), where=near)
             lab, n, sums, boxes, planes = support_pieces(
                 depth, ok, classes, cls, cam, jump_rel=cfg.jump_rel, bridge=cfg.fill_holes_px, min_fit_px=fit_px
             )
@@ -302,16 +303,14 @@ def _support_class(
     std = np.sqrt(np.maximum(sums[:, 2] / np.maximum(counts, 1) - mean * mean, 0))
     small = (counts < min_px) | (std < cfg.min_spread * mean)
     small[0] = False
-    if small.any():
-        classes[small[lab]] = FACING
+    if not small.any():
+        return cls, lab, n, sums, boxes
     keep = ~small
     keep[0] = False
-    if keep[1:].all():
-        return cls, lab, n, sums, boxes
     lut = np.zeros(n + 1, dtype=np.int32)
     lut[keep] = np.arange(1, int(keep.sum()) + 1, dtype=np.int32)
     rows = np.concatenate(([0], np.flatnonzero(keep)))
-    return cls, lut[lab], rows.size - 1, sums[rows], boxes[rows]
+    return cls, drop_pieces(lab, lut, classes, FACING), rows.size - 1, sums[rows], boxes[rows]
 
 
 def _stats_rows(sums: NDArray[np.float64], boxes: NDArray[np.int64], rows: NDArray[np.intp]) -> Stats:

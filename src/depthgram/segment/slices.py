@@ -27,6 +27,7 @@ from depthgram.segment.orientation import HORIZONTAL, VERTICAL
 
 __all__ = [
     "coplanar_groups",
+    "drop_pieces",
     "front_faces",
     "merge_coplanar",
     "near_planes",
@@ -343,6 +344,35 @@ def near_planes(
         with np.errstate(divide="ignore", invalid="ignore"):
             agree = np.abs(inv_pred * z - 1.0) <= tol_rel
         out[y0:y1, x0:x1] |= cand & agree & (inv_pred > 0)
+    return out
+
+
+def drop_pieces(
+    labels: NDArray[np.int32], lut: NDArray[np.int32], classes: NDArray[np.int8], to_class: int
+) -> NDArray[np.int32]:
+    """Labels renumbered through ``lut``; pixels of pieces it maps to 0 get class ``to_class``.
+
+    ``classes`` is updated in place.
+    """
+    return _drop_pieces(labels, lut, classes, np.int8(to_class))
+
+
+@njit(cache=True)
+def _drop_pieces(
+    labels: NDArray[np.int32], lut: NDArray[np.int32], classes: NDArray[np.int8], to_class: np.int8
+) -> NDArray[np.int32]:
+    # one pass for what numpy did in four (gather of the small flags, masked class write,
+    # gather of the new ids): about 1.5 ms at 640 x 480
+    h, w = labels.shape
+    out = np.zeros((h, w), np.int32)
+    for y in range(h):
+        for x in range(w):
+            v = labels[y, x]
+            if v:
+                nv = lut[v]
+                out[y, x] = nv
+                if nv == 0:
+                    classes[y, x] = to_class
     return out
 
 
