@@ -18,6 +18,7 @@ from depthgram.segment.orientation import FACING, HORIZONTAL, VERTICAL, default_
 from depthgram.segment.paper_slices import paper_slices
 from depthgram.segment.region import region_grow
 from depthgram.segment.slices import (
+    add_labels,
     drop_pieces,
     front_faces,
     near_planes,
@@ -196,7 +197,7 @@ def _slices(
     for cls, lab, n, sums, boxes in support_maps:
         if n == 0:
             continue
-        labels += np.where(lab > 0, lab + np.int32(next_id - 1), np.int32(0))
+        add_labels(labels, lab, next_id - 1)
         cls_of.update((i, cls) for i in range(next_id, next_id + n))
         all_sums.append(sums[1:, :7])
         all_boxes.append(boxes[1:])

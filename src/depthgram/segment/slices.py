@@ -26,6 +26,7 @@ from depthgram.segment.objects import SceneObject
 from depthgram.segment.orientation import HORIZONTAL, VERTICAL
 
 __all__ = [
+    "add_labels",
     "coplanar_groups",
     "drop_pieces",
     "front_faces",
@@ -347,6 +348,33 @@ def near_planes(
     return out
 
 
+@njit(cache=True)
+def _class_state(valid: NDArray[np.bool_], classes: NDArray[np.int8], cls: np.int8) -> NDArray[np.int8]:
+    # labeller state in one pass: pixels of the class are active, other readings block
+    # bridges, pixels without a reading are holes (numpy: three full-frame passes)
+    h, w = valid.shape
+    out = np.empty((h, w), np.int8)
+    for y in range(h):
+        for x in range(w):
+            out[y, x] = (ACTIVE if classes[y, x] == cls else BLOCK) if valid[y, x] else HOLE
+    return out
+
+
+def add_labels(labels: NDArray[np.int32], more: NDArray[np.int32], offset: int) -> None:
+    """Write ``more + offset`` into ``labels`` (in place) wherever ``more`` > 0."""
+    _add_labels(labels, more, np.int32(offset))
+
+
+@njit(cache=True)
+def _add_labels(labels: NDArray[np.int32], more: NDArray[np.int32], offset: np.int32) -> None:
+    h, w = labels.shape
+    for y in range(h):
+        for x in range(w):
+            v = more[y, x]
+            if v:
+                labels[y, x] = v + offset
+
+
 def drop_pieces(
     labels: NDArray[np.int32], lut: NDArray[np.int32], classes: NDArray[np.int8], to_class: int
 ) -> NDArray[np.int32]:
@@ -400,8 +428,7 @@ def support_pieces(
     sums : ndarray (n + 1, 8), boxes : ndarray (n + 1, 4), planes : ndarray (n + 1, 9)
         Statistics, inclusive boxes and plane sums per component (row 0 unused).
     """
-    state = np.where(valid, np.int8(BLOCK), np.int8(HOLE))
-    state[classes == cls] = ACTIVE
+    state = _class_state(valid, classes, np.int8(cls))
     labels, n, sums, boxes = label_keyed_stats(depth_mm, state, depth_mm, rel=jump_rel, bridge=bridge)
     planes = plane_sums(labels, n, depth_mm, cam.fx, cam.fy, cam.cx, cam.cy)
     if n < 2:
