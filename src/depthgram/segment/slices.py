@@ -327,25 +327,48 @@ def near_planes(
 ) -> NDArray[np.bool_]:
     """:func:`on_support_planes` from planes, pixel counts and boxes already known (row 0 unused)."""
     out = np.zeros(depth_mm.shape, bool)
-    h, w = depth_mm.shape
-    for i in np.flatnonzero(count >= min_px):
-        if i == 0:
-            continue
-        bx0, by0, bx1, by1 = (int(v) for v in boxes[i])
+    ids = np.flatnonzero(count >= min_px)
+    ids = ids[ids > 0]
+    if ids.size:
+        _near(out, ids, normal, off, boxes, depth_mm, candidates, cam.fx, cam.fy, cam.cx, cam.cy, float(tol_rel))
+    return out
+
+
+@njit(cache=True)
+def _near(
+    out: NDArray[np.bool_],
+    ids: NDArray[np.intp],
+    normal: NDArray[np.float64],
+    off: NDArray[np.float64],
+    boxes: NDArray[np.int64],
+    depth: NDArray[np.float32],
+    candidates: NDArray[np.bool_],
+    fx: float,
+    fy: float,
+    cx: float,
+    cy: float,
+    tol_rel: float,
+) -> None:
+    # per support, one loop over its box grown by a tenth; numpy built six box-sized
+    # temporaries per support (1.6 ms per frame at 640 x 480). Same float64 arithmetic.
+    h, w = depth.shape
+    for i in ids:
+        bx0, by0, bx1, by1 = boxes[i, 0], boxes[i, 1], boxes[i, 2], boxes[i, 3]
         my = (by1 - by0 + 1) // 10 + 1
         mx = (bx1 - bx0 + 1) // 10 + 1
         y0, y1 = max(by0 - my, 0), min(by1 + 1 + my, h)
         x0, x1 = max(bx0 - mx, 0), min(bx1 + 1 + mx, w)
-        # 1/Z predicted by the plane: -(n . ray) / d
-        u = ((np.arange(x0, x1) - cam.cx) / cam.fx)[None, :]
-        v = ((np.arange(y0, y1) - cam.cy) / cam.fy)[:, None]
-        inv_pred = -(normal[i, 0] * u + normal[i, 1] * v + normal[i, 2]) / off[i]
-        z = depth_mm[y0:y1, x0:x1]
-        cand = candidates[y0:y1, x0:x1]
-        with np.errstate(divide="ignore", invalid="ignore"):
-            agree = np.abs(inv_pred * z - 1.0) <= tol_rel
-        out[y0:y1, x0:x1] |= cand & agree & (inv_pred > 0)
-    return out
+        n0, n1, n2, d = normal[i, 0], normal[i, 1], normal[i, 2], off[i]
+        for y in range(y0, y1):
+            v = (y - cy) / fy
+            for x in range(x0, x1):
+                if not candidates[y, x]:
+                    continue
+                u = (x - cx) / fx
+                # 1/Z predicted by the plane: -(n . ray) / d
+                inv_pred = -(n0 * u + n1 * v + n2) / d
+                if inv_pred > 0 and abs(inv_pred * np.float64(depth[y, x]) - 1.0) <= tol_rel:
+                    out[y, x] = True
 
 
 @njit(cache=True)
