@@ -1,0 +1,244 @@
+"""The compiled kernels of segmentation against plain-numpy references and hand-made scenes.
+
+Each fused or compiled pass replaced a chain of numpy operations; these tests hold it to the
+numpy route (kept here or in the package as the reference) on random images with holes,
+blocking pixels and bridges, and to values worked out by hand on tiny images.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from depthgram.frame import Intrinsics
+from depthgram.segment.attributes import label_stats, label_stats_bincount, relabel_small
+from depthgram.segment.binning import band_state, bin_pixels, depth_range
+from depthgram.segment.label import ACTIVE, BLOCK, HOLE, label_bands_stats, label_keyed, label_keyed_stats
+from depthgram.segment.orientation import _jumps, _one_sided
+from depthgram.segment.slices import (
+    front_faces,
+    merge_coplanar,
+    near_planes,
+    on_support_planes,
+    plane_fits,
+    support_components,
+    support_pieces,
+)
+from depthgram.segment.validate import check_depth
+
+
+def _random_keyed(rng: np.random.Generator, smooth: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    h, w = (int(v) for v in rng.integers(1, 24, 2))
+    if smooth:  # bands of a few columns, like a depth ramp
+        key = (np.arange(w)[None, :] * 3 // max(w, 1) + 0 * np.arange(h)[:, None]).astype(np.float32)
+    else:
+        key = rng.integers(0, 3, (h, w)).astype(np.float32)
+    state = rng.choice(np.array([HOLE, ACTIVE, BLOCK], np.int8), (h, w), p=[0.25, 0.65, 0.10])
+    depth = (rng.random((h, w)) * 1000 + 500).astype(np.float32)
+    return key, state, depth
+
+
+def test_keyed_stats_equal_label_then_bincount_reference() -> None:
+    rng = np.random.default_rng(7)
+    for t in range(200):
+        key, state, depth = _random_keyed(rng, smooth=t % 2 == 0)
+        bridge = int(rng.integers(0, 4))
+        min_px = int(rng.integers(1, 5))
+        ref, n_ref = label_keyed(key, state, bridge=bridge)
+        ref = relabel_small(ref, np.bincount(ref.ravel(), minlength=n_ref + 1).astype(float), min_px)
+        want = label_stats_bincount(ref, depth, int(ref.max(initial=0)), metric=True)
+        labels, n, sums, boxes = label_keyed_stats(key, state, depth, bridge=bridge, min_px=min_px)
+        np.testing.assert_array_equal(labels, ref)
+        assert n == int(ref.max(initial=0))
+        for col, arr in enumerate((want.count, want.sz, want.szz, want.sx, want.sy, want.sxz, want.syz)):
+            assert arr is not None
+            np.testing.assert_allclose(sums[:, col], arr, rtol=1e-12)
+        for i in range(1, n + 1):
+            ys, xs = np.nonzero(labels == i)
+            assert tuple(boxes[i]) == (xs.min(), ys.min(), xs.max(), ys.max())
+            assert sums[i, 7] == key[ys[0], xs[0]]  # the key of the component
+
+
+def test_keyed_labels_by_hand() -> None:
+    # row 0: two runs of key 1 split by a hole (bridged with bridge=1) and a run of key 2;
+    # row 1: a blocking pixel under the hole, key 1 below the first run
+    key = np.array([[1, 1, 0, 1, 2], [1, 0, 0, 0, 2]], np.float32)
+    state = np.array([[ACTIVE, ACTIVE, HOLE, ACTIVE, ACTIVE], [ACTIVE, BLOCK, HOLE, HOLE, ACTIVE]], np.int8)
+    depth = np.array([[100, 200, 0, 300, 400], [500, 0, 0, 0, 600]], np.float32)
+    labels, n, sums, boxes = label_keyed_stats(key, state, depth, bridge=1)
+    assert n == 2
+    np.testing.assert_array_equal(labels, [[1, 1, 0, 1, 2], [1, 0, 0, 0, 2]])
+    # component 1: pixels (0,0) (1,0) (3,0) (0,1): count 4, sum Z 1100, sum x 4, sum y 1
+    assert tuple(sums[1, :5]) == (4.0, 1100.0, 100**2 + 200**2 + 300**2 + 500**2, 4.0, 1.0)
+    assert tuple(sums[1, 5:7]) == (0 * 100 + 1 * 200 + 3 * 300 + 0 * 500, 500.0)
+    assert tuple(boxes[1]) == (0, 0, 3, 1)
+    # without the bridge the hole splits row 0, and the first run is joined only from below
+    labels0, n0, _, _ = label_keyed_stats(key, state, depth, bridge=0)
+    np.testing.assert_array_equal(labels0, [[1, 1, 0, 2, 3], [1, 0, 0, 0, 3]])
+    assert n0 == 3
+
+
+def test_relative_tolerance_joins_a_ramp_but_not_a_step() -> None:
+    depth = np.array([[1000, 1008, 1016, 1200, 1208]], np.float32)  # 0.8 % steps, then 18 %
+    state = np.full(depth.shape, ACTIVE, np.int8)
+    labels, n, sums, _ = label_keyed_stats(depth, state, depth, rel=0.01)
+    np.testing.assert_array_equal(labels, [[1, 1, 1, 2, 2]])
+    assert n == 2 and sums[1, 0] == 3 and sums[2, 1] == 2408.0
+
+
+def test_band_labeller_equals_keyed_labeller_on_band_images() -> None:
+    rng = np.random.default_rng(11)
+    for t in range(200):
+        h, w = (int(v) for v in rng.integers(1, 24, 2))
+        nb = int(rng.integers(1, 6))
+        valid = rng.random((h, w)) < rng.choice([0.5, 0.9, 1.0])
+        bins = np.where(valid, rng.integers(0, nb, (h, w)), -1).astype(np.int32)
+        lut = rng.integers(-1, 3, nb).astype(np.int32)
+        include = rng.random((h, w)) < 0.8 if t % 2 else None
+        if include is not None:  # bin_index bins only the pixels of the histogram mask
+            bins = np.where(valid & include, bins, -1).astype(np.int32)
+        depth = np.where(valid, rng.random((h, w)) * 1000 + 500, 0).astype(np.float32)
+        bridge = int(rng.integers(0, 4))
+        band, state = band_state(bins, lut, valid, include)
+        want = label_keyed_stats(band, state, depth, bridge=bridge, min_px=2)
+        got = label_bands_stats(bins, lut, valid, include, depth, bridge=bridge, min_px=2)
+        np.testing.assert_array_equal(got[0], want[0])
+        assert got[1] == want[1]
+        np.testing.assert_allclose(got[2], want[2], rtol=1e-12)
+        np.testing.assert_array_equal(got[3], want[3])
+
+
+def test_depth_range_from_bit_patterns() -> None:
+    rng = np.random.default_rng(3)
+    depth = (rng.random((30, 40)) * 4000 + 0.5).astype(np.float32)
+    depth[rng.random(depth.shape) < 0.3] = 0
+    ok = depth > 0
+    lo, hi, n = depth_range(depth, ok, zero_outside=True)
+    assert (lo, hi, n) == (float(depth[ok].min()), float(depth[ok].max()), int(ok.sum()))
+    assert depth_range(depth, ok) == (lo, hi, n)
+    assert depth_range(np.zeros((2, 2), np.float32), np.zeros((2, 2), bool), zero_outside=True)[2] == 0
+
+
+def test_bins_and_counts_match_numpy() -> None:
+    rng = np.random.default_rng(5)
+    depth = (rng.random((20, 30)) * 3000 + 400).astype(np.float32)
+    valid = rng.random(depth.shape) < 0.8
+    lo = float(depth[valid].min())
+    nb = int((float(depth[valid].max()) - lo) / 10.0) + 1
+    bins, counts = bin_pixels(depth, valid, lo, 10.0, False, nb)
+    want = np.minimum(((depth.astype(np.float64) - lo) / 10.0).astype(np.int64), nb - 1)
+    np.testing.assert_array_equal(bins, np.where(valid, want, -1))
+    np.testing.assert_array_equal(counts, np.bincount(want[valid], minlength=nb))
+    lbins, _ = bin_pixels(depth, valid, math.log(lo), 0.01, True, 400)
+    wlog = np.minimum(((np.log(depth.astype(np.float64)) - math.log(lo)) / 0.01).astype(np.int64), 399)
+    np.testing.assert_array_equal(lbins, np.where(valid, wlog, -1))
+
+
+def test_check_depth_rejects_nan_inf_negative_and_masked() -> None:
+    d = np.array([[np.nan, 0, 5, -1, np.inf, 3]], np.float32)
+    depth, ok = check_depth(d, None)
+    np.testing.assert_array_equal(ok, [[False, False, True, False, False, True]])
+    np.testing.assert_array_equal(depth, [[0, 0, 5, 0, 0, 3]])
+    depth, ok = check_depth(d, np.array([[1, 1, 1, 1, 1, 0]], bool))
+    np.testing.assert_array_equal(depth, [[0, 0, 5, 0, 0, 0]])
+    clean = np.array([[1, 2]], np.uint16)
+    depth, ok = check_depth(clean, None)
+    assert depth.dtype == np.float32 and ok.all()
+
+
+def _jumps_numpy(z: np.ndarray, valid: np.ndarray, jump_rel: float) -> np.ndarray:
+    d = np.abs(np.diff(z, axis=1))
+    d[~(valid[:, 1:] & valid[:, :-1])] = 0.0
+    big = d > jump_rel * np.maximum(z[:, 1:], z[:, :-1])
+    around = np.zeros_like(d)
+    around[:, 2:] = d[:, :-2]
+    np.maximum(around[:, :-2], d[:, 2:], out=around[:, :-2])
+    big &= d > 2.0 * around
+    out = np.zeros(z.shape, bool)
+    out[:, 1:] |= big
+    out[:, :-1] |= big
+    return out
+
+
+def _one_sided_numpy(inv: np.ndarray, valid: np.ndarray, step: int) -> np.ndarray:
+    fwd = np.zeros_like(inv)
+    fwd[:, :-step] = inv[:, step:] - inv[:, :-step]
+    okf = np.zeros_like(valid)
+    okf[:, :-step] = valid[:, step:] & valid[:, :-step]
+    bwd = np.zeros_like(inv)
+    bwd[:, step:] = fwd[:, :-step]
+    okb = np.zeros_like(valid)
+    okb[:, step:] = okf[:, :-step]
+    f = np.where(okf, fwd, np.float32(np.inf))
+    b = np.where(okb, bwd, np.float32(np.inf))
+    g = np.where(np.abs(f) <= np.abs(b), f, b)
+    g[~(okf | okb)] = 0.0
+    return (g / step).astype(np.float32)
+
+
+def test_orientation_passes_match_numpy() -> None:
+    rng = np.random.default_rng(9)
+    z = (1000 + np.cumsum(rng.normal(0, 20, (16, 40)), axis=1)).astype(np.float32)
+    z[:, 20:] += 300  # an occlusion edge
+    valid = rng.random(z.shape) < 0.9
+    z[~valid] = 0
+    np.testing.assert_array_equal(_jumps(z, valid, 0.05), _jumps_numpy(z, valid, 0.05))
+    assert _jumps(z, valid, 0.05)[:, 19:21].any()  # the edge is found
+    inv = np.zeros_like(z)
+    np.divide(1000.0, z, out=inv, where=valid)
+    for step in (1, 3):
+        np.testing.assert_array_equal(_one_sided(inv, valid, step), _one_sided_numpy(inv, valid, step))
+
+
+def test_front_face_folds_only_without_a_depth_jump() -> None:
+    # support 3 (a table top, rows 0-1) above facing object 1 (its front, rows 2-3) at the
+    # same depth; facing object 2 below it is 50 % farther (an object behind, not a face)
+    labels = np.zeros((4, 8), np.int32)
+    labels[0:2, 0:8] = 3
+    labels[2:4, 0:4] = 1
+    labels[2:4, 4:8] = 2
+    depth = np.full(labels.shape, 1000, np.float32)
+    depth[2:4, 4:8] = 1500
+    widths = np.array([0, 4, 4], np.float64)
+    fronts = front_faces(labels, depth, widths, np.array([3], np.int32), jump_rel=0.05)
+    assert fronts == {1: 3}
+
+
+def _floor_scene() -> tuple[np.ndarray, np.ndarray, Intrinsics]:
+    # a floor plane 1 m below the camera (y down), seen from row 20 of 40; a box in front of it
+    cam = Intrinsics(40.0, 40.0, 19.5, 19.5)
+    v = (np.arange(40) - cam.cy) / cam.fy
+    z = np.where(v > 0.05, 1000.0 / np.maximum(v, 1e-9), 0)[:, None] * np.ones((1, 40))
+    depth = np.clip(z, 0, 8000).astype(np.float32)
+    depth[depth >= 8000] = 0
+    depth[25:33, 10:18] = 1500.0  # the box, facing the sensor
+    return depth, depth > 0, cam
+
+
+def test_support_pieces_equal_label_merge_then_stats() -> None:
+    depth, ok, cam = _floor_scene()
+    classes = np.zeros(depth.shape, np.int8)
+    classes[ok & (depth != 1500.0)] = 1
+    # far rows of a floor step by up to 20 % of their depth: a loose jump limit keeps it whole
+    lab_ref, n_ref = support_components(depth, ok, classes, 1, jump_rel=0.25, bridge=2)
+    lab_ref, n_ref = merge_coplanar(lab_ref, n_ref, depth, cam, min_fit_px=10)
+    st = label_stats(lab_ref, depth, n_ref, metric=True)
+    lab, n, sums, boxes, planes = support_pieces(depth, ok, classes, 1, cam, jump_rel=0.25, bridge=2, min_fit_px=10)
+    np.testing.assert_array_equal(lab, lab_ref)
+    assert n == n_ref >= 1
+    np.testing.assert_allclose(sums[:, 0], st.count)
+    np.testing.assert_allclose(sums[:, 1], st.sz, rtol=1e-12)
+    normal, off, _ = plane_fits(lab, n, depth, cam)
+    floor = int(np.argmax(sums[:, 0]))
+    # the floor's fitted plane: normal (0, -1, 0) toward the camera, 1000 mm away
+    assert normal[floor] == pytest.approx([0.0, -1.0, 0.0], abs=1e-4)
+    assert off[floor] == pytest.approx(1000.0, rel=1e-4)
+    cand = ok & (classes == 0)
+    cand[30:34, 0:5] = True  # floor pixels wrongly taken as facing
+    want = on_support_planes(lab, n, depth, cand, cam, min_px=10, tol_rel=0.025)
+    got = near_planes(normal, off, sums[:, 0], boxes, depth, cand, cam, min_px=10, tol_rel=0.025)
+    np.testing.assert_array_equal(got, want)
+    assert got[30:34, 0:5][ok[30:34, 0:5]].all()  # the floor pixels go back to the floor
+    assert not got[25:33, 10:18].any()  # the box does not
