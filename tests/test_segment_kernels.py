@@ -23,6 +23,7 @@ from depthgram.segment.slices import (
     near_planes,
     on_support_planes,
     plane_fits,
+    planes_from_sums,
     support_components,
     support_pieces,
 )
@@ -231,6 +232,9 @@ def test_support_pieces_equal_label_merge_then_stats() -> None:
     np.testing.assert_allclose(sums[:, 0], st.count)
     np.testing.assert_allclose(sums[:, 1], st.sz, rtol=1e-12)
     normal, off, _ = plane_fits(lab, n, depth, cam)
+    merged_normal, merged_off, _ = planes_from_sums(planes)  # pieces' sums added, no new pass
+    np.testing.assert_allclose(merged_normal, normal, atol=1e-9)
+    np.testing.assert_allclose(merged_off, off, rtol=1e-9)
     floor = int(np.argmax(sums[:, 0]))
     # the floor's fitted plane: normal (0, -1, 0) toward the camera, 1000 mm away
     assert normal[floor] == pytest.approx([0.0, -1.0, 0.0], abs=1e-4)
