@@ -5,9 +5,10 @@ region growing, all with object attributes; one ``np.bincount`` pass over the sa
 floor no method can beat (every method reads every pixel at least once), and each time as a
 multiple of it. Targets: 2,000 frames/s at 176x132, 300 at 640x480, 100 at 1280x720.
 
-Run: ``.venv/bin/python benchmarks/bench_segmentation.py`` (``--profile`` adds where the time
-goes for thresholding + slicing at 640x480, and region-growing connectivity by scipy csgraph
-against the compiled labeller).
+Run: ``.venv/bin/python benchmarks/bench_segmentation.py`` (``--stages`` adds the time of each
+step of thresholding; ``--profile`` adds where the time goes for thresholding + slicing at
+640x480, and region-growing connectivity by scipy csgraph against the compiled labellers).
+The first call of every function (numba loads its cached machine code) is not timed.
 """
 
 from __future__ import annotations
@@ -93,7 +94,7 @@ def compare_labellers(size: tuple[int, int] = (640, 480), tol_per_m: float = 10.
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components
 
-    from depthgram.segment.label import ACTIVE, HOLE, label_keyed
+    from depthgram.segment.label import ACTIVE, HOLE, label_keyed, label_keyed_stats
     from depthgram.sensor import simulate
 
     f = next(iter(simulate("table", 1, size=size, seed=0))).frame
@@ -115,7 +116,39 @@ def compare_labellers(size: tuple[int, int] = (640, 480), tol_per_m: float = 10.
     return {
         "csgraph": _best_ms(csgraph),
         "numba union-find": _best_ms(partial(label_keyed, z, state, rel=tol)),
+        "numba union-find + statistics": _best_ms(partial(label_keyed_stats, z, state, z, rel=tol)),
         "opencv binary (no depth test)": _best_ms(partial(cv2.connectedComponents, binary, connectivity=4)),
+    }
+
+
+def threshold_stages(size: tuple[int, int], seed: int = 0) -> dict[str, float]:
+    """Time (ms) of each step of thresholding at one size, and the whole call."""
+    from depthgram.segment.attributes import Stats, make_objects
+    from depthgram.segment.config import SegmentConfig
+    from depthgram.segment.histogram import bin_index, depth_bands
+    from depthgram.segment.label import label_bands_stats
+    from depthgram.segment.validate import check_depth
+    from depthgram.sensor import simulate
+
+    f = next(iter(simulate("table", 1, size=size, seed=seed))).frame
+    cfg = SegmentConfig(method="threshold")
+    depth, ok = check_depth(f.depth, f.valid)
+    bins, edges, counts = bin_index(depth, ok, cfg, zero_outside=True)
+    bands = depth_bands(counts, edges, cfg)
+    min_px = cfg.min_area_px(depth.size)
+    labels, _, sums, boxes = label_bands_stats(bins, bands.lut, ok, None, depth, bridge=2, min_px=min_px)
+    st = Stats(sums[:, 0], sums[:, 1], sums[:, 2], sums[:, 3], sums[:, 4], sums[:, 5], sums[:, 6], boxes)
+    return {
+        "check input": _best_ms(partial(check_depth, f.depth, f.valid)),
+        "range + bins + histogram": _best_ms(partial(bin_index, depth, ok, cfg, zero_outside=True)),
+        "peaks and cuts": _best_ms(partial(depth_bands, counts, edges, cfg)),
+        "label + statistics": _best_ms(
+            partial(label_bands_stats, bins, bands.lut, ok, None, depth, bridge=2, min_px=min_px)
+        ),
+        "objects": _best_ms(
+            partial(make_objects, labels, st, depth_labels=sums[:, 7].astype(np.int64), intrinsics=f.intrinsics)
+        ),
+        "whole call": _best_ms(partial(segment, f.depth, valid=f.valid, intrinsics=f.intrinsics, method="threshold")),
     }
 
 
@@ -143,6 +176,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Print the timing table; return the exit status."""
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--profile", action="store_true", help="also profile slices at 640x480")
+    p.add_argument("--stages", action="store_true", help="also the time of each step of thresholding")
     p.add_argument("--sizes", default=",".join(f"{w}x{h}" for w, h in SIZES))
     p.add_argument("--quick", action="store_true", help="176x132 and 640x480 only")
     args = p.parse_args(argv)
@@ -150,6 +184,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     sizes = [tuple(int(v) for v in s.split("x")) for s in spec.split(",")]
     print(f"one core, {os.cpu_count()} cpus visible; best of repeated runs")
     print(format_rows(run_bench([(s[0], s[1]) for s in sizes])))
+    if args.stages:
+        for size in sizes:
+            st = threshold_stages((size[0], size[1]))
+            print(f"thresholding steps at {size[0]}x{size[1]}, ms:", {k: round(v, 3) for k, v in st.items()})
     if args.profile:
         print("labellers at 640x480, ms:", {k: round(v, 2) for k, v in compare_labellers().items()})
         print(_profile((640, 480)))
