@@ -116,35 +116,107 @@ def _field(
     # average the gradient over valid pixels only; holes neither pull it to zero nor fake edges.
     # Pixels whose slope is steeper than 80 degrees from the line of sight are left out too: on
     # both sides of an occlusion edge (a smoothed or flying pixel) they would fake a steep plane.
-    fx, fy = intrinsics.fx, intrinsics.fy
-    steep = np.float32(math.tan(math.radians(80.0)))
-    keep = has & (np.abs(fx * gx) <= steep * inv3) & (np.abs(fy * gy) <= steep * inv3)
-    gx[~keep] = 0.0
-    gy[~keep] = 0.0
-    k = (window_px, window_px)
-    mk = keep.astype(np.float32)
-    den = np.maximum(cv2.boxFilter(mk, -1, k, normalize=False, borderType=cv2.BORDER_REPLICATE), 1e-6)
-    gx = np.asarray(cv2.boxFilter(gx, -1, k, normalize=False, borderType=cv2.BORDER_REPLICATE) / den, np.float32)
-    gy = np.asarray(cv2.boxFilter(gy, -1, k, normalize=False, borderType=cv2.BORDER_REPLICATE) / den, np.float32)
     fx, fy, cx, cy = intrinsics.fx, intrinsics.fy, intrinsics.cx, intrinsics.cy
+    steep = np.float32(math.tan(math.radians(80.0)))
+    mk = _keep_slopes(gx, gy, has, inv3, np.float32(fx), np.float32(fy), steep)
+    k = (window_px, window_px)
+    den = np.asarray(
+        np.maximum(cv2.boxFilter(mk, -1, k, normalize=False, borderType=cv2.BORDER_REPLICATE), 1e-6), np.float32
+    )
+    sgx = np.asarray(cv2.boxFilter(gx, -1, k, normalize=False, borderType=cv2.BORDER_REPLICATE), np.float32)
+    sgy = np.asarray(cv2.boxFilter(gy, -1, k, normalize=False, borderType=cv2.BORDER_REPLICATE), np.float32)
+    cos_t = math.cos(math.radians(oblique_deg))
+    jump = _jumps(depth_mm, valid, jump_rel) | _jumps(depth_mm.T, valid.T, jump_rel).T
+    cls = _classify(
+        sgx,
+        sgy,
+        den,
+        inv3,
+        valid,
+        jump,
+        np.float32(fx),
+        np.float32(fy),
+        np.float32(cx),
+        np.float32(cy),
+        np.float32(cos_t),
+    )
+    if not want_normals:  # segmentation needs the classes only
+        return cls, None
+    gx = np.asarray(sgx / den, np.float32)
+    gy = np.asarray(sgy / den, np.float32)
     a = fx * gx
     b = fy * gy
     u = ((np.arange(w, dtype=np.float32) - cx) / fx)[None, :]
     v = ((np.arange(h, dtype=np.float32) - cy) / fy)[:, None]
     c = inv3 - a * u - b * v
     norm = np.sqrt(a * a + b * b + c * c) + 1e-12
-    cos_t = math.cos(math.radians(oblique_deg))
-    cls = np.zeros((h, w), np.int8)
-    cls[np.abs(b) >= cos_t * norm] = HORIZONTAL
-    cls[np.abs(a) >= cos_t * norm] = VERTICAL
-    jump = (_jumps(depth_mm, valid, jump_rel) | _jumps(depth_mm.T, valid.T, jump_rel).T).astype(np.uint8)
-    cls[jump.astype(bool) | ~valid] = FACING
-    if not want_normals:  # segmentation needs the classes only
-        return cls, None
     # (a, b, c) . ray = 1/Z > 0 always, so its opposite is the normal turned toward the sensor
     sign = np.float32(-1.0) / norm
     normals = np.stack([a * sign, b * sign, c * sign], axis=-1).astype(np.float32)
     return cls, normals
+
+
+@njit(cache=True)
+def _keep_slopes(
+    gx: NDArray[np.float32],
+    gy: NDArray[np.float32],
+    has: NDArray[np.bool_],
+    inv3: NDArray[np.float32],
+    fx: np.float32,
+    fy: np.float32,
+    steep: np.float32,
+) -> NDArray[np.float32]:
+    # pixels with a mean and a slope under 80 degrees keep their slopes (others are zeroed in
+    # place); returns the kept mask as float32 for the box filter. One pass for what numpy did
+    # in eight; float32 arithmetic as numpy's (its Python scalars act as float32).
+    h, w = gx.shape
+    mk = np.zeros((h, w), np.float32)
+    for y in range(h):
+        for x in range(w):
+            lim = steep * inv3[y, x]
+            if has[y, x] and abs(fx * gx[y, x]) <= lim and abs(fy * gy[y, x]) <= lim:
+                mk[y, x] = 1.0
+            else:
+                gx[y, x] = 0.0
+                gy[y, x] = 0.0
+    return mk
+
+
+@njit(cache=True)
+def _classify(
+    sgx: NDArray[np.float32],
+    sgy: NDArray[np.float32],
+    den: NDArray[np.float32],
+    inv3: NDArray[np.float32],
+    valid: NDArray[np.bool_],
+    jump: NDArray[np.bool_],
+    fx: np.float32,
+    fy: np.float32,
+    cx: np.float32,
+    cy: np.float32,
+    cos_t: np.float32,
+) -> NDArray[np.int8]:
+    # the class of each pixel from its window-mean slopes, in one pass instead of a dozen
+    # full-frame float32 temporaries; the same float32 operations in the same order, so the
+    # classes are those of the numpy expression kept for the normals in _field
+    h, w = sgx.shape
+    cls = np.zeros((h, w), np.int8)
+    tiny = np.float32(1e-12)
+    for y in range(h):
+        v = (np.float32(y) - cy) / fy
+        for x in range(w):
+            if jump[y, x] or not valid[y, x]:
+                continue
+            u = (np.float32(x) - cx) / fx
+            a = fx * (sgx[y, x] / den[y, x])
+            b = fy * (sgy[y, x] / den[y, x])
+            c = inv3[y, x] - a * u - b * v
+            t = cos_t * (np.sqrt(a * a + b * b + c * c) + tiny)
+            if abs(a) >= t:
+                cls[y, x] = VERTICAL
+            elif abs(b) >= t:
+                cls[y, x] = HORIZONTAL
+    return cls
 
 
 def _jumps(z: NDArray[np.float32], valid: NDArray[np.bool_], jump_rel: float) -> NDArray[np.bool_]:
