@@ -206,16 +206,19 @@ def coplanar_groups(
     Groups are numbered 1..m in the order of their first piece.
     """
     n = normal.shape[0] - 1
-    if n < 2:
-        return np.arange(n + 1, dtype=np.int32), n
-    same_dir = normal @ normal.T > math.cos(math.radians(max_angle_deg))
-    close = np.abs(off[:, None] - off[None, :]) <= max_offset_rel * np.maximum(off[:, None], off[None, :])
-    big = count >= min_fit_px
-    join = same_dir & close & big[:, None] & big[None, :]
-    join[0, :] = False
-    join[:, 0] = False
-    if not np.triu(join, 1).any():
-        return np.arange(n + 1, dtype=np.int32), n
+    ident = np.arange(n + 1, dtype=np.int32)
+    # only pieces big enough for a reliable plane can join: compare those alone (a few),
+    # not all pairs of pieces (hundreds of noise specks: 0.2 ms per call at 640 x 480)
+    big = np.flatnonzero(count >= min_fit_px)
+    big = big[big > 0]
+    if big.size < 2:
+        return ident, n
+    nb, ob = normal[big], off[big]
+    same_dir = nb @ nb.T > math.cos(math.radians(max_angle_deg))
+    close = np.abs(ob[:, None] - ob[None, :]) <= max_offset_rel * np.maximum(ob[:, None], ob[None, :])
+    join = np.triu(same_dir & close, 1)
+    if not join.any():
+        return ident, n
     parent = list(range(n + 1))
 
     def root(i: int) -> int:
@@ -223,8 +226,8 @@ def coplanar_groups(
             i = parent[i]
         return i
 
-    for i, j in zip(*np.nonzero(np.triu(join, 1)), strict=True):
-        a, b = root(int(i)), root(int(j))
+    for i, j in zip(*np.nonzero(join), strict=True):
+        a, b = root(int(big[i])), root(int(big[j]))
         if a != b:
             parent[max(a, b)] = min(a, b)
     roots = np.array([root(i) for i in range(n + 1)])
