@@ -16,6 +16,7 @@ from depthgram.frame import Intrinsics
 from depthgram.segment.attributes import label_stats, label_stats_bincount, relabel_small
 from depthgram.segment.binning import band_state, bin_pixels, depth_range
 from depthgram.segment.label import ACTIVE, BLOCK, HOLE, label_bands_stats, label_keyed, label_keyed_stats
+from depthgram.segment.objects import SceneObject
 from depthgram.segment.orientation import _jumps, _one_sided
 from depthgram.segment.slices import (
     front_faces,
@@ -24,6 +25,7 @@ from depthgram.segment.slices import (
     on_support_planes,
     plane_fits,
     planes_from_sums,
+    slice_parts,
     support_components,
     support_pieces,
 )
@@ -246,3 +248,40 @@ def test_support_pieces_equal_label_merge_then_stats() -> None:
     np.testing.assert_array_equal(got, want)
     assert got[30:34, 0:5][ok[30:34, 0:5]].all()  # the floor pixels go back to the floor
     assert not got[25:33, 10:18].any()  # the box does not
+
+
+def test_slice_parts_match_per_slice_numpy_sums() -> None:
+    rng = np.random.default_rng(4)
+    labels = np.zeros((30, 40), np.int32)
+    labels[5:25, 3:37] = 7
+    labels[rng.random(labels.shape) < 0.2] = 0  # dropouts inside the object
+    depth = (rng.random(labels.shape) * 500 + 1000).astype(np.float32)
+    obj_mask = labels == 7
+    ys, xs = np.nonzero(obj_mask)
+    obj = SceneObject(
+        7,
+        "floor",
+        0,
+        0.0,
+        0.0,
+        int(ys.size),
+        0.0,
+        (0.0, 0.0),
+        (int(xs.min()), int(ys.min()), int(xs.max()), int(ys.max())),
+    )
+    for horizontal in (True, False):
+        parts = slice_parts(
+            labels, depth, obj, horizontal=horizontal, aperture=4, depth_label=lambda z: 0, intrinsics=None, first_id=1
+        )
+        coord = ys - obj.bbox[1] if horizontal else xs - obj.bbox[0]
+        want = []
+        for j in np.unique(coord // 4):
+            sel = coord // 4 == j
+            z = depth[ys[sel], xs[sel]].astype(np.float64)
+            want.append((float(z.mean()), int(sel.sum()), float(xs[sel].mean()), float(ys[sel].mean())))
+        want.sort()  # parts come nearest first
+        assert len(parts) == len(want)
+        for p, (mean, area, cx, cy) in zip(parts, want, strict=True):
+            assert p.area == area
+            assert p.depth == pytest.approx(mean, rel=1e-12)
+            assert p.center == pytest.approx((cx, cy), rel=1e-12)
