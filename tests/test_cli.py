@@ -112,3 +112,21 @@ def test_bad_config_value_is_exit_2(tmp_path: Path, capsys: pytest.CaptureFixtur
     cfg.write_text("[segment]\nmin_area = -5\n")
     assert main(["describe", "sim:table", "--config", str(cfg), "--quiet"]) == 2
     assert "min_area" in capsys.readouterr().err
+
+
+def test_unwritable_outputs_are_messages_not_tracebacks(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["sonify", "sim:table", "--wav", str(tmp_path / "no" / "x.wav"), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert "does not exist" in err and "Traceback" not in err
+    blocker = tmp_path / "file"
+    blocker.write_text("")
+    assert main(["describe", "sim:table", "--labels-dir", str(blocker / "sub"), "--quiet"]) == 1
+    assert "error" in capsys.readouterr().err
+
+
+def test_all_invalid_frame_is_an_empty_scene_not_an_error(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    path = tmp_path / "zeros.npy"
+    np.save(path, np.zeros((48, 64), np.uint16))
+    assert main(["describe", str(path), "--quiet"]) == 0
+    rec = json.loads(capsys.readouterr().out)
+    assert rec["objects"] == [] and rec["sentence"].startswith("Bkg")

@@ -43,6 +43,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     except DepthgramError as exc:
         print(f"depthgram {args.command}: error: {exc}", file=sys.stderr)
         return 2
+    except OSError as exc:  # an output that cannot be written: the message says which and why
+        print(f"depthgram {args.command}: error: {exc}", file=sys.stderr)
+        return 1
     except KeyboardInterrupt:
         print(f"depthgram {args.command}: interrupted", file=sys.stderr)
         return 130

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 
 from depthgram.commands._common import add_pipeline_arguments, load_config, pipeline_results
 
@@ -29,6 +30,9 @@ def run(args: argparse.Namespace) -> int:
         raise InputError(f"--samplerate must be between 4000 and 192000, got {args.samplerate}")
     if not 0 < args.still_duration <= 60:
         raise InputError(f"--still-duration must be in (0, 60] s, got {args.still_duration}")
+    out_dir = Path(args.wav).resolve().parent
+    if not out_dir.is_dir():
+        raise InputError(f"{args.wav}: cannot write the audio, folder {out_dir} does not exist")
     mapping = SoundMapping.preset(args.preset) if args.preset else load_config(args).sound
     src, results = pipeline_results(args, NAME)
     fps = getattr(src, "fps", None) or args.fps
