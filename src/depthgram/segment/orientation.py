@@ -231,26 +231,35 @@ def _jumps(z: NDArray[np.float32], valid: NDArray[np.bool_], jump_rel: float) ->
 
 @njit(cache=True)
 def _jumps_rows(z: NDArray[np.float32], valid: NDArray[np.bool_], rel: np.float32) -> NDArray[np.bool_]:
-    # one pass per row over the steps; the numpy version made seven full-frame temporaries
-    # (2 ms of the 7 ms orientation at 640 x 480). float32 throughout, as numpy computed it.
+    # per row: the steps, then the edge test, then both neighbours of an edge step marked, each
+    # a branch-free loop (selects, so they vectorise); the numpy version made seven full-frame
+    # temporaries. float32 throughout, as numpy computed it.
     h, w = z.shape
     out = np.zeros((h, w), np.bool_)
-    d = np.zeros(max(w - 1, 0), np.float32)
+    if w < 2:
+        return out
+    m = w - 1
+    d = np.zeros(m, np.float32)
+    around = np.zeros(m, np.float32)
+    edge = np.zeros(m + 2, np.bool_)  # edge[x + 1]: step x is an edge; guards at both ends
+    zero = np.float32(0.0)
     two = np.float32(2.0)
     for y in range(h):
-        for x in range(w - 1):
-            d[x] = abs(z[y, x + 1] - z[y, x]) if valid[y, x + 1] and valid[y, x] else np.float32(0.0)
-        for x in range(w - 1):
-            if not d[x] > rel * max(z[y, x + 1], z[y, x]):
-                continue
-            around = np.float32(0.0)
-            if x >= 2:
-                around = d[x - 2]
-            if x + 2 < w - 1:
-                around = max(around, d[x + 2])
-            if d[x] > two * around:
-                out[y, x] = True
-                out[y, x + 1] = True
+        zr = z[y]
+        vr = valid[y]
+        for x in range(m):
+            d[x] = abs(zr[x + 1] - zr[x]) if vr[x + 1] & vr[x] else zero
+        for x in range(m):
+            around[x] = zero
+        for x in range(2, m):
+            around[x] = d[x - 2]
+        for x in range(m - 2):
+            around[x] = max(around[x], d[x + 2])
+        for x in range(m):
+            edge[x + 1] = (d[x] > rel * max(zr[x + 1], zr[x])) & (d[x] > two * around[x])
+        orow = out[y]
+        for x in range(w):
+            orow[x] = edge[x] | edge[x + 1]
     return out
 
 
