@@ -52,6 +52,7 @@ def run(args: argparse.Namespace) -> int:
         if spec is None or spec.loader is None:
             raise InputError(f"{path}: cannot load benchmark")
         mod = importlib.util.module_from_spec(spec)
+        sys.modules[spec.name] = mod  # dataclasses in the script look their module up there
         spec.loader.exec_module(mod)
         print(f"\n== {name} ({path.name})", flush=True)
         status |= int(mod.main(["--quick"] if args.quick else []) or 0)
