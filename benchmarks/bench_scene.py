@@ -89,8 +89,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--objects", type=int, default=20)
     p.add_argument("--repeats", type=int, default=50)
+    p.add_argument("--quick", action="store_true", help="fewer repeats (10)")
     a = p.parse_args(argv)
-    table = rows(a.objects, a.repeats)
+    table = rows(a.objects, 10 if a.quick else a.repeats)
     print(f"{'step':34s} {'objects':>7s} {'ms':>9s} {'of segment':>10s} {'budget ms':>9s}")
     for r in table:
         share = r.get("share_of_segment")
