@@ -72,3 +72,20 @@ def test_small_near_object_is_grasped(z: float) -> None:
     )
     plan, cup_id = _plan(SceneSpec("grasp-test", cam, bodies, ToFConfig()))
     assert next(a for a in plan.actions if a.object_id == cup_id).action == "grasp"
+
+
+@pytest.mark.parametrize(("sensor", "margin", "body"), [(1000.0, 100.0, 1800.0), (300.0, 100.0, 1800.0),
+                                                       (1500.0, 50.0, 1200.0)])
+def test_body_band_equals_the_height_formula(sensor: float, margin: float, body: float) -> None:
+    from depthgram.act import ActConfig
+    from depthgram.act.channel import column_clearance
+
+    sim = render(_scene((-900.0, -150.0), 700.0), ToFConfig(f_mod2_hz=40e6), 0, 30.0, np.random.default_rng(1))
+    f = sim.frame
+    cfg = ActConfig(sensor_height_mm=sensor, floor_margin_mm=margin, body_height_mm=body)
+    k = f.intrinsics
+    assert k is not None
+    d = f.depth.astype(np.float64)
+    height = sensor - (np.arange(d.shape[0])[:, None] - k.cy) * d / k.fy
+    ok = f.valid & (d > 0) & (height > margin) & (height < body)
+    np.testing.assert_allclose(column_clearance(f, cfg), np.where(ok, d, np.inf).min(axis=0), rtol=1e-6)
