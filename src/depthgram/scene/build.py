@@ -109,18 +109,23 @@ def support_depth_at(obj: SceneObject, row: float) -> float:
 
 
 def _contact_fractions(
-    labels: NDArray[np.integer], objects: Sequence[SceneObject], index: Mapping[int, int], rows: int
+    labels: NDArray[np.integer],
+    objects: Sequence[SceneObject],
+    index: Mapping[int, int],
+    rows: int,
+    need: NDArray[np.bool_] | None = None,
 ) -> NDArray[np.float64]:
     """Share of each object's bottom-edge columns whose pixels just below belong to each other object.
 
     Returns an (n, n) array: ``[i, j]`` for object i resting on object j. Only pixels inside
-    each object's bounding box are read, so the cost follows the objects' size, not the frame's.
+    each object's bounding box are read, so the cost follows the objects' size, not the frame's;
+    objects with ``need[i]`` False (no support passed the geometric test) are not read at all.
     """
     n = len(objects)
     out = np.zeros((n, n))
     h = labels.shape[0]
     for i, o in enumerate(objects):
-        if o.kind in _SURFACES:
+        if o.kind in _SURFACES or (need is not None and not need[i]):
             continue
         x0, y0, x1, y1 = o.bbox
         sub = labels[y0 : y1 + 1, x0 : x1 + 1] == o.id
@@ -283,7 +288,9 @@ def _supports(
     score = err / np.maximum(tol, 1e-9) + 1e-12 * area[None, :]
     if labels is not None:
         index = {o.id: i for i, o in enumerate(objs)}
-        contact = _contact_fractions(labels, objs, index, max(cfg.contact_px, 1))
+        # Only objects with a geometric candidate need their pixels read: a large background
+        # object (a wall behind everything) has none and would cost a full-frame scan.
+        contact = _contact_fractions(labels, objs, index, max(cfg.contact_px, 1), need=ok.any(axis=1))
         ok &= contact >= cfg.min_contact
         # Contact with the pixels below is the stronger evidence; depth breaks ties.
         score = score - 10.0 * contact
