@@ -154,8 +154,14 @@ def predict_cost(
         pb[i, 1] = s[i, Y0] + dy
         pb[i, 2] = s[i, X1] + dx
         pb[i, 3] = s[i, Y1] + dy
-        v = s[i, V] if np.isfinite(s[i, V]) else 0.0
-        pz[i] = s[i, ZFIT] + v * vscale * steps
+        if s[i, STATUS] == ENTERING or s[i, STATUS] == LEAVING:
+            # The fit skips border frames, so it is stale there, while the mean depth of the
+            # visible part drifts as the object crosses the border (a cylinder's flank is
+            # deeper than its middle): the last observed depth is the better guess.
+            pz[i] = s[i, DEPTH]
+        else:
+            v = s[i, V] if np.isfinite(s[i, V]) else 0.0
+            pz[i] = s[i, ZFIT] + v * vscale * steps
     return cost_kernel(
         pc, pz, s[:n, AREA], pb, s[:n, LABEL], s[:n, MISSED],
         f[:, 0:2], f[:, F_Z], f[:, F_AREA], f[:, F_X0 : F_X0 + 4], f[:, F_LABEL], diagonal_px, p,
