@@ -18,6 +18,8 @@ from depthgram.sources.base import Source
 from depthgram.sources.config import SourceConfig
 from depthgram.sources.files import FilesSource, list_frames
 from depthgram.sources.images import IMAGE_SUFFIXES
+from depthgram.sources.realsense import PREFIX as REALSENSE_PREFIX
+from depthgram.sources.realsense import RealSenseSource, parse_realsense_spec
 from depthgram.sources.sidecars import find_sidecar, natural_key
 from depthgram.sources.sim import SimSource, parse_sim_spec, scene_names
 from depthgram.sources.stack import NpyStackSource, NpzStackSource, npz_member_header
@@ -60,6 +62,8 @@ def open_source(
         - a folder of frames (natural order; a ``depth/`` subfolder is read instead when
           present; files named ``*depth*`` are preferred over the others) or a glob;
         - a ROS 1 ``.bag``, a ROS 2 bag folder (``metadata.yaml``), ``.mcap`` or ``.db3``;
+        - ``realsense:[SERIAL][?size=640x480&fps=30&frames=N]``: a live Intel RealSense camera
+          (extra ``depthgram[realsense]``);
         - ``sim:SCENE?frames=30&size=176x132&seed=0&fps=30``, or a bare scene name when no
           file of that name exists.
     scale_mm : float, optional
@@ -92,6 +96,8 @@ def open_source(
         Missing path, empty folder, glob matching nothing, bad options.
     """
     text = os.fspath(spec)
+    if text.startswith(REALSENSE_PREFIX):
+        return RealSenseSource(parse_realsense_spec(text), name=text)
     if text.startswith("sim:"):
         return SimSource(parse_sim_spec(text, fps), name=text, intrinsics=intrinsics)
     text_path, query = _split_query(text)
