@@ -9,6 +9,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+import numpy as np
+
+from depthgram.segment.objects import Histogram
+
 if TYPE_CHECKING:
     from depthgram.pipeline import SceneResult
 
@@ -21,6 +25,31 @@ class _Series:
     depth: dict[int, list[float | None]] = field(default_factory=dict)
     v: dict[int, list[float | None]] = field(default_factory=dict)
     per_frame: bool = False
+
+
+def _slice_histograms(result: SceneResult) -> list[tuple[str, str, Histogram]]:
+    """Histograms of a vertical slice through the middle and a horizontal one near the bottom.
+
+    The paper's Fig. 5: a slice about 10 % of the frame wide, thresholded by the same rule as the
+    whole frame; walls peak in vertical slices, the floor in horizontal ones.
+    """
+    from depthgram.segment import segment
+
+    f = result.frame
+    h, w = f.shape
+    out = []
+    c0, r0 = int(0.45 * w), int(0.8 * h)
+    cuts = {
+        "vslice": ("vertical slice, middle 10 % of columns", np.s_[:, c0 : max(int(0.55 * w), c0 + 1)]),
+        "hslice": ("horizontal slice, rows 80-90 %", np.s_[r0 : max(int(0.9 * h), r0 + 1), :]),
+    }
+    for name, (title, sl) in cuts.items():
+        if not f.valid[sl].any():
+            continue
+        seg = segment(f.depth[sl], valid=f.valid[sl], method="threshold")
+        if seg.histogram is not None and seg.histogram.counts.size:
+            out.append((name, title, seg.histogram))
+    return out
 
 
 class ReportWriter:
@@ -67,6 +96,9 @@ class ReportWriter:
         if result.segmentation.histogram is not None:
             draw_histogram(result.segmentation.histogram, self.out / f"{stem}_histogram.png")
             pics.append(f"{stem}_histogram.png")
+        for name, title, hist in _slice_histograms(result):
+            draw_histogram(hist, self.out / f"{stem}_{name}.png", title=title)
+            pics.append(f"{stem}_{name}.png")
         draw_tree(result.tree, self.out / f"{stem}_tree.png")
         pics.append(f"{stem}_tree.png")
         rows = "".join(
