@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import glob
 import os
 import re
@@ -158,11 +159,11 @@ def _files(paths: list[Path], cfg: SourceConfig, name: str, kind: str, folder: P
            intrinsics: Intrinsics | None) -> FilesSource:
     side = find_sidecar(folder, folder.parent)
     if cfg.depth_range_mm is None and side.depth_range_mm is not None:
-        cfg = SourceConfig(**{**cfg.__dict__, "depth_range_mm": side.depth_range_mm})
+        cfg = dataclasses.replace(cfg, depth_range_mm=side.depth_range_mm)
     if cfg.timestamps is None and kind != "file":
         for cand in (folder / "timestamps.txt", folder.parent / "timestamps.txt"):
             if cand.is_file():
-                cfg = SourceConfig(**{**cfg.__dict__, "timestamps": str(cand)})
+                cfg = dataclasses.replace(cfg, timestamps=str(cand))
                 break
     return FilesSource(
         paths, cfg, name=name, kind=kind, intrinsics=intrinsics or side.intrinsics, fps=cfg.fps or side.fps,
