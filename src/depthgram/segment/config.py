@@ -26,6 +26,10 @@ _RANGES = (
     ("region_tol_mm", 1e-6, 1e5),
     ("oblique_deg", 1.0, 60.0),
     ("jump_rel", 1e-4, 10.0),
+    ("plane_min_area", 1e-4, 1.0),
+    ("plane_min_spread", 0.0, 10.0),
+    ("plane_tol_mm", 0.0, 1e4),
+    ("plane_tol_rel", 0.0, 1.0),
 )
 
 
@@ -103,6 +107,22 @@ class SegmentConfig:
         expected object dimension; walls and floors span about 30 % of the frame, hence 0.03.
         On the simulator (176 x 132) 0.03 finds the corridor walls at IoU 0.81 / 0.82, 0.10
         not at all (``benchmarks/table1.py --paper``).
+    support_planes : bool
+        ``slices`` method: also find the dominant oblique planes with a robust fit of
+        ``1/Z = a u + b v + c`` (:func:`depthgram.segment.planes.find_planes`), so that a table
+        top seen from above at a slant is a support whatever the camera's pitch; its pixels join
+        the horizontal (or wall) supports of the orientation field.
+    plane_min_area : float
+        Smallest support plane, as a fraction of the frame (0..1).
+    plane_min_spread : float
+        Smallest depth spread of a support plane, (95th - 5th percentile) / median depth: a
+        flatter plane faces the sensor and is left to the histogram.
+    plane_tol_mm : float
+        A pixel lies on a support plane within ``max(plane_tol_mm, plane_tol_rel Z)`` (mm).
+    plane_tol_rel : float
+        Depth-proportional part of that tolerance (structured light noise grows with depth).
+    max_planes : int
+        Most support planes searched for per frame.
     """
 
     method: str = "slices"
@@ -127,6 +147,12 @@ class SegmentConfig:
     paper_min_slices: int = 3
     paper_prominence: float = 0.02
     paper_aperture: float = 0.03
+    support_planes: bool = True
+    plane_min_area: float = 0.08
+    plane_min_spread: float = 0.15
+    plane_tol_mm: float = 8.0
+    plane_tol_rel: float = 0.012
+    max_planes: int = 3
 
     def __post_init__(self) -> None:
         def bad(name: str, value: object, expected: str) -> InputError:
@@ -162,6 +188,9 @@ class SegmentConfig:
             raise bad("paper_prominence", self.paper_prominence, "a fraction of a slice's valid pixels in [0, 1)")
         if not (math.isfinite(self.paper_aperture) and 1e-3 <= self.paper_aperture <= 1e5):
             raise bad("paper_aperture", self.paper_aperture, "pixels (>= 1) or a fraction of the frame in [0.001, 1)")
+
+        if not (isinstance(self.max_planes, int) and 0 <= self.max_planes <= 20):
+            raise bad("max_planes", self.max_planes, "an integer number of planes in [0, 20]")
 
     def with_overrides(self, **overrides: Any) -> SegmentConfig:
         """A copy with some fields replaced; unknown names raise :class:`InputError`."""

@@ -16,6 +16,7 @@ from depthgram.segment.label import label_bands_stats
 from depthgram.segment.objects import Histogram, SceneObject, Segmentation
 from depthgram.segment.orientation import FACING, HORIZONTAL, VERTICAL, default_intrinsics, orientation_classes
 from depthgram.segment.paper_slices import paper_slices
+from depthgram.segment.planes import find_planes, plane_distance_mm, plane_normal
 from depthgram.segment.region import region_grow
 from depthgram.segment.slices import (
     add_labels,
@@ -175,6 +176,7 @@ def _slices(
 ) -> Segmentation:
     cam = intrinsics or default_intrinsics(depth.shape)
     classes = _orientation(depth, ok, cam, cfg)
+    planes = _add_support_planes(depth, ok, classes, cam, cfg) if cfg.support_planes and cfg.max_planes else []
     wanted = []
     if cfg.slice_directions in ("both", "horizontal"):
         wanted.append(HORIZONTAL)
@@ -207,10 +209,9 @@ def _slices(
     total_boxes = np.concatenate(all_boxes)
     sup_stats = _stats_rows(total, total_boxes, np.r_[0, first_support:next_id])
     compounds = [(cls_of[o.id], o) for o in make_objects(labels, sup_stats, intrinsics=cam, first_id=first_support)]
+    below = _below_camera(labels, compounds, planes)
     # only supports seen from above (floor, table tops) can have a front face below them
-    horizontal_ids = np.array(
-        [o.id for c, o in compounds if c == HORIZONTAL and o.centroid_mm and o.centroid_mm[1] > 0], np.int32
-    )
+    horizontal_ids = np.array([o.id for c, o in compounds if c == HORIZONTAL and below[o.id] > 0], np.int32)
     widths = np.array([0] + [o.bbox[2] - o.bbox[0] + 1 for o in objects], np.float64)
     fronts = front_faces(labels, depth, widths, horizontal_ids, jump_rel=cfg.jump_rel)
     with_front = set(fronts.values())
@@ -228,10 +229,10 @@ def _slices(
     renum[old] = np.arange(1, len(old) + 1, dtype=np.int32)
     labels = renum[fold][labels] if fronts else renum[labels]
     objects = [replace(o, id=remap[o.id]) for o in objects]
-    floor_ids = {o.id for c, o in compounds if c == HORIZONTAL and o.centroid_mm and o.centroid_mm[1] > 0}
+    floor_ids = {o.id for c, o in compounds if c == HORIZONTAL and below[o.id] > 0}
     lowest = max(
         (o for c, o in compounds if o.id in floor_ids and o.id not in with_front),
-        key=lambda o: o.centroid_mm[1] if o.centroid_mm is not None else 0.0,
+        key=lambda o: below[o.id],
         default=None,
     )
     recount = _stats_rows(total, total_boxes, np.array([0, *old]))
@@ -241,7 +242,7 @@ def _slices(
     for cls, o in compounds:
         new_id = remap[o.id]
         whole = merged[new_id]
-        kind = support_kind(cls, o.centroid_mm[1] if o.centroid_mm else 0.0, lowest is not None and o.id == lowest.id)
+        kind = support_kind(cls, below[o.id], lowest is not None and o.id == lowest.id)
         if o.id in with_front:
             kind = "compound"  # a horizontal top with a face below it: a table, a box, a step
         parts = slice_parts(
@@ -269,6 +270,57 @@ def _slices(
     extras = _extras(bands)
     extras["classes"] = classes
     return Segmentation(labels, tuple(objects), bands.histogram, "slices", extras)
+
+
+def _below_camera(
+    labels: NDArray[np.int32], compounds: list[tuple[int, SceneObject]], planes: list[tuple[NDArray[np.bool_], float]]
+) -> dict[int, float]:
+    """How far (mm) each support lies below the camera; negative above it (a ceiling).
+
+    For a level camera the centroid's Y (image down) says it. A camera pitched down at a table
+    sees the table's centroid above its optical axis, so a support lying mostly on a fitted
+    plane takes the plane's signed height instead (``planes``: inlier mask, signed height).
+    """
+    out = {o.id: (o.centroid_mm[1] if o.centroid_mm else 0.0) for _, o in compounds}
+    if not planes or not compounds:
+        return out
+    n_ids = max(out) + 1
+    for inliers, height in planes:
+        on = np.bincount(labels[inliers], minlength=n_ids)
+        for _, o in compounds:
+            if on[o.id] > o.area // 2:
+                out[o.id] = height
+    return out
+
+
+def _add_support_planes(
+    depth: NDArray[np.float32], ok: NDArray[np.bool_], classes: NDArray[np.int8], cam: Intrinsics, cfg: SegmentConfig
+) -> list[tuple[NDArray[np.bool_], float]]:
+    """Pixels of the dominant oblique planes join the horizontal or wall class (in place).
+
+    The orientation field judges a surface against the camera's axes, so a table top seen at
+    45 degrees from above is facing; its plane is found by a robust fit whatever its pitch. The
+    plane's normal, not the image axes, says whether it is a horizontal support or a wall.
+    Returns each plane's inliers and signed height below the camera (mm; negative above it).
+    """
+    planes = find_planes(
+        depth,
+        ok,
+        min_area=cfg.plane_min_area,
+        min_spread=cfg.plane_min_spread,
+        tol_mm=cfg.plane_tol_mm,
+        tol_rel=cfg.plane_tol_rel,
+        max_planes=cfg.max_planes,
+    )
+    out = []
+    for plane in planes:
+        n = plane_normal(plane.coef, cam)
+        cls = HORIZONTAL if abs(n[1]) >= abs(n[0]) else VERTICAL
+        classes[plane.inliers] = cls
+        # the normal turned toward the sensor points up (-y, image up) for a support seen from
+        # above; the camera's distance to the plane is its height over it
+        out.append((plane.inliers, plane_distance_mm(plane.coef, cam) * (1.0 if n[1] < 0 else -1.0)))
+    return out
 
 
 def _support_class(
