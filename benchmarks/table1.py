@@ -8,7 +8,8 @@ share of valid pixels labelled, time.
 
 Run: ``.venv/bin/python benchmarks/table1.py`` (``--readings`` adds the paper's two readings of
 the 10 % rule and the gap-pixel choice; ``--paper`` the paper's own slicing at several apertures
-and directions; ``--size 640x480`` for another resolution).
+and directions; ``--size 640x480`` for another resolution; ``--tabletop`` only the real tabletop
+frames: objects standing on the support against a count by eye, and the support found).
 """
 
 from __future__ import annotations
@@ -187,6 +188,59 @@ def _real_rows(methods: Sequence[tuple[str, dict[str, Any]]], repeat: int) -> li
     return rows
 
 
+#: Objects of at least ~1 % of the frame standing on the table, counted by eye in the colour
+#: images beside the depth frames (NVlabs: RealSense, intrinsics in camera_params.json; OSD:
+#: Kinect v1, nominal intrinsics).
+TABLETOP_BY_EYE: dict[str, int] = {
+    **{f"nvlabs_ucn_demo_tabletop/{i:06d}-depth.png": n for i, n in enumerate((10, 10, 9, 10, 4, 3, 10, 3, 7))},
+    **{
+        f"osd_samples_uoais/disparity/{k}.png": n
+        for k, n in (("learn6", 2), ("test42", 3), ("test50", 7), ("test63", 13), ("test64", 13))
+    },
+}
+
+
+def tabletop_rows(**overrides: Any) -> list[str]:
+    """One line per real tabletop frame: objects on the largest support, count by eye, support.
+
+    "on support" counts segments of kind ``object`` (>= 0.3 % of the frame, nearer than 1.2 m)
+    whose centre lies in the support's box; a split object counts once per piece, so compare
+    it with the count by eye together with the overlay pictures (``depthgram report``).
+    """
+    import cv2
+
+    from depthgram.frame import Intrinsics
+
+    cams = {
+        "nvlabs_ucn_demo_tabletop": Intrinsics(612.937, 613.173, 322.549, 248.158),
+        "osd_samples_uoais": Intrinsics(570.0, 570.0, 320.0, 240.0),
+    }
+    lines = [f"{'frame':44} {'on support':>10} {'by eye':>6}  support (kind, % of frame, mean depth mm)"]
+    for rel, by_eye in TABLETOP_BY_EYE.items():
+        path = SHARED / rel
+        if not path.is_file():
+            continue
+        z = cv2.imread(str(path), cv2.IMREAD_UNCHANGED).astype(np.float32)
+        seg = segment(z, valid=z > 0, intrinsics=cams[rel.split("/")[0]], **overrides)
+        supports = [o for o in seg.objects if o.kind != "object"]
+        if not supports:
+            lines.append(f"{rel:44} {'-':>10} {by_eye:6d}  none")
+            continue
+        sup = max(supports, key=lambda o: o.area)
+        x0, y0, x1, y1 = sup.bbox
+        on = sum(
+            1
+            for o in seg.objects
+            if o.kind == "object"
+            and o.area_fraction >= 0.003
+            and o.depth < 1200.0
+            and x0 <= o.center[0] <= x1
+            and y0 <= o.center[1] <= y1
+        )
+        lines.append(f"{rel:44} {on:10d} {by_eye:6d}  {sup.kind}, {100 * sup.area_fraction:.1f} %, {sup.depth:.0f}")
+    return lines
+
+
 def format_rows(rows: Sequence[Row]) -> str:
     """Rows as a fixed-width text table."""
     head = (
@@ -217,7 +271,16 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument("--paper", action="store_true", help="also the paper's slicing, 3 apertures x 3 directions")
     p.add_argument("--no-real", action="store_true", help="skip the real recordings")
     p.add_argument("--quick", action="store_true", help="one timed run, simulator scenes only")
+    p.add_argument("--tabletop", action="store_true", help="only the real tabletop frames (objects on the support)")
     args = p.parse_args(argv)
+    if args.tabletop:
+        if not SHARED.is_dir():
+            print(f"real recordings not found at {SHARED}")
+            return 1
+        print("\n".join(tabletop_rows()))
+        print("\nwithout support planes (orientation field only):")
+        print("\n".join(tabletop_rows(support_planes=False)))
+        return 0
     if args.quick:
         args.repeat, args.no_real = 1, True
     w, h = (int(v) for v in args.size.lower().split("x"))
@@ -230,6 +293,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         methods += [(f"region growing {t:g} mm/m", {"method": "region", "region_tol_mm": t}) for t in (5, 20, 40)]
     rows = run_table1(size=(w, h), seed=args.seed, repeat=args.repeat, methods=methods, real=not args.no_real)
     print(format_rows(rows))
+    if not args.no_real and SHARED.is_dir():
+        print()
+        print("\n".join(tabletop_rows()))
     return 0
 
 
