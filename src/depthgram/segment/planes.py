@@ -16,10 +16,12 @@ such as a back wall is a facing object in the paper's model.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import cv2
 import numpy as np
+from numba import njit
 from numpy.typing import NDArray
 
 from depthgram.frame import Intrinsics
@@ -75,11 +77,18 @@ def plane_residual_mask(
     *,
     tol_mm: float,
     tol_rel: float,
+    step: int = 1,
 ) -> NDArray[np.bool_]:
-    """Valid pixels within ``max(tol_mm, tol_rel Z)`` of the plane's predicted depth."""
+    """Valid pixels within ``max(tol_mm, tol_rel Z)`` of the plane's predicted depth.
+
+    ``step`` > 1: the image is every ``step``-th pixel of every ``step``-th row of the frame the
+    plane was fitted in (coefficients in full-frame pixels).
+    """
     h, w = depth_mm.shape
     a, b, c = coef
-    inv = (a * np.arange(w, dtype=np.float32)[None, :] + b * np.arange(h, dtype=np.float32)[:, None]) + np.float32(c)
+    cols = np.arange(w, dtype=np.float32) * np.float32(step)
+    rows = np.arange(h, dtype=np.float32) * np.float32(step)
+    inv = (np.float32(a) * cols[None, :] + np.float32(b) * rows[:, None]) + np.float32(c)
     z = depth_mm
     # |Z - Zp| <= tol  <=>  |1000 - Z inv| <= tol * inv, with inv = 1000 / Zp > 0 (no division)
     tol = np.maximum(np.float32(tol_mm), np.float32(tol_rel) * z)
@@ -103,7 +112,7 @@ def find_planes(
     tol_rel: float = 0.012,
     max_planes: int = 3,
     hypotheses: int = 128,
-    sample_step: int = 6,
+    sample_step: int | None = None,
     seed: int = 0,
 ) -> list[Plane]:
     """The dominant oblique planes of a depth image, largest first.
@@ -125,8 +134,9 @@ def find_planes(
         Most planes searched for.
     hypotheses : int
         RANSAC hypotheses (three-point samples) per plane.
-    sample_step : int
-        Hypotheses are scored on every ``sample_step``-th pixel of every ``sample_step``-th row.
+    sample_step : int, optional
+        The search runs on every ``sample_step``-th pixel of every ``sample_step``-th row; by
+        default the step that leaves about 5000 pixels.
     seed : int
         Seed of the random samples (deterministic results).
 
@@ -136,47 +146,91 @@ def find_planes(
     """
     h, w = depth_mm.shape
     min_px = max(int(min_area * h * w), 3)
+    # about 5000 grid points whatever the frame size: the search costs the same at 176 x 132
+    # and 640 x 480, and only the final inlier test runs at full resolution
+    s = sample_step or max(1, round(math.sqrt(h * w / 5000.0)))
     rng = np.random.default_rng(seed)
-    ys, xs = np.mgrid[0:h:sample_step, 0:w:sample_step]
-    sub_ok = valid[::sample_step, ::sample_step]
-    su = xs[sub_ok].astype(np.float64)
-    sv = ys[sub_ok].astype(np.float64)
-    sz = depth_mm[::sample_step, ::sample_step][sub_ok].astype(np.float64)
-    sinv = 1000.0 / np.maximum(sz, 1e-6)
-    stol = np.maximum(tol_mm, tol_rel * sz)
-    left = np.ones(su.size, bool)
-    remaining = valid.copy()
-    planes: list[Plane] = []
-    min_sub = min_px / (sample_step * sample_step)
+    z_sub = np.ascontiguousarray(depth_mm[::s, ::s], dtype=np.float32)
+    left = np.ascontiguousarray(valid[::s, ::s])
+    vv, uu = np.mgrid[0:h:s, 0:w:s]
+    tol_sub = np.maximum(np.float32(tol_mm), np.float32(tol_rel) * z_sub)
+    min_sub = min_px / (s * s)
+    found: list[tuple[tuple[float, float, float], NDArray[np.bool_], float]] = []
     for _ in range(max_planes * 2):
-        if len(planes) >= max_planes:
+        if len(found) >= max_planes:
             break
         idx = np.flatnonzero(left)
         if idx.size < max(min_sub, 3):
             break
-        coef = _ransac(su[idx], sv[idx], sinv[idx], sz[idx], stol[idx], hypotheses, rng)
+        u = uu.ravel()[idx].astype(np.float64)
+        v = vv.ravel()[idx].astype(np.float64)
+        z = z_sub.ravel()[idx].astype(np.float64)
+        tz = tol_sub.ravel()[idx].astype(np.float64)
+        coef = _ransac(u, v, 1000.0 / z, z, tz, hypotheses, rng)
         if coef is None:
             break
-        on = _on(su[idx], sv[idx], sz[idx], stol[idx], coef)
+        on = _on(u, v, z, tz, coef)
         if on.sum() < min_sub:
             break
-        coef = _fit(su[idx[on]], sv[idx[on]], sinv[idx[on]])
-        on = _on(su[idx], sv[idx], sz[idx], stol[idx], coef)
-        left[idx[on]] = False
-        # area and spread are judged on the subsample first: the full-resolution pass is paid
-        # only for planes that are kept
-        p5, p50, p95 = np.percentile(sz[idx[on]], (5, 50, 95))
-        spread = float((p95 - p5) / max(p50, 1e-6))
-        if on.sum() < min_sub or spread < min_spread:
-            continue  # a fronto-parallel plane (a back wall) is a facing object, not a support
-        mask = plane_residual_mask(depth_mm, remaining, coef, tol_mm=tol_mm, tol_rel=tol_rel)
-        mask = _large_pieces(mask, max(min_px // 4, 1))
-        area = int(np.count_nonzero(mask))
-        if area < min_px:
+        coef = _fit(u[on], v[on], 1000.0 / z[on])
+        on_img = plane_residual_mask(z_sub, left, coef, tol_mm=tol_mm, tol_rel=tol_rel, step=s)
+        left &= ~on_img
+        pieces = _large_pieces(on_img, max(int(min_sub) // 4, 1))
+        n_on = int(np.count_nonzero(pieces))
+        if n_on < min_sub:
             continue
-        remaining &= ~mask
-        planes.append(Plane(coef, mask, area, spread))
+        p5, p50, p95 = np.percentile(z_sub[pieces], (5, 50, 95))
+        spread = float((p95 - p5) / max(p50, 1e-6))
+        if spread < min_spread:
+            continue  # a fronto-parallel plane (a back wall) is a facing object, not a support
+        found.append((coef, pieces, spread))
+    if not found:
+        return []
+    coefs = np.array([c for c, _, _ in found], np.float64)
+    # a full-resolution pixel may join a plane when its grid cell or a neighbouring one did:
+    # the contact rows at the foot of an object are kept, far pixels on the plane's extension not
+    kernel = np.ones((3, 3), np.uint8)
+    allowed = np.stack([np.asarray(cv2.dilate(m.view(np.uint8), kernel), np.uint8) for _, m, _ in found])
+    which = _assign(depth_mm, valid, coefs, allowed, s, float(tol_mm), float(tol_rel))
+    planes: list[Plane] = []
+    for k, (coef, _, spread) in enumerate(found, start=1):
+        mask = which == k
+        area = int(np.count_nonzero(mask))
+        if area >= min_px:
+            planes.append(Plane(coef, mask, area, spread))
     return planes
+
+
+@njit(cache=True)
+def _assign(
+    depth: NDArray[np.float32],
+    valid: NDArray[np.bool_],
+    coefs: NDArray[np.float64],
+    allowed: NDArray[np.uint8],
+    step: int,
+    tol_mm: float,
+    tol_rel: float,
+) -> NDArray[np.int8]:
+    # the first plane (1..P) each pixel lies on, 0 for none, in one pass over the frame: the
+    # numpy route needs half a dozen full-frame temporaries per plane
+    h, w = depth.shape
+    out = np.zeros((h, w), np.int8)
+    for y in range(h):
+        cy = y // step
+        for x in range(w):
+            if not valid[y, x]:
+                continue
+            z = np.float64(depth[y, x])
+            tol = max(tol_mm, tol_rel * z)
+            cx = x // step
+            for k in range(coefs.shape[0]):
+                if not allowed[k, cy, cx]:
+                    continue
+                inv = coefs[k, 0] * x + coefs[k, 1] * y + coefs[k, 2]
+                if inv > 0 and abs(1000.0 - z * inv) <= tol * inv:
+                    out[y, x] = k + 1
+                    break
+    return out
 
 
 def _on(
@@ -209,13 +263,33 @@ def _ransac(
     if not good.any():
         return None
     coef = np.linalg.solve(a[good], inv[pick[good]][..., None])[..., 0]
-    # scoring on a fixed subsample keeps the (hypotheses x points) product a few MB
-    m = min(n, 1500)
+    m = min(n, 2000)
     ev = rng.integers(0, n, size=m) if n > m else np.arange(n)
-    pred = coef[:, 0:1] * u[ev][None, :] + coef[:, 1:2] * v[ev][None, :] + coef[:, 2:3]
-    score = ((pred > 0) & (np.abs(1000.0 - z[ev][None, :] * pred) <= tol[ev][None, :] * pred)).sum(axis=1)
+    score = _score(coef, u[ev], v[ev], z[ev], tol[ev])
     best = coef[int(np.argmax(score))]
     return float(best[0]), float(best[1]), float(best[2])
+
+
+@njit(cache=True)
+def _score(
+    coef: NDArray[np.float64],
+    u: NDArray[np.float64],
+    v: NDArray[np.float64],
+    z: NDArray[np.float64],
+    tol: NDArray[np.float64],
+) -> NDArray[np.int64]:
+    # inliers of every hypothesis without the (hypotheses x points) temporaries of numpy
+    # broadcasting, which took 4 ms per search on a shared core
+    out = np.zeros(coef.shape[0], np.int64)
+    for k in range(coef.shape[0]):
+        a, b, c = coef[k, 0], coef[k, 1], coef[k, 2]
+        cnt = 0
+        for i in range(u.size):
+            inv = a * u[i] + b * v[i] + c
+            if inv > 0 and abs(1000.0 - z[i] * inv) <= tol[i] * inv:
+                cnt += 1
+        out[k] = cnt
+    return out
 
 
 def _large_pieces(mask: NDArray[np.bool_], min_px: int) -> NDArray[np.bool_]:
