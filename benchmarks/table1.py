@@ -203,7 +203,7 @@ TABLETOP_BY_EYE: dict[str, int] = {
 def tabletop_rows(**overrides: Any) -> list[str]:
     """One line per real tabletop frame: objects on the largest support, count by eye, support.
 
-    "on support" counts segments of kind ``object`` (>= 0.3 % of the frame, nearer than 1.2 m)
+    "on support" counts segments of kind ``object`` or ``compound`` (>= 0.3 % of the frame, nearer than 1.2 m)
     whose centre lies in the support's box; a split object counts once per piece, so compare
     it with the count by eye together with the overlay pictures (``depthgram report``).
     """
@@ -231,7 +231,8 @@ def tabletop_rows(**overrides: Any) -> list[str]:
         on = sum(
             1
             for o in seg.objects
-            if o.kind == "object"
+            if o.kind in ("object", "compound")  # a box's top with its front face is a compound
+            and o.id != sup.id
             and o.area_fraction >= 0.003
             and o.depth < 1200.0
             and x0 <= o.center[0] <= x1

@@ -33,13 +33,15 @@ def _support(seg: Segmentation) -> tuple[int, int]:
 
 
 def _objects_on(seg: Segmentation, sup_id: int, max_depth_mm: float) -> int:
-    """Objects (>= 0.3 % of the frame, nearer than ``max_depth_mm``) inside the support's box."""
+    """Objects and compounds other than the support (>= 0.3 % of the frame, nearer than
+    ``max_depth_mm``) centred inside the support's box."""
     sup = seg.by_id()[sup_id]
     x0, y0, x1, y1 = sup.bbox
     return sum(
         1
         for o in seg.objects
-        if o.kind == "object"
+        if o.kind in ("object", "compound")  # a box's top with its front face is a compound
+        and o.id != sup_id
         and o.area_fraction >= 0.003
         and o.depth < max_depth_mm
         and x0 <= o.center[0] <= x1

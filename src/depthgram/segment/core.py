@@ -16,13 +16,14 @@ from depthgram.segment.label import label_bands_stats
 from depthgram.segment.objects import Histogram, SceneObject, Segmentation
 from depthgram.segment.orientation import FACING, HORIZONTAL, VERTICAL, default_intrinsics, orientation_classes
 from depthgram.segment.paper_slices import paper_slices
-from depthgram.segment.planes import find_planes, plane_distance_mm, plane_normal
+from depthgram.segment.planes import find_planes, plane_normal
 from depthgram.segment.region import region_grow
 from depthgram.segment.slices import (
     add_labels,
     drop_pieces,
     front_faces,
     near_planes,
+    plane_fits,
     planes_from_sums,
     slice_parts,
     support_kind,
@@ -176,7 +177,8 @@ def _slices(
 ) -> Segmentation:
     cam = intrinsics or default_intrinsics(depth.shape)
     classes = _orientation(depth, ok, cam, cfg)
-    planes = _add_support_planes(depth, ok, classes, cam, cfg) if cfg.support_planes and cfg.max_planes else []
+    if cfg.support_planes and cfg.max_planes:
+        _add_support_planes(depth, ok, classes, cam, cfg)
     wanted = []
     if cfg.slice_directions in ("both", "horizontal"):
         wanted.append(HORIZONTAL)
@@ -209,7 +211,7 @@ def _slices(
     total_boxes = np.concatenate(all_boxes)
     sup_stats = _stats_rows(total, total_boxes, np.r_[0, first_support:next_id])
     compounds = [(cls_of[o.id], o) for o in make_objects(labels, sup_stats, intrinsics=cam, first_id=first_support)]
-    below = _below_camera(labels, compounds, planes)
+    below = _below_camera(labels, next_id - 1, depth, cam, compounds)
     # only supports seen from above (floor, table tops) can have a front face below them
     horizontal_ids = np.array([o.id for c, o in compounds if c == HORIZONTAL and below[o.id] > 0], np.int32)
     widths = np.array([0] + [o.bbox[2] - o.bbox[0] + 1 for o in objects], np.float64)
@@ -273,35 +275,37 @@ def _slices(
 
 
 def _below_camera(
-    labels: NDArray[np.int32], compounds: list[tuple[int, SceneObject]], planes: list[tuple[NDArray[np.bool_], float]]
+    labels: NDArray[np.int32],
+    n: int,
+    depth: NDArray[np.float32],
+    cam: Intrinsics,
+    compounds: list[tuple[int, SceneObject]],
 ) -> dict[int, float]:
-    """How far (mm) each support lies below the camera; negative above it (a ceiling).
+    """How far (mm) each horizontal support lies below the camera; negative above it (a ceiling).
 
-    For a level camera the centroid's Y (image down) says it. A camera pitched down at a table
-    sees the table's centroid above its optical axis, so a support lying mostly on a fitted
-    plane takes the plane's signed height instead (``planes``: inlier mask, signed height).
+    The centroid's Y says it for a level camera only: a camera pitched down at a table sees the
+    table's centroid above its optical axis. The support's fitted plane says it for any pitch:
+    its normal turned toward the sensor points up (image -y) for a support seen from above, and
+    the plane's offset is the camera's height over it. Walls keep their centroid's Y.
     """
     out = {o.id: (o.centroid_mm[1] if o.centroid_mm else 0.0) for _, o in compounds}
-    if not planes or not compounds:
+    if not any(c == HORIZONTAL for c, _ in compounds):
         return out
-    n_ids = max(out) + 1
-    for inliers, height in planes:
-        on = np.bincount(labels[inliers], minlength=n_ids)
-        for _, o in compounds:
-            if on[o.id] > o.area // 2:
-                out[o.id] = height
+    normal, off, _ = plane_fits(labels, n, depth, cam)
+    for c, o in compounds:
+        if c == HORIZONTAL:
+            out[o.id] = float(off[o.id]) if normal[o.id, 1] < 0 else -float(off[o.id])
     return out
 
 
 def _add_support_planes(
     depth: NDArray[np.float32], ok: NDArray[np.bool_], classes: NDArray[np.int8], cam: Intrinsics, cfg: SegmentConfig
-) -> list[tuple[NDArray[np.bool_], float]]:
+) -> None:
     """Pixels of the dominant oblique planes join the horizontal or wall class (in place).
 
     The orientation field judges a surface against the camera's axes, so a table top seen at
     45 degrees from above is facing; its plane is found by a robust fit whatever its pitch. The
     plane's normal, not the image axes, says whether it is a horizontal support or a wall.
-    Returns each plane's inliers and signed height below the camera (mm; negative above it).
     """
     planes = find_planes(
         depth,
@@ -311,16 +315,13 @@ def _add_support_planes(
         tol_mm=cfg.plane_tol_mm,
         tol_rel=cfg.plane_tol_rel,
         max_planes=cfg.max_planes,
+        # the orientation field's supports need no second search: planes are looked for among
+        # the pixels it left facing (a table top seen at a slant), which also keeps it cheap
+        search=classes == FACING,
     )
-    out = []
     for plane in planes:
         n = plane_normal(plane.coef, cam)
-        cls = HORIZONTAL if abs(n[1]) >= abs(n[0]) else VERTICAL
-        classes[plane.inliers] = cls
-        # the normal turned toward the sensor points up (-y, image up) for a support seen from
-        # above; the camera's distance to the plane is its height over it
-        out.append((plane.inliers, plane_distance_mm(plane.coef, cam) * (1.0 if n[1] < 0 else -1.0)))
-    return out
+        classes[plane.inliers] = HORIZONTAL if abs(n[1]) >= abs(n[0]) else VERTICAL
 
 
 def _support_class(
