@@ -115,12 +115,14 @@ def test_boxes_on_tilted_table_come_apart() -> None:
         assert box.sum() >= 0.01 * z.size
         ids, counts = np.unique(seg.labels[box], return_counts=True)
         best = int(ids[np.argmax(counts)])
-        assert best and objects[best].kind == "object", f"box {k} not separate"
+        # a box seen at an angle: its face alone ("object") or face and side joined ("compound")
+        assert best and objects[best].kind in ("object", "compound"), f"box {k} not separate"
         found = seg.labels == best
         precision = (found & box).sum() / found.sum()
         recall = (found & box).sum() / box.sum()
-        # a box side seen at a slant is a wall piece of its own (orientation field), hence 0.75
-        assert precision >= 0.95 and recall >= 0.75, (k, precision, recall)
+        # a box side seen at a slant joins its face (side_max_area); without that fold box 3's
+        # recall was 0.78 (its side a wall piece of its own), with it 0.96
+        assert precision >= 0.95 and recall >= 0.9, (k, precision, recall)
     table = truth == 0
     ids, counts = np.unique(seg.labels[table], return_counts=True)
     sup = int(ids[np.argmax(counts)])

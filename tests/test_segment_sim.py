@@ -108,3 +108,22 @@ def test_real_tof_mug_is_the_nearest_object(shared_data: Path) -> None:
     # its curved flank is not taken for a wall, so the mug stays one object
     assert 250 <= near.depth <= 300 and near.area > 0.05 * f.valid.size
     assert near.centroid_mm is not None and near.area_mm2 is not None and near.area_mm2 > 0
+
+
+def test_cart_side_face_joins_its_front_not_a_wall() -> None:
+    """On `crossing` the cart shows its front and an oblique side: one compound, not a wall piece."""
+    import numpy as np
+
+    from depthgram.segment import segment
+    from depthgram.sensor import simulate
+
+    sim = list(simulate("crossing", 13, seed=1))[-1]  # cart entering from the side
+    cart = next(t for t in sim.truth if t.name == "cart")
+    seg = segment(sim.frame.depth, valid=sim.frame.valid, intrinsics=sim.frame.intrinsics)
+    mask = sim.instances == cart.id
+    ids, counts = np.unique(seg.labels[mask], return_counts=True)
+    objects = seg.by_id()
+    kinds = {objects[int(i)].kind for i, c in zip(ids, counts, strict=True) if i and c >= 0.1 * mask.sum()}
+    assert "wall" not in kinds, kinds
+    best = int(ids[np.argmax(counts)])
+    assert best and counts.max() >= 0.85 * mask.sum()

@@ -84,9 +84,22 @@ class TrackUpdate:
     ended: tuple[Track, ...] = ()
 
 
+def track_depth(o: SceneObject) -> float:
+    """The depth (mm) whose change is read as radial motion: the mean depth (paper, eq. 13), or
+    for a compound object its nearest part's.
+
+    A compound (a box's front and oblique side, a table top with its front edge) shows more or
+    less of its oblique surface as it moves across the view, which moves its mean depth with no
+    radial motion at all; its nearest slice (the front face, the front edge) does not.
+    """
+    if o.parts:
+        return min(p.depth for p in o.parts)
+    return o.depth
+
+
 def _features(objects: Sequence[SceneObject]) -> NDArray[np.float64]:
     """(M, 9) array: cx, cy, depth, area, label, x0, y0, x1, y1."""
-    rows = [(*o.center, o.depth, o.area, o.label, *o.bbox) for o in objects]
+    rows = [(*o.center, track_depth(o), o.area, o.label, *o.bbox) for o in objects]
     flat = np.fromiter(itertools.chain.from_iterable(rows), np.float64, count=9 * len(rows))
     return flat.reshape(len(rows), 9)
 

@@ -30,6 +30,7 @@ _RANGES = (
     ("plane_min_spread", 0.0, 10.0),
     ("plane_tol_mm", 0.0, 1e4),
     ("plane_tol_rel", 0.0, 1.0),
+    ("side_max_area", 0.0, 1.0),
 )
 
 
@@ -128,6 +129,12 @@ class SegmentConfig:
         Depth-proportional part of that tolerance (structured light noise grows with depth).
     max_planes : int
         Most support planes searched for per frame.
+    side_max_area : float
+        ``slices`` method: a vertical support smaller than this fraction of the frame that meets
+        a facing object along its side without a depth jump is that object's side face (a box
+        or a cart seen at an angle), and the two become one ``compound``; larger vertical
+        supports stay walls. 0 turns this off. On ``crossing`` the cart's side face was its own
+        ``wall`` track as it entered and left (2 identity switches, 0 with the fold).
     """
 
     method: str = "slices"
@@ -158,6 +165,7 @@ class SegmentConfig:
     plane_tol_mm: float = 8.0
     plane_tol_rel: float = 0.012
     max_planes: int = 3
+    side_max_area: float = 0.08
 
     def __post_init__(self) -> None:
         def bad(name: str, value: object, expected: str) -> InputError:

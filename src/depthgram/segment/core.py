@@ -25,6 +25,7 @@ from depthgram.segment.slices import (
     near_planes,
     plane_fits,
     planes_from_sums,
+    side_faces,
     slice_parts,
     support_kind,
     support_pieces,
@@ -216,6 +217,16 @@ def _slices(
     horizontal_ids = np.array([o.id for c, o in compounds if c == HORIZONTAL and below[o.id] > 0], np.int32)
     widths = np.array([0] + [o.bbox[2] - o.bbox[0] + 1 for o in objects], np.float64)
     fronts = front_faces(labels, depth, widths, horizontal_ids, jump_rel=cfg.jump_rel)
+    # small vertical supports beside a facing object are that object's side (a box at an angle)
+    side_ids = np.array(
+        [o.id for c, o in compounds if c == VERTICAL and o.area < cfg.side_max_area * depth.size], np.int32
+    )
+    heights = np.array([0] + [o.bbox[3] - o.bbox[1] + 1 for o in objects], np.float64)
+    mean_depth = np.zeros(next_id)
+    for o in (*objects, *(o for _, o in compounds)):
+        mean_depth[o.id] = o.depth
+    for f, sup in side_faces(labels, depth, heights, side_ids, mean_depth, jump_rel=cfg.jump_rel).items():
+        fronts.setdefault(f, sup)
     with_front = set(fronts.values())
     fold = np.arange(next_id, dtype=np.int32)
     for f, sup in fronts.items():
@@ -246,7 +257,7 @@ def _slices(
         whole = merged[new_id]
         kind = support_kind(cls, below[o.id], lowest is not None and o.id == lowest.id)
         if o.id in with_front:
-            kind = "compound"  # a horizontal top with a face below it: a table, a box, a step
+            kind = "compound"  # a top with a face below it, or a face with its side: a table, a box
         parts = slice_parts(
             labels,
             depth,

@@ -338,6 +338,69 @@ def front_faces(
     return out
 
 
+def side_faces(
+    labels: NDArray[np.int32],
+    depth_mm: NDArray[np.float32],
+    heights: NDArray[np.float64],
+    vertical_ids: NDArray[np.int32],
+    mean_depth: NDArray[np.float64],
+    *,
+    jump_rel: float,
+    min_contact: float = 0.5,
+) -> dict[int, int]:
+    """Facing objects whose side meets a small vertical support: the front and side of one box.
+
+    A box seen at an angle shows a face toward the sensor and a side running away from it; the
+    two meet along a vertical edge at the same depth, at the NEAR end of the side. Facing
+    objects have ids ``1..len(heights) - 1`` and bounding-box heights ``heights`` (px, index 0
+    unused); ``mean_depth`` (mm) is indexed by id. Returns ``{facing id: support id}`` for faces
+    in front of the side's middle touching a support in ``vertical_ids`` side by side, without
+    a depth jump, over at least ``min_contact`` of the face's height. (A wall behind the box
+    meets the side's far end and lies behind its middle, so it is not taken.)
+    """
+    n_facing = heights.size - 1
+    if n_facing == 0 or vertical_ids.size == 0:
+        return {}
+    is_side = np.zeros(int(labels.max(initial=0)) + 1, np.bool_)
+    is_side[vertical_ids] = True
+    contact = _side_contacts(labels, depth_mm, is_side, n_facing, np.float32(jump_rel))
+    out: dict[int, int] = {}
+    best: dict[int, int] = {}
+    for f, s, c in zip(*np.nonzero(contact), contact[contact > 0], strict=True):
+        f, s, c = int(f), int(s), int(c)
+        if c >= min_contact * heights[f] and c > best.get(f, 0) and mean_depth[f] < mean_depth[s]:
+            out[f] = s
+            best[f] = c
+    return out
+
+
+@njit(cache=True)
+def _side_contacts(
+    labels: NDArray[np.int32], depth: NDArray[np.float32], is_side: NDArray[np.bool_], n_facing: int, rel: np.float32
+) -> NDArray[np.int64]:
+    # One pass counting (facing id, side id) horizontal neighbours without a depth jump, in
+    # either order; the same shape as _contacts, which counts vertical neighbours.
+    h, w = labels.shape
+    out = np.zeros((n_facing + 1, is_side.size), np.int64)
+    for y in range(h):
+        for x in range(w - 1):
+            a = labels[y, x]
+            b = labels[y, x + 1]
+            if a == b or a <= 0 or b <= 0:
+                continue
+            if 0 < a <= n_facing and is_side[b]:
+                f, s = a, b
+            elif 0 < b <= n_facing and is_side[a]:
+                f, s = b, a
+            else:
+                continue
+            za = depth[y, x]
+            zb = depth[y, x + 1]
+            if abs(za - zb) <= rel * max(za, zb):
+                out[f, s] += 1
+    return out
+
+
 @njit(cache=True)
 def _contacts(
     labels: NDArray[np.int32], depth: NDArray[np.float32], is_support: NDArray[np.bool_], n_facing: int, rel: np.float32
