@@ -86,13 +86,15 @@ class TrackUpdate:
 
 def track_depth(o: SceneObject) -> float:
     """The depth (mm) whose change is read as radial motion: the mean depth (paper, eq. 13), or
-    for a compound object its nearest part's.
+    for a compound object (kind ``compound``) its nearest part's.
 
     A compound (a box's front and oblique side, a table top with its front edge) shows more or
     less of its oblique surface as it moves across the view, which moves its mean depth with no
-    radial motion at all; its nearest slice (the front face, the front edge) does not.
+    radial motion at all; its nearest slice (the front face, the front edge) does not. Floors,
+    walls and ceilings keep their mean depth: their nearest slice is wherever the view's edge
+    cuts them (measured on 7-Scenes: |v| p99 1101 mm/s with their nearest slice, 995 without).
     """
-    if o.parts:
+    if o.kind == "compound" and o.parts:
         return min(p.depth for p in o.parts)
     return o.depth
 
