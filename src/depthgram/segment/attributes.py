@@ -45,6 +45,15 @@ class Stats:
     syz: NDArray[Any] | None
     boxes: NDArray[np.int64] | None = None
 
+    @classmethod
+    def from_sums(cls, sums: NDArray[np.float64], boxes: NDArray[Any] | None, *, metric: bool) -> Stats:
+        """From the labellers' stacked sums (count, Z, Z², x, y, xZ, yZ, ...) per row; the two
+        metric sums are kept only when ``metric`` (intrinsics known)."""
+        return cls(
+            sums[:, 0], sums[:, 1], sums[:, 2], sums[:, 3], sums[:, 4],
+            sums[:, 5] if metric else None, sums[:, 6] if metric else None, boxes,
+        )  # fmt: skip
+
 
 def label_stats(labels: NDArray[np.int32], depth_mm: NDArray[np.floating], n: int, *, metric: bool = False) -> Stats:
     """Sums and boxes per label over the pixels with a label > 0, in one compiled pass.

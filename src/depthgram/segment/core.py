@@ -147,17 +147,7 @@ def _facing_objects(
     labels, _, sums, boxes = label_bands_stats(
         bins, bands.lut, ok, include, depth, bridge=cfg.fill_holes_px, min_px=cfg.min_area_px(depth.size)
     )
-    metric = intrinsics is not None
-    stats = Stats(
-        sums[:, 0],
-        sums[:, 1],
-        sums[:, 2],
-        sums[:, 3],
-        sums[:, 4],
-        sums[:, 5] if metric else None,
-        sums[:, 6] if metric else None,
-        boxes,
-    )
+    stats = Stats.from_sums(sums, boxes, metric=intrinsics is not None)
     objects = make_objects(labels, stats, depth_labels=sums[:, 7].astype(np.int64), intrinsics=intrinsics)
     return labels, objects, bands, sums, boxes
 
@@ -384,7 +374,7 @@ def _stats_rows(sums: NDArray[np.float64], boxes: NDArray[np.int64], rows: NDArr
     s = sums[rows]
     s[0] = 0.0
     b = boxes[rows]
-    return Stats(s[:, 0], s[:, 1], s[:, 2], s[:, 3], s[:, 4], s[:, 5], s[:, 6], b)
+    return Stats.from_sums(s, b, metric=True)
 
 
 def _orientation(

@@ -64,16 +64,6 @@ def region_grow(
     labels, _, sums, boxes = label_keyed_stats(
         depth, state, depth, tol=tol, rel=rel, bridge=fill_holes_px, min_px=min_px
     )
-    metric = intrinsics is not None
-    stats = Stats(
-        sums[:, 0],
-        sums[:, 1],
-        sums[:, 2],
-        sums[:, 3],
-        sums[:, 4],
-        sums[:, 5] if metric else None,
-        sums[:, 6] if metric else None,
-        boxes,
-    )
+    stats = Stats.from_sums(sums, boxes, metric=intrinsics is not None)
     objects = make_objects(labels, stats, intrinsics=intrinsics)
     return Segmentation(labels=labels, objects=tuple(objects), histogram=None, method="region")

@@ -88,17 +88,7 @@ def slice_parts(
     step = int(aperture) if aperture >= 1 else max(1, math.ceil(aperture * extent))
     n_slices = (extent + step - 1) // step
     sums, boxes = _part_sums(labels, depth_mm, obj.id, x0, y0, x1, y1, step, horizontal, n_slices)
-    metric = intrinsics is not None
-    stats = Stats(
-        sums[:, 0],
-        sums[:, 1],
-        sums[:, 2],
-        sums[:, 3],
-        sums[:, 4],
-        sums[:, 5] if metric else None,
-        sums[:, 6] if metric else None,
-        boxes,
-    )
+    stats = Stats.from_sums(sums, boxes, metric=intrinsics is not None)
     part_map = labels[y0 : y1 + 1, x0 : x1 + 1]  # only its size is read below
     shifted = None
     if intrinsics is not None:
@@ -328,14 +318,7 @@ def front_faces(
     is_support = np.zeros(n_ids, np.bool_)
     is_support[horizontal_ids] = True
     contact = _contacts(labels, depth_mm, is_support, n_facing, np.float32(jump_rel))
-    out: dict[int, int] = {}
-    best: dict[int, int] = {}
-    for f, s, c in zip(*np.nonzero(contact), contact[contact > 0], strict=True):
-        f, s, c = int(f), int(s), int(c)
-        if c >= min_contact * widths[f] and c > best.get(f, 0):
-            out[f] = s
-            best[f] = c
-    return out
+    return _best_contact(contact, min_contact * widths)
 
 
 def side_faces(
@@ -364,13 +347,20 @@ def side_faces(
     is_side = np.zeros(int(labels.max(initial=0)) + 1, np.bool_)
     is_side[vertical_ids] = True
     contact = _side_contacts(labels, depth_mm, is_side, n_facing, np.float32(jump_rel))
+    behind = mean_depth[None, : contact.shape[1]] > mean_depth[: contact.shape[0], None]
+    return _best_contact(np.where(behind, contact, 0), min_contact * heights)
+
+
+def _best_contact(contact: NDArray[np.int64], needed: NDArray[np.float64]) -> dict[int, int]:
+    """``{facing id: support id}``: for each facing row the support it touches most, when that
+    contact (px) reaches ``needed[facing id]``."""
     out: dict[int, int] = {}
-    best: dict[int, int] = {}
-    for f, s, c in zip(*np.nonzero(contact), contact[contact > 0], strict=True):
-        f, s, c = int(f), int(s), int(c)
-        if c >= min_contact * heights[f] and c > best.get(f, 0) and mean_depth[f] < mean_depth[s]:
-            out[f] = s
-            best[f] = c
+    if contact.size == 0:
+        return out
+    best = contact.argmax(axis=1)
+    most = contact[np.arange(contact.shape[0]), best]
+    for f in np.flatnonzero((most > 0) & (most >= needed)):
+        out[int(f)] = int(best[f])
     return out
 
 
