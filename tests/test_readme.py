@@ -19,3 +19,13 @@ def test_python_example_runs(capsys) -> None:
     exec(compile(code, str(README), "exec"), {"depth_mm": depth_mm})
     out = capsys.readouterr().out
     assert "900" in out and out.count("Bkg") == 4
+
+
+def test_depthgram_segment_is_callable_after_the_stages_are_imported() -> None:
+    import depthgram
+    import depthgram.pipeline  # noqa: F401  (imports the segment package, which shadows the lazy name)
+
+    depth = np.full((30, 40), 2000.0, np.float32)
+    depth[5:15, 5:15] = 700.0
+    seg = depthgram.segment(depth, min_area=20)
+    assert any(abs(o.depth - 700.0) < 1 and o.area == 100 for o in seg.objects)

@@ -7,6 +7,10 @@
   precision, Hoover et al. 1996 counts).
 """
 
+import sys
+import types
+from typing import Any
+
 from depthgram.segment.config import METHODS, SegmentConfig
 from depthgram.segment.core import segment
 from depthgram.segment.evaluate import Evaluation, ObjectScore, evaluate
@@ -26,3 +30,18 @@ __all__ = [
     "region_grow",
     "segment",
 ]
+
+
+class _CallableModule(types.ModuleType):
+    """This package, callable as :func:`segment`.
+
+    ``depthgram.segment(depth_mm)`` is the public name users write, and ``depthgram.segment`` is
+    also this package: once any code has imported it, the package attribute is the module, not
+    the function, so the module itself forwards calls to the function.
+    """
+
+    def __call__(self, *args: Any, **kwargs: Any) -> Segmentation:
+        return segment(*args, **kwargs)
+
+
+sys.modules[__name__].__class__ = _CallableModule
