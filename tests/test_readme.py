@@ -23,7 +23,7 @@ def test_python_example_runs(capsys) -> None:
 
 def test_depthgram_segment_is_callable_after_the_stages_are_imported() -> None:
     import depthgram
-    import depthgram.pipeline  # noqa: F401  (imports the segment package, which shadows the lazy name)
+    import depthgram.pipeline  # imports the segment package, which shadows the lazy name
 
     depth = np.full((30, 40), 2000.0, np.float32)
     depth[5:15, 5:15] = 700.0
