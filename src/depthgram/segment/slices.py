@@ -317,7 +317,7 @@ def front_faces(
     n_ids = int(labels.max(initial=0)) + 1
     is_support = np.zeros(n_ids, np.bool_)
     is_support[horizontal_ids] = True
-    contact = _contacts(labels, depth_mm, is_support, n_facing, np.float32(jump_rel))
+    contact = _contacts(labels, depth_mm, is_support, n_facing, np.float32(jump_rel), False)
     return _best_contact(contact, min_contact * widths)
 
 
@@ -346,7 +346,7 @@ def side_faces(
         return {}
     is_side = np.zeros(int(labels.max(initial=0)) + 1, np.bool_)
     is_side[vertical_ids] = True
-    contact = _side_contacts(labels, depth_mm, is_side, n_facing, np.float32(jump_rel))
+    contact = _contacts(labels, depth_mm, is_side, n_facing, np.float32(jump_rel), True)
     behind = mean_depth[None, : contact.shape[1]] > mean_depth[: contact.shape[0], None]
     return _best_contact(np.where(behind, contact, 0), min_contact * heights)
 
@@ -365,51 +365,36 @@ def _best_contact(contact: NDArray[np.int64], needed: NDArray[np.float64]) -> di
 
 
 @njit(cache=True)
-def _side_contacts(
-    labels: NDArray[np.int32], depth: NDArray[np.float32], is_side: NDArray[np.bool_], n_facing: int, rel: np.float32
+def _contacts(
+    labels: NDArray[np.int32],
+    depth: NDArray[np.float32],
+    is_support: NDArray[np.bool_],
+    n_facing: int,
+    rel: np.float32,
+    side_by_side: bool,
 ) -> NDArray[np.int64]:
-    # One pass counting (facing id, side id) horizontal neighbours without a depth jump, in
-    # either order; the same shape as _contacts, which counts vertical neighbours.
+    # One pass counting (facing id, support id) neighbours without a depth jump: a support
+    # pixel right above a facing one (front faces), or with ``side_by_side`` the two next to
+    # each other in either order (side faces). The numpy route (masks over the whole frame,
+    # then np.unique of the pairs) took 2.4 ms at 640 x 480. The depth test is in float32 like
+    # the numpy one, so the counts are the same. Facing ids are 1..n_facing, supports above.
     h, w = labels.shape
-    out = np.zeros((n_facing + 1, is_side.size), np.int64)
-    for y in range(h):
-        for x in range(w - 1):
+    dy, dx = (0, 1) if side_by_side else (1, 0)
+    out = np.zeros((n_facing + 1, is_support.size), np.int64)
+    for y in range(h - dy):
+        for x in range(w - dx):
             a = labels[y, x]
-            b = labels[y, x + 1]
-            if a == b or a <= 0 or b <= 0:
-                continue
-            if 0 < a <= n_facing and is_side[b]:
-                f, s = a, b
-            elif 0 < b <= n_facing and is_side[a]:
+            b = labels[y + dy, x + dx]
+            if 0 < b <= n_facing and is_support[a]:
                 f, s = b, a
+            elif side_by_side and 0 < a <= n_facing and is_support[b]:
+                f, s = a, b
             else:
                 continue
             za = depth[y, x]
-            zb = depth[y, x + 1]
+            zb = depth[y + dy, x + dx]
             if abs(za - zb) <= rel * max(za, zb):
                 out[f, s] += 1
-    return out
-
-
-@njit(cache=True)
-def _contacts(
-    labels: NDArray[np.int32], depth: NDArray[np.float32], is_support: NDArray[np.bool_], n_facing: int, rel: np.float32
-) -> NDArray[np.int64]:
-    # one pass counting (facing id, support id) vertical contacts without a depth jump; the
-    # numpy route (masks over the whole frame, then np.unique of the pairs) took 2.4 ms at
-    # 640 x 480. The depth test is in float32 like the numpy one, so the counts are the same.
-    h, w = labels.shape
-    out = np.zeros((n_facing + 1, is_support.size), np.int64)
-    for y in range(h - 1):
-        for x in range(w):
-            a = labels[y, x]
-            b = labels[y + 1, x]
-            if b <= 0 or b > n_facing or not is_support[a]:
-                continue
-            za = depth[y, x]
-            zb = depth[y + 1, x]
-            if abs(za - zb) <= rel * max(za, zb):
-                out[b, a] += 1
     return out
 
 
