@@ -131,7 +131,7 @@ def test_bins_and_counts_match_numpy() -> None:
     lo = float(depth[valid].min())
     nb = int((float(depth[valid].max()) - lo) / 10.0) + 1
     bins, counts = bin_pixels(depth, valid, lo, 10.0, False, nb)
-    want = np.minimum(((depth.astype(np.float64) - lo) / 10.0).astype(np.int64), nb - 1)
+    want = np.minimum(((depth.astype(np.float64) - lo) * (1 / 10.0)).astype(np.int64), nb - 1)
     np.testing.assert_array_equal(bins, np.where(valid, want, -1))
     np.testing.assert_array_equal(counts, np.bincount(want[valid], minlength=nb))
     lbins, _ = bin_pixels(depth, valid, math.log(lo), 0.01, True, 400)

@@ -40,22 +40,41 @@ def _range(depth: NDArray[np.float32], valid: NDArray[np.bool_]) -> tuple[float,
 def _bins(
     depth: NDArray[np.float32], valid: NDArray[np.bool_], lo: float, step: float, log: bool, nb: int
 ) -> tuple[NDArray[np.int32], NDArray[np.int64]]:
-    # two branch-free loops (bin of every pixel, then the counts) instead of one loop with a
-    # branch per pixel: the first vectorises, measured 0.54 against 0.90 ms at 640 x 480
+    # Per row, a branch-free loop writes every pixel's bin (it vectorises), then the row is
+    # counted into four interleaved tables: neighbouring pixels mostly fall in the same bin,
+    # and one table makes each increment wait for the previous one. Unsigned indices spare
+    # numba's negative-index test, which kept the first loop from vectorising.
+    # Measured at 640 x 480: 0.36 against 0.67 ms for a loop over pixels into one table.
     h, w = depth.shape
     out = np.empty((h, w), np.int32)
+    counts = np.zeros((4, nb + 1), np.int64)
+    uw = np.uint64(w)
+    top = nb - 1
+    inv = 1.0 / step
     for y in range(h):
-        for x in range(w):
-            z = depth[y, x]
-            if log:
-                z = math.log(z) if valid[y, x] else 0.0
-            b = min(int((z - lo) / step), nb - 1)
-            out[y, x] = b if valid[y, x] else -1
-    counts = np.zeros(nb + 1, np.int64)
-    for y in range(h):
-        for x in range(w):
-            counts[out[y, x] + 1] += 1
-    return out, counts[1:]
+        zrow = depth[y]
+        vrow = valid[y]
+        orow = out[y]
+        if log:
+            for x in range(uw):
+                z = math.log(zrow[x]) if vrow[x] else 0.0
+                b = min(np.int64((z - lo) / step), top)
+                orow[x] = b if vrow[x] else -1
+        else:
+            for x in range(uw):
+                b = min(np.int64((np.float64(zrow[x]) - lo) * inv), top)
+                orow[x] = b if vrow[x] else -1
+        x = 0
+        while x + 3 < w:
+            counts[0, np.uint64(orow[x] + 1)] += 1
+            counts[1, np.uint64(orow[x + 1] + 1)] += 1
+            counts[2, np.uint64(orow[x + 2] + 1)] += 1
+            counts[3, np.uint64(orow[x + 3] + 1)] += 1
+            x += 4
+        while x < w:
+            counts[0, np.uint64(orow[x] + 1)] += 1
+            x += 1
+    return out, counts[0, 1:] + counts[1, 1:] + counts[2, 1:] + counts[3, 1:]
 
 
 @njit(cache=True)

@@ -231,7 +231,12 @@ def _flush(
     boxes[i, 3] = y  # rows are scanned in order: the latest row is the lowest
 
 
-@njit(cache=True)
+#: Float flags for the band labeller: its only float work is the per-run depth sums, which
+#: vectorise once they may be reassociated (the sums then differ in the last bits only).
+_SUM_FLAGS = {"reassoc", "nsz", "contract"}
+
+
+@njit(cache=True, fastmath=_SUM_FLAGS)
 def _label_bands(
     bins: NDArray[np.int32],
     lut: NDArray[np.int32],
@@ -245,10 +250,13 @@ def _label_bands(
     # is coded once (band >= 0, -1 blocking, -2 hole) through the bin -> band table, so no band
     # image is written; a run is a stretch of one band with holes of at most `bridge` px; it
     # takes the label of the first upper neighbour it joins (else a new one) and every other
-    # upper label costs one union; its sums are gathered in one tight loop. Each column
-    # remembers its last pixel with a reading (row, label, band), so the upper neighbour
-    # across a bridged hole is found in O(1). Measured 2.4 against 3.0 ms for the pixel-wise
-    # loop of _label_runs at 640 x 480.
+    # upper label costs one union. Each column remembers its last pixel with a reading (row,
+    # label, band), so the upper neighbour across a bridged hole is found in O(1).
+    # Most runs lie under one upper run of their band: a branch-free (vectorised) test over the
+    # run says so, and only the others take the per-pixel union loop. Holes hold depth 0, so
+    # the depth sums need no test per pixel either. Loops index with unsigned integers, which
+    # spares numba's negative-index test (it kept them from vectorising).
+    # Measured at 640 x 480: 1.56 against 2.22 ms for one per-pixel loop.
     h, w = bins.shape
     lab = np.zeros((h, w), np.int32)
     cap = h * w + 1  # np.empty reserves; pages of unused labels are never touched
@@ -260,15 +268,18 @@ def _label_bands(
     col_lab = np.zeros(w, np.int32)
     col_k = np.full(w, -1, np.int32)
     code = np.empty(w + 1, np.int32)
+    uw = np.uint64(w)
     nxt = 1
     for y in range(h):
-        for x in range(w):
-            b = bins[y, x]
-            kb = lut[max(b, 0)]
+        brow = bins[y]
+        vrow = valid[y]
+        for ux in range(uw):
+            b = brow[ux]
+            kb = lut[np.uint64(max(b, 0))]
             on = (kb >= 0) & (b >= 0)
             if use_include:
-                on &= include[y, x]
-            code[x] = kb if on else (-1 if valid[y, x] else -2)
+                on &= include[y, ux]
+            code[ux] = kb if on else (-1 if vrow[ux] else -2)
         code[w] = -1  # sentinel: ends the last run
         zrow = depth[y]
         lrow = lab[y]
@@ -283,25 +294,40 @@ def _label_bands(
                 continue
             a = x
             last = x
+            n_in = 1
             x += 1
             while True:
                 kx = code[x]
                 if kx == k:
                     last = x
+                    n_in += 1
                 elif kx != -2 or x - last >= reach:
                     break
                 x += 1
             x = last + 1
+            ua = np.uint64(a)
+            ue = np.uint64(last + 1)
+            whole = n_in == last + 1 - a
+            first = col_lab[ua]
+            k32 = np.int32(k)
+            differ = np.int32(0)
+            oldest = np.int32(y)
+            for ux in range(ua, ue):
+                differ |= (col_lab[ux] ^ first) | (col_k[ux] ^ k32)
+                oldest = min(oldest, col_row[ux])
             lab_run = 0
-            merged = 0
-            for xx in range(a, last + 1):
-                cl = col_lab[xx]
-                if cl != merged and code[xx] == k and col_k[xx] == k and y - col_row[xx] <= reach:
-                    if lab_run == 0:
-                        lab_run = cl
-                    else:
-                        _union(parent, lab_run, cl)
-                    merged = cl
+            if whole and differ == 0 and first != 0 and y - oldest <= reach:
+                lab_run = first
+            else:
+                merged = 0
+                for ux in range(ua, ue):
+                    cl = col_lab[ux]
+                    if cl != merged and code[ux] == k and col_k[ux] == k and y - col_row[ux] <= reach:
+                        if lab_run == 0:
+                            lab_run = cl
+                        else:
+                            _union(parent, lab_run, cl)
+                        merged = cl
             if lab_run == 0:
                 lab_run = nxt
                 parent[nxt] = nxt
@@ -311,23 +337,33 @@ def _label_bands(
                 boxes[nxt, 2] = -1
                 boxes[nxt, 3] = -1
                 nxt += 1
-            c = 0.0
             sz = 0.0
             szz = 0.0
-            sx = 0.0
             sxz = 0.0
-            for xx in range(a, last + 1):
-                if code[xx] == k:
-                    lrow[xx] = lab_run
-                    col_lab[xx] = lab_run
-                    col_k[xx] = k
-                    col_row[xx] = y
-                    z = np.float64(zrow[xx])
-                    c += 1.0
-                    sz += z
-                    szz += z * z
-                    sx += xx
-                    sxz += xx * z
+            for ux in range(ua, ue):
+                z = np.float64(zrow[ux])
+                sz += z
+                szz += z * z
+                sxz += np.float64(ux) * z
+            if whole:
+                for ux in range(ua, ue):
+                    lrow[ux] = lab_run
+                    col_lab[ux] = lab_run
+                    col_k[ux] = k
+                    col_row[ux] = y
+                c = float(n_in)
+                sx = float((a + last) * n_in // 2)
+            else:
+                c = 0.0
+                sx = 0.0
+                for ux in range(ua, ue):
+                    if code[ux] == k:
+                        lrow[ux] = lab_run
+                        col_lab[ux] = lab_run
+                        col_k[ux] = k
+                        col_row[ux] = y
+                        c += 1.0
+                        sx += np.float64(ux)
             _flush(sums, boxes, lab_run, c, sz, szz, sx, sxz, y, a, last, k)
     return lab, parent, nxt, sums, boxes
 
@@ -550,6 +586,9 @@ def label_bands_stats(
     :func:`depthgram.segment.binning.band_state` (``tol=0``), without writing either image:
     the band of a pixel is ``lut[bins]``, pixels without a reading are holes, valid pixels
     outside every band or outside ``include`` block. Column 7 of ``sums`` is the band.
+    ``depth_mm`` must be 0 wherever ``valid`` is False (as
+    :func:`depthgram.segment.validate.check_depth` returns it): holes inside a run are summed
+    with the run's pixels and must add nothing.
     """
     inc = include if include is not None else np.zeros((1, 1), np.bool_)
     lab, parent, nxt, ps, pb = _label_bands(bins, lut, valid, inc, include is not None, int(bridge), depth_mm)
