@@ -8,10 +8,12 @@ compiled raster pass over the label map, whatever the object count. The plain-nu
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from numba import njit
 from numpy.typing import NDArray
 from scipy import ndimage
 
@@ -128,6 +130,38 @@ def relabel_small(labels: NDArray[np.int32], count: NDArray[np.float64], min_px:
     return out
 
 
+@njit(cache=True)
+def _attribute_table(
+    count: NDArray[np.float64],
+    sz: NDArray[np.float64],
+    szz: NDArray[np.float64],
+    sx: NDArray[np.float64],
+    sy: NDArray[np.float64],
+    sxz: NDArray[np.float64],
+    syz: NDArray[np.float64],
+    fx: float,
+    fy: float,
+    cx: float,
+    cy: float,
+) -> NDArray[np.float64]:
+    # per label 1..n: count, mean depth, depth std, center x, y, centroid X, Y (mm), area (mm²)
+    n = count.size - 1
+    out = np.empty((max(n, 0), 8), np.float64)
+    for i in range(1, n + 1):
+        safe = max(count[i], 1.0)
+        mean = sz[i] / safe
+        row = out[i - 1]
+        row[0] = count[i]
+        row[1] = mean
+        row[2] = math.sqrt(max(szz[i] / safe - mean * mean, 0.0))
+        row[3] = sx[i] / safe
+        row[4] = sy[i] / safe
+        row[5] = (sxz[i] - cx * sz[i]) / fx / safe
+        row[6] = (syz[i] - cy * sz[i]) / fy / safe
+        row[7] = szz[i] / (fx * fy)
+    return out
+
+
 def make_objects(
     labels: NDArray[np.int32],
     stats: Stats,
@@ -159,56 +193,49 @@ def make_objects(
     total = labels.size
     if n <= 0:
         return []
-    # every attribute is computed for all labels at once and turned into Python numbers in
-    # one .tolist() per column: per-object numpy scalar arithmetic and float() calls cost
-    # more than the statistics pass on small frames
-    cnt = stats.count[1:]
-    safe = np.maximum(cnt, 1.0)
-    mean = stats.sz[1:] / safe
-    std = np.sqrt(np.maximum(stats.szz[1:] / safe - mean * mean, 0.0))
+    metric = intrinsics is not None and stats.sxz is not None and stats.syz is not None
+    cam = (1.0, 1.0, 0.0, 0.0)
+    if intrinsics is not None:
+        cam = (intrinsics.fx, intrinsics.fy, intrinsics.cx, intrinsics.cy)
+    # every attribute of every label in one compiled call, turned into Python numbers by one
+    # .tolist(): per-column numpy calls and per-object numpy scalars cost more than the
+    # statistics pass on small frames
+    sxz = stats.sxz if metric and stats.sxz is not None else stats.sz
+    syz = stats.syz if metric and stats.syz is not None else stats.sz
+    table = _attribute_table(
+        stats.count, stats.sz, stats.szz, stats.sx, stats.sy, sxz, syz, *cam,
+    ).tolist()  # fmt: skip
     if stats.boxes is not None:
         b = stats.boxes[1:]
         x0, y0, x1, y1 = (b[:, j].tolist() for j in range(4))
-        present = (cnt > 0).tolist()
+        present = (stats.count[1:] > 0).tolist()
     else:
         found = ndimage.find_objects(labels, max_label=n)
-        present = [(c > 0 and f is not None) for c, f in zip(cnt.tolist(), found, strict=True)]
+        present = [(row[0] > 0 and f is not None) for row, f in zip(table, found, strict=True)]
         x0 = [f[1].start if f is not None else 0 for f in found]
         y0 = [f[0].start if f is not None else 0 for f in found]
         x1 = [f[1].stop - 1 if f is not None else 0 for f in found]
         y1 = [f[0].stop - 1 if f is not None else 0 for f in found]
-    metric = intrinsics is not None and stats.sxz is not None and stats.syz is not None
-    if metric:
-        assert intrinsics is not None and stats.sxz is not None and stats.syz is not None
-        fx, fy, cx, cy = intrinsics.fx, intrinsics.fy, intrinsics.cx, intrinsics.cy
-        gx = ((stats.sxz[1:] - cx * stats.sz[1:]) / fx / safe).tolist()
-        gy = ((stats.syz[1:] - cy * stats.sz[1:]) / fy / safe).tolist()
-        amm = (stats.szz[1:] / (fx * fy)).tolist()
-    mean_l = mean.tolist()
-    std_l = std.tolist()
-    cnt_l = cnt.tolist()
-    cx_l = (stats.sx[1:] / safe).tolist()
-    cy_l = (stats.sy[1:] / safe).tolist()
     id_l = ids[1:].tolist() if ids is not None else list(range(first_id, first_id + n))
     lab_l = depth_labels[1:].tolist() if depth_labels is not None else [0] * n
     out: list[SceneObject] = []
     for j in range(n):
         if not present[j]:
             continue
-        c = cnt_l[j]
+        c, mean, std, cx, cy, gx, gy, amm = table[j]
         out.append(
             SceneObject(
                 id=int(id_l[j]),
                 kind=kinds[j + 1] if kinds is not None else "object",
                 label=int(lab_l[j]),
-                depth=mean_l[j],
-                depth_std=std_l[j],
+                depth=mean,
+                depth_std=std,
                 area=int(c),
                 area_fraction=c / total,
-                center=(cx_l[j], cy_l[j]),
+                center=(cx, cy),
                 bbox=(int(x0[j]), int(y0[j]), int(x1[j]), int(y1[j])),
-                centroid_mm=(gx[j], gy[j], mean_l[j]) if metric else None,
-                area_mm2=amm[j] if metric else None,
+                centroid_mm=(gx, gy, mean) if metric else None,
+                area_mm2=amm if metric else None,
             )
         )
     return out

@@ -100,17 +100,24 @@ def _band_state(
 
 
 @njit(cache=True)
-def _range_bits(bits: NDArray[np.uint32]) -> tuple[np.uint32, np.uint32]:
+def _range_bits(bits: NDArray[np.uint32]) -> tuple[float, float, int]:
     # positive float32 values order like their bit patterns, and 0 - 1 wraps to the largest
-    # uint32, so integer min/max (which vectorise, unlike NaN-aware float min) give the range
+    # uint32, so integer min/max (which vectorise, unlike NaN-aware float min) give the range;
+    # the nonzero patterns are the valid pixels
     lo = np.uint32(0xFFFFFFFF)
     hi = np.uint32(0)
     one = np.uint32(1)
+    n = 0
     for i in range(bits.size):
         u = bits[i]
         lo = min(lo, u - one)
         hi = max(hi, u)
-    return lo + one, hi
+        n += u != 0
+    pair = np.empty(2, np.uint32)
+    pair[0] = lo + one
+    pair[1] = hi
+    z = pair.view(np.float32)
+    return float(z[0]), float(z[1]), n
 
 
 def depth_range(
@@ -125,12 +132,10 @@ def depth_range(
     if not zero_outside:
         lo, hi, n = _range(depth_mm, valid)
         return float(lo), float(hi), int(n)
-    n = int(np.count_nonzero(valid))
+    lo, hi, n = _range_bits(depth_mm.reshape(-1).view(np.uint32))
     if n == 0:
         return float("inf"), float("-inf"), 0
-    lo_bits, hi_bits = _range_bits(depth_mm.reshape(-1).view(np.uint32))
-    pair = np.array([lo_bits, hi_bits], np.uint32).view(np.float32)
-    return float(pair[0]), float(pair[1]), n
+    return lo, hi, int(n)
 
 
 def bin_pixels(

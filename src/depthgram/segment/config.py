@@ -207,11 +207,13 @@ class SegmentConfig:
 
     def with_overrides(self, **overrides: Any) -> SegmentConfig:
         """A copy with some fields replaced; unknown names raise :class:`InputError`."""
+        if not overrides:
+            return self
         known = {f.name for f in fields(self)}
         unknown = sorted(set(overrides) - known)
         if unknown:
             raise InputError(f"segment config: unknown option(s) {unknown}; known: {sorted(known)}")
-        return replace(self, **overrides) if overrides else self
+        return replace(self, **overrides)
 
     def min_area_px(self, n_pixels: int) -> int:
         """``min_area`` in pixels for a frame of ``n_pixels`` pixels (at least 1)."""

@@ -153,7 +153,10 @@ def _facing_objects(
 
 
 def _extras(bands: Bands) -> dict[str, object]:
-    return {"bands_mm": np.stack([bands.lower, bands.upper], axis=1) if bands.lower.size else np.zeros((0, 2))}
+    limits = np.empty((bands.lower.size, 2))
+    limits[:, 0] = bands.lower
+    limits[:, 1] = bands.upper
+    return {"bands_mm": limits}
 
 
 def _threshold(

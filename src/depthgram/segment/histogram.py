@@ -13,10 +13,12 @@ Both readings were measured on the simulator's seeded scenes (``benchmarks/table
 from __future__ import annotations
 
 import math
+from functools import lru_cache
 
 import numpy as np
+from numba import njit
 from numpy.typing import NDArray
-from scipy.ndimage import gaussian_filter1d
+from scipy.ndimage import correlate1d, gaussian_filter1d
 from scipy.signal import find_peaks
 
 from depthgram.segment.binning import bin_pixels, depth_range
@@ -86,6 +88,59 @@ class Bands:
         return np.searchsorted(self.upper, np.asarray(depth_mm), side="left")
 
 
+@njit(cache=True)
+def _cuts(
+    smooth: NDArray[np.float64], peaks: NDArray[np.intp], t: float, nearest: bool
+) -> tuple[NDArray[np.int32], NDArray[np.int64], NDArray[np.int64]]:
+    # The paper's 10 % rule, once per peak. Compiled because on small frames the loop's
+    # bookkeeping in Python (list slices, numpy scalars) cost more than the histogram itself.
+    nb = smooth.size
+    k = peaks.size
+    lut = np.full(nb, -1, np.int32)
+    first = np.empty(k, np.int64)
+    last = np.empty(k, np.int64)
+    prev_min = 0
+    for i in range(k):
+        p = peaks[i]
+        # following minimum: lowest smoothed bin before the next peak (first one on ties)
+        stop = peaks[i + 1] if i + 1 < k else nb - 1
+        nxt = p
+        for j in range(p + 1, stop + 1):
+            if smooth[j] < smooth[nxt]:
+                nxt = j
+        if i + 1 == k and smooth[nxt] > 0:
+            nxt = nb - 1
+        lo_bin = p - t * (p - prev_min)
+        hi_bin = p + t * (nxt - p)
+        a = max(math.ceil(lo_bin - 1e-9), 0)
+        b = min(math.floor(hi_bin + 1e-9), nb - 1)
+        first[i] = a
+        last[i] = b
+        if nearest:
+            # the gap on each side goes to this band up to the minimum (the next band overwrites it)
+            a = prev_min if i else 0
+            b = nxt if i + 1 < k else nb - 1
+        lut[a : b + 1] = i
+        prev_min = nxt
+    return lut, first, last
+
+
+@lru_cache(maxsize=16)
+def _gaussian_weights(sigma: float) -> NDArray[np.float64]:
+    """The kernel ``gaussian_filter1d`` uses for ``sigma``: its response to a unit impulse.
+
+    Filtering with these weights through ``correlate1d`` gives the same numbers as
+    ``gaussian_filter1d``, without building the kernel on every frame (a fifth of the
+    histogram step at 176 x 132).
+    """
+    radius = int(4.0 * sigma + 0.5)  # gaussian_filter1d's default truncate=4.0
+    impulse = np.zeros(2 * radius + 1)
+    impulse[radius] = 1.0
+    weights = gaussian_filter1d(impulse, sigma, mode="constant")
+    weights.setflags(write=False)
+    return weights
+
+
 def depth_bands(counts: NDArray[np.int64], edges: NDArray[np.float64], config: SegmentConfig) -> Bands:
     """Peaks and cuts of a histogram from :func:`bin_index`."""
     nb = edges.size - 1
@@ -93,46 +148,19 @@ def depth_bands(counts: NDArray[np.int64], edges: NDArray[np.float64], config: S
     if nb == 0 or n_valid == 0:
         empty = np.zeros(0)
         return Bands(Histogram(edges, counts, empty, empty), np.full(max(nb, 1), -1, np.int32), empty)
-    smooth = gaussian_filter1d(counts.astype(np.float64), config.smooth_bins) if config.smooth_bins > 0 else counts
+    smooth = (
+        correlate1d(counts.astype(np.float64), _gaussian_weights(float(config.smooth_bins)), mode="reflect")
+        if config.smooth_bins > 0
+        else counts
+    )
     # pad so that a peak in the first or last bin is found too
     padded = np.concatenate(([0.0], smooth, [0.0]))
     found, _ = find_peaks(padded, prominence=max(config.min_prominence * n_valid, 1e-9))
     peaks = found - 1
-    k = peaks.size
-    lut = np.full(nb, -1, np.int32)
-    centers = 0.5 * (edges[:-1] + edges[1:])
-    # the loop runs once per peak over Python ints and floats: with numpy scalars its
-    # bookkeeping cost more than the histogram itself on small frames
-    plist = peaks.tolist()
-    sm = smooth.tolist()
-    edge = edges.tolist()
-    lower_l: list[float] = []
-    upper_l: list[float] = []
     t = 1.0 - config.fraction if config.cut_from == "minimum" else config.fraction
-    nearest = config.gap_pixels == "nearest"
-    prev_min = 0
-    for i, p in enumerate(plist):
-        # following minimum: lowest smoothed bin before the next peak (first one on ties)
-        stop = plist[i + 1] if i + 1 < k else nb - 1
-        if stop > p:
-            seg = sm[p : stop + 1]
-            nxt = p + seg.index(min(seg))
-        else:
-            nxt = p
-        if i + 1 == k:
-            nxt = nb - 1 if sm[nxt] > 0 else nxt
-        lo_bin = p - t * (p - prev_min)
-        hi_bin = p + t * (nxt - p)
-        first = max(math.ceil(lo_bin - 1e-9), 0)
-        last = min(math.floor(hi_bin + 1e-9), nb - 1)
-        lower_l.append(edge[first])
-        upper_l.append(edge[last + 1])
-        if nearest:
-            # the gap on each side goes to this band up to the minimum (the next band overwrites it)
-            first, last = prev_min if i else 0, nxt if i + 1 < k else nb - 1
-        lut[first : last + 1] = i
-        prev_min = nxt
-    lower = np.array(lower_l, np.float64)
-    upper = np.array(upper_l, np.float64)
-    hist = Histogram(edges=edges, counts=counts, peaks=centers[peaks], cuts=upper)
+    lut, first, last = _cuts(np.ascontiguousarray(smooth, np.float64), peaks, t, config.gap_pixels == "nearest")
+    lower = edges[first]
+    upper = edges[last + 1]
+    centers = 0.5 * (edges[peaks] + edges[peaks + 1])
+    hist = Histogram(edges=edges, counts=counts, peaks=centers, cuts=upper)
     return Bands(hist, lut, lower)

@@ -24,7 +24,7 @@ def check_depth(
     arr = np.asarray(depth_mm)
     if arr.ndim != 2:
         raise InputError(f"{where}: expected a 2-D depth image in mm, got shape {arr.shape}")
-    if arr.dtype == np.bool_ or not (np.issubdtype(arr.dtype, np.integer) or np.issubdtype(arr.dtype, np.floating)):
+    if arr.dtype.kind not in "iuf":  # not bool, complex, object, strings or dates
         raise InputError(f"{where}: expected integer or float depth in mm, got dtype {arr.dtype}")
     if arr.size == 0:
         raise InputError(f"{where}: the depth image is empty (shape {arr.shape})")
