@@ -218,3 +218,19 @@ def test_depth_dependent_bins_widen_with_depth() -> None:
     # geometric edges: width proportional to depth, 10 mm at 1 m
     near, far = widths[0], widths[-1]
     assert near == pytest.approx(5.0, rel=0.02) and far == pytest.approx(40.0, rel=0.02)
+
+
+def test_overrides_are_checked_every_time_even_when_cached() -> None:
+    from depthgram.segment.config import SegmentConfig
+
+    cfg = SegmentConfig()
+    first = cfg.with_overrides(method="threshold", fill_holes_px=3)
+    assert first is cfg.with_overrides(fill_holes_px=3, method="threshold")  # cached, order-free
+    assert first.method == "threshold" and first.fill_holes_px == 3 and cfg.method == "slices"
+    # 3.0 == 3 and hashes alike, but only an integer is a pixel count
+    with pytest.raises(InputError, match="fill_holes_px"):
+        cfg.with_overrides(fill_holes_px=3.0)
+    with pytest.raises(InputError, match="unknown option"):
+        cfg.with_overrides(bogus=1)
+    with pytest.raises(InputError, match="min_area"):
+        cfg.with_overrides(min_area=[1])  # unhashable: not cached, still checked

@@ -206,9 +206,8 @@ def make_objects(
         stats.count, stats.sz, stats.szz, stats.sx, stats.sy, sxz, syz, *cam,
     ).tolist()  # fmt: skip
     if stats.boxes is not None:
-        b = stats.boxes[1:]
-        x0, y0, x1, y1 = (b[:, j].tolist() for j in range(4))
-        present = (stats.count[1:] > 0).tolist()
+        x0, y0, x1, y1 = stats.boxes[1:].T.tolist()
+        present = [row[0] > 0 for row in table]
     else:
         found = ndimage.find_objects(labels, max_label=n)
         present = [(row[0] > 0 and f is not None) for row, f in zip(table, found, strict=True)]

@@ -15,7 +15,7 @@ from numpy.typing import NDArray
 
 from depthgram.segment.label import ACTIVE, BLOCK, HOLE
 
-__all__ = ["band_state", "bin_pixels", "depth_range"]
+__all__ = ["band_state", "bin_linear", "bin_pixels", "depth_range"]
 
 
 @njit(cache=True)
@@ -147,6 +147,39 @@ def bin_pixels(
     clipped to ``nb - 1``.
     """
     return _bins(depth_mm, valid, float(lo), float(step), bool(log), int(nb))
+
+
+@njit(cache=True)
+def _bin_linear(
+    depth: NDArray[np.float32], valid: NDArray[np.bool_], bits: NDArray[np.uint32], use_bits: bool, step: float
+) -> tuple[NDArray[np.int32], NDArray[np.int64], float, int]:
+    if use_bits:
+        lo, hi, n = _range_bits(bits)
+    else:
+        lo, hi, n = _range(depth, valid)
+    if n == 0:
+        return np.full(depth.shape, -1, np.int32), np.zeros(0, np.int64), 0.0, 0
+    nb = int((hi - lo) / step) + 1
+    bins, counts = _bins(depth, valid, lo, step, False, nb)
+    return bins, counts, lo, n
+
+
+def bin_linear(
+    depth_mm: NDArray[np.float32], valid: NDArray[np.bool_], step_mm: float, *, zero_outside: bool = False
+) -> tuple[NDArray[np.int32], NDArray[np.int64], float]:
+    """:func:`depth_range` and :func:`bin_pixels` with bins ``step_mm`` wide from the nearest depth.
+
+    One call instead of two: on small frames each call from Python costs microseconds.
+    Returns the bins (-1 where invalid), the counts (empty without a valid pixel) and the
+    lower edge of the first bin (mm).
+    """
+    bits = depth_mm.reshape(-1).view(np.uint32) if zero_outside else _NO_BITS
+    bins, counts, lo, _ = _bin_linear(depth_mm, valid, bits, zero_outside, float(step_mm))
+    return bins, counts, float(lo)
+
+
+#: Stand-in for the bit patterns when they are not used (numba wants an array).
+_NO_BITS = np.zeros(1, np.uint32)
 
 
 def band_state(

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, fields, replace
+from functools import lru_cache
 from typing import Any
 
 from depthgram.errors import InputError
@@ -209,14 +210,27 @@ class SegmentConfig:
         """A copy with some fields replaced; unknown names raise :class:`InputError`."""
         if not overrides:
             return self
-        known = {f.name for f in fields(self)}
-        unknown = sorted(set(overrides) - known)
-        if unknown:
-            raise InputError(f"segment config: unknown option(s) {unknown}; known: {sorted(known)}")
-        return replace(self, **overrides)
+        # the type is part of the key: 2 and 2.0 are equal, but only one may pass the checks
+        items = tuple((name, type(value), value) for name, value in sorted(overrides.items()))
+        try:
+            return _replaced(self, items)
+        except TypeError:  # an unhashable value: the checks name it
+            return _replaced.__wrapped__(self, items)
 
     def min_area_px(self, n_pixels: int) -> int:
         """``min_area`` in pixels for a frame of ``n_pixels`` pixels (at least 1)."""
         if self.min_area >= 1:
             return math.ceil(self.min_area)
         return max(1, math.ceil(self.min_area * n_pixels))
+
+
+@lru_cache(maxsize=64)
+def _replaced(config: SegmentConfig, items: tuple[tuple[str, type, Any], ...]) -> SegmentConfig:
+    # cached: a real-time caller passing ``method="threshold"`` on every frame would otherwise
+    # validate a new config each time (about 20 us, 4 % of a 176 x 132 frame)
+    overrides = {name: value for name, _, value in items}
+    known = {f.name for f in fields(config)}
+    unknown = sorted(set(overrides) - known)
+    if unknown:
+        raise InputError(f"segment config: unknown option(s) {unknown}; known: {sorted(known)}")
+    return replace(config, **overrides)

@@ -21,7 +21,7 @@ from numpy.typing import NDArray
 from scipy.ndimage import correlate1d, gaussian_filter1d
 from scipy.signal import find_peaks
 
-from depthgram.segment.binning import bin_pixels, depth_range
+from depthgram.segment.binning import bin_linear, bin_pixels, depth_range
 from depthgram.segment.config import SegmentConfig
 from depthgram.segment.objects import Histogram
 
@@ -39,19 +39,20 @@ def bin_index(
     """
     depth = np.ascontiguousarray(depth_mm, np.float32)
     ok = np.ascontiguousarray(valid, np.bool_)
+    if not config.depth_dependent_bins:
+        bins, counts, lo = bin_linear(depth, ok, config.bin_mm, zero_outside=zero_outside)
+        if counts.size == 0:
+            return bins, np.zeros(1), counts
+        edges: NDArray[np.float64] = lo + config.bin_mm * np.arange(counts.size + 1, dtype=np.float64)
+        return bins, edges, counts
     lo, hi, n = depth_range(depth, ok, zero_outside=zero_outside)
     if n == 0:
         return np.full(depth.shape, -1, np.int32), np.zeros(1), np.zeros(0, np.int64)
-    if config.depth_dependent_bins:
-        step = math.log1p(config.bin_mm / config.ref_depth_mm)
-        l0 = math.log(lo)
-        nb = int((math.log(hi) - l0) / step) + 1
-        bins, counts = bin_pixels(depth, ok, l0, step, True, nb)
-        edges = np.exp(l0 + step * np.arange(nb + 1))
-    else:
-        nb = int((hi - lo) / config.bin_mm) + 1
-        bins, counts = bin_pixels(depth, ok, lo, config.bin_mm, False, nb)
-        edges = lo + config.bin_mm * np.arange(nb + 1)
+    step = math.log1p(config.bin_mm / config.ref_depth_mm)
+    l0 = math.log(lo)
+    nb = int((math.log(hi) - l0) / step) + 1
+    bins, counts = bin_pixels(depth, ok, l0, step, True, nb)
+    edges = np.exp(l0 + step * np.arange(nb + 1))
     return bins, edges, counts
 
 
