@@ -309,3 +309,22 @@ def test_partly_hidden_object_is_not_read_as_moving() -> None:
         v_far.append(upd.motions[1].v_radial)
     # while it is being covered, no velocity reading strays beyond noise: the biased entries are skipped
     assert all(v is None or abs(v) < 60.0 for v in v_far[4:]), v_far
+
+
+def test_object_turning_compound_restarts_the_queue() -> None:
+    """A box still in depth shows its oblique side from frame 5 on: segmentation then reports a
+    compound whose depth is read from its nearest part, 20 mm nearer than the front face's mean
+    (a reading another way, not motion). The tracker must not read it as 600 mm/s."""
+    tr = Tracker()
+    vs: list[float | None] = []
+    for k in range(10):
+        o = box(1, 320, 240, 80, 80, 2000.0)
+        if k >= 5:
+            front = dataclasses.replace(o, kind="part", id=2, depth=1980.0)
+            side = dataclasses.replace(o, kind="part", id=3, depth=2010.0)
+            o = dataclasses.replace(o, kind="compound", parts=(front, side))
+        m = tr.update([o], k / FPS, (W, H)).motions[1]
+        assert m.track_id == 1
+        vs.append(m.v_radial)
+    assert vs[5] is None  # one valid entry after the restart
+    assert all(v == pytest.approx(0.0, abs=1e-9) for v in vs[1:5] + vs[6:])

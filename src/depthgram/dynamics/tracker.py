@@ -18,7 +18,19 @@ from numpy.typing import NDArray
 from scipy.optimize import linear_sum_assignment
 
 from depthgram.dynamics.config import TrackerConfig
-from depthgram.dynamics.kernels import HITS, ID, MISSED, NCOL, OCCLUDED, STATUS, mark_behind, predict_cost, step
+from depthgram.dynamics.kernels import (
+    F_READ,
+    HITS,
+    ID,
+    MISSED,
+    NCOL,
+    NFEAT,
+    OCCLUDED,
+    STATUS,
+    mark_behind,
+    predict_cost,
+    step,
+)
 from depthgram.dynamics.match import cost_params
 from depthgram.errors import InputError
 from depthgram.scene.tree import Motion
@@ -100,17 +112,19 @@ def track_depth(o: SceneObject) -> float:
 
 
 def _features(objects: Sequence[SceneObject]) -> NDArray[np.float64]:
-    """(M, 10) array: cx, cy, depth, area, label, x0, y0, x1, y1, behind.
+    """(M, 11) array: cx, cy, depth, area, label, x0, y0, x1, y1, behind, read.
 
     ``behind`` is 1 where a nearer object (by more than 5 % of depth) touches or overlaps the
     object's box: the paper's partial occlusion (case b), whose area change is not motion and
     whose visible mean depth is biased, so the tracker leaves such frames out of the fit while
-    the visible area changes.
+    the visible area changes. ``read`` is 1 where :func:`track_depth` read the nearest part of
+    a compound, 0 where it read the mean depth.
     """
     rows = [(*o.center, track_depth(o), o.area, o.label, *o.bbox) for o in objects]
     flat = np.fromiter(itertools.chain.from_iterable(rows), np.float64, count=9 * len(rows))
-    f = np.zeros((len(rows), 10))
+    f = np.zeros((len(rows), NFEAT))
     f[:, :9] = flat.reshape(len(rows), 9)
+    f[:, F_READ] = [o.kind == "compound" and bool(o.parts) for o in objects]
     mark_behind(f)
     return f
 
