@@ -328,3 +328,20 @@ def test_object_turning_compound_restarts_the_queue() -> None:
         vs.append(m.v_radial)
     assert vs[5] is None  # one valid entry after the restart
     assert all(v == pytest.approx(0.0, abs=1e-9) for v in vs[1:5] + vs[6:])
+
+
+def test_compound_depth_ignores_one_nearer_sliver_at_its_edge() -> None:
+    from depthgram.dynamics.tracker import track_depth
+
+    o = box(1, 320, 240, 80, 80, 2150.0)
+
+    def compound(*depths: float) -> SceneObject:
+        parts = tuple(dataclasses.replace(o, kind="part", id=10 + i, depth=d) for i, d in enumerate(depths))
+        return dataclasses.replace(o, kind="compound", parts=parts)
+
+    # a front face in four slices at 2131-2132 mm, a mixed-pixel sliver at 2124 mm, a side behind
+    assert track_depth(compound(2124.0, 2131.2, 2131.5, 2132.0, 2190.0, 2240.0)) == 2131.2
+    # a surface running away in depth (slices 2 % apart): its nearest slice
+    assert track_depth(compound(2000.0, 2040.0, 2080.0)) == 2000.0
+    assert track_depth(compound(2131.0, 2190.0)) == 2131.0
+    assert track_depth(o) == 2150.0  # a plain object: its mean depth
