@@ -12,7 +12,7 @@ from depthgram.frame import Intrinsics
 from depthgram.segment.attributes import Stats, make_objects
 from depthgram.segment.config import SegmentConfig
 from depthgram.segment.histogram import Bands, bin_index, depth_bands
-from depthgram.segment.label import label_bands_stats
+from depthgram.segment.label import label_bands_stats, plane_sums
 from depthgram.segment.objects import Histogram, SceneObject, Segmentation
 from depthgram.segment.orientation import FACING, HORIZONTAL, VERTICAL, default_intrinsics, orientation_classes
 from depthgram.segment.paper_slices import paper_slices
@@ -23,7 +23,6 @@ from depthgram.segment.slices import (
     drop_pieces,
     front_faces,
     near_planes,
-    plane_fits,
     planes_from_sums,
     side_faces,
     slice_parts,
@@ -309,10 +308,15 @@ def _below_camera(
     out = {o.id: (o.centroid_mm[1] if o.centroid_mm else 0.0) for _, o in compounds}
     if not any(c == HORIZONTAL for c, _ in compounds):
         return out
-    normal, off, _ = plane_fits(labels, n, depth, cam)
-    for c, o in compounds:
-        if c == HORIZONTAL:
-            out[o.id] = float(off[o.id]) if normal[o.id, 1] < 0 else -float(off[o.id])
+    # the planes of the horizontal supports only: the others' sums and solves were thrown away
+    # (each row's sums and solve are those of plane_fits on the whole map)
+    ids = np.array([o.id for c, o in compounds if c == HORIZONTAL], np.intp)
+    want = np.zeros(n + 1, np.bool_)
+    want[ids] = True
+    sums = plane_sums(labels, n, depth, cam.fx, cam.fy, cam.cx, cam.cy, only=want)
+    normal, off, _ = planes_from_sums(sums[np.r_[0, ids]])
+    for j, i in enumerate(ids, start=1):
+        out[int(i)] = float(off[j]) if normal[j, 1] < 0 else -float(off[j])
     return out
 
 
