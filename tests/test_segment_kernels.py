@@ -17,7 +17,7 @@ from depthgram.segment.attributes import label_stats, label_stats_bincount, rela
 from depthgram.segment.binning import band_state, bin_pixels, depth_range
 from depthgram.segment.label import ACTIVE, BLOCK, HOLE, label_bands_stats, label_keyed, label_keyed_stats
 from depthgram.segment.objects import SceneObject
-from depthgram.segment.orientation import _jumps, _one_sided
+from depthgram.segment.orientation import _jumps, _jumps_cols, _one_sided, _one_sided_cols, upsample_classes
 from depthgram.segment.slices import (
     front_faces,
     merge_coplanar,
@@ -194,6 +194,30 @@ def test_orientation_passes_match_numpy() -> None:
     np.divide(1000.0, z, out=inv, where=valid)
     for step in (1, 3):
         np.testing.assert_array_equal(_one_sided(inv, valid, step), _one_sided_numpy(inv, valid, step))
+
+
+@pytest.mark.parametrize("shape", [(16, 40), (40, 16), (1, 5), (2, 7), (3, 4), (5, 1), (23, 17)])
+def test_column_passes_equal_row_passes_on_the_transpose(shape: tuple[int, int]) -> None:
+    rng = np.random.default_rng(shape[0] * 100 + shape[1])
+    z = (1000 + np.cumsum(rng.normal(0, 20, shape), axis=0)).astype(np.float32)
+    z[rng.random(shape) < 0.2] += 300  # occlusion steps
+    valid = rng.random(shape) < 0.85
+    z[~valid] = 0
+    np.testing.assert_array_equal(_jumps_cols(z, valid, np.float32(0.05)), _jumps(z.T, valid.T, 0.05).T)
+    inv = np.zeros_like(z)
+    np.divide(1000.0, z, out=inv, where=valid)
+    for step in (1, 3):
+        np.testing.assert_array_equal(_one_sided_cols(inv, valid, step), _one_sided(inv.T, valid.T, step).T)
+
+
+@pytest.mark.parametrize("k", [2, 4])
+def test_upsample_classes_repeats_and_clears_holes(k: int) -> None:
+    rng = np.random.default_rng(k)
+    valid = rng.random((19, 23)) < 0.8
+    cls = rng.integers(0, 3, (-(-19 // k), -(-23 // k))).astype(np.int8)
+    want = np.repeat(np.repeat(cls, k, axis=0), k, axis=1)[:19, :23]
+    want[~valid] = 0
+    np.testing.assert_array_equal(upsample_classes(cls, valid, k), want)
 
 
 def test_front_face_folds_only_without_a_depth_jump() -> None:

@@ -14,7 +14,14 @@ from depthgram.segment.config import SegmentConfig
 from depthgram.segment.histogram import Bands, bin_index, depth_bands
 from depthgram.segment.label import label_bands_stats, plane_sums
 from depthgram.segment.objects import Histogram, SceneObject, Segmentation
-from depthgram.segment.orientation import FACING, HORIZONTAL, VERTICAL, default_intrinsics, orientation_classes
+from depthgram.segment.orientation import (
+    FACING,
+    HORIZONTAL,
+    VERTICAL,
+    default_intrinsics,
+    orientation_classes,
+    upsample_classes,
+)
 from depthgram.segment.paper_slices import paper_slices
 from depthgram.segment.planes import find_planes, plane_normal
 from depthgram.segment.region import region_grow
@@ -406,7 +413,7 @@ def _orientation(
     the same classes at a quarter (sixteenth) of the cost; the class map is then repeated back.
     Support pixels are refined at full resolution afterwards (plane test, depth continuity).
     """
-    h, w = depth.shape
+    w = depth.shape[1]
     k = 1 if w <= 320 else 2 if w <= 960 else 4
     if k == 1:
         sub_cam, d, v = cam, depth, ok
@@ -418,6 +425,4 @@ def _orientation(
     )
     if k == 1:
         return cls
-    full = np.repeat(np.repeat(cls, k, axis=0), k, axis=1)[:h, :w]
-    full[~ok] = FACING
-    return np.ascontiguousarray(full)
+    return upsample_classes(cls, ok, k)

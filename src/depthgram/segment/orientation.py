@@ -112,7 +112,7 @@ def _field(
     has = den3 > 0.5
     step = max(1, window_px // 2)
     gx = _one_sided(inv3, has, step)
-    gy = np.ascontiguousarray(_one_sided(np.ascontiguousarray(inv3.T), np.ascontiguousarray(has.T), step).T)
+    gy = _one_sided_cols(inv3, has, step)
     # average the gradient over valid pixels only; holes neither pull it to zero nor fake edges.
     # Pixels whose slope is steeper than 80 degrees from the line of sight are left out too: on
     # both sides of an occlusion edge (a smoothed or flying pixel) they would fake a steep plane.
@@ -126,7 +126,9 @@ def _field(
     sgx = np.asarray(cv2.boxFilter(gx, -1, k, normalize=False, borderType=cv2.BORDER_REPLICATE), np.float32)
     sgy = np.asarray(cv2.boxFilter(gy, -1, k, normalize=False, borderType=cv2.BORDER_REPLICATE), np.float32)
     cos_t = math.cos(math.radians(oblique_deg))
-    jump = _jumps(depth_mm, valid, jump_rel) | _jumps(depth_mm.T, valid.T, jump_rel).T
+    jump = _jumps(depth_mm, valid, jump_rel) | _jumps_cols(
+        np.ascontiguousarray(depth_mm), np.ascontiguousarray(valid), np.float32(jump_rel)
+    )
     cls = _classify(
         sgx,
         sgy,
@@ -289,4 +291,86 @@ def _one_sided_rows(inv: NDArray[np.float32], valid: NDArray[np.bool_], step: in
             b = inv[y, x] - inv[y, x - step] if okb else np.float32(np.inf)
             g = f if abs(f) <= abs(b) else b
             out[y, x] = g / fstep
+    return out
+
+
+@njit(cache=True)
+def _one_sided_cols(inv: NDArray[np.float32], valid: NDArray[np.bool_], step: int) -> NDArray[np.float32]:
+    # _one_sided_rows along columns (same arithmetic), without the three transposed copies
+    h, w = inv.shape
+    out = np.zeros((h, w), np.float32)
+    fstep = np.float32(step)
+    for y in range(h):
+        for x in range(w):
+            okf = y + step < h and valid[y + step, x] and valid[y, x]
+            okb = y - step >= 0 and valid[y, x] and valid[y - step, x]
+            if not (okf or okb):
+                continue
+            f = inv[y + step, x] - inv[y, x] if okf else np.float32(np.inf)
+            b = inv[y, x] - inv[y - step, x] if okb else np.float32(np.inf)
+            g = f if abs(f) <= abs(b) else b
+            out[y, x] = g / fstep
+    return out
+
+
+@njit(cache=True)
+def _jumps_cols(z: NDArray[np.float32], valid: NDArray[np.bool_], rel: np.float32) -> NDArray[np.bool_]:
+    # _jumps_rows along columns (same float32 tests), a whole row of columns at a time, without
+    # the transposed copies in and out (6x faster at 320 x 240)
+    h, w = z.shape
+    out = np.zeros((h, w), np.bool_)
+    if h < 2:
+        return out
+    m = h - 1
+    d = np.zeros((m, w), np.float32)
+    edge = np.zeros((m + 2, w), np.bool_)  # edge[y + 1]: step y is an edge; guards at both ends
+    zero = np.float32(0.0)
+    two = np.float32(2.0)
+    for y in range(m):
+        for x in range(w):
+            d[y, x] = abs(z[y + 1, x] - z[y, x]) if valid[y + 1, x] & valid[y, x] else zero
+    for y in range(m):
+        for x in range(w):
+            around = d[y - 2, x] if y >= 2 else zero
+            if y < m - 2:
+                around = max(around, d[y + 2, x])
+            edge[y + 1, x] = (d[y, x] > rel * max(z[y + 1, x], z[y, x])) & (d[y, x] > two * around)
+    for y in range(h):
+        for x in range(w):
+            out[y, x] = edge[y, x] | edge[y + 1, x]
+    return out
+
+
+def upsample_classes(cls: NDArray[np.int8], valid: NDArray[np.bool_], k: int) -> NDArray[np.int8]:
+    """Classes of a frame subsampled by ``k`` repeated back to full size, facing without a reading.
+
+    Parameters
+    ----------
+    cls : ndarray of int8
+        Classes of ``valid[::k, ::k]``.
+    valid : ndarray of bool, shape (H, W)
+        Pixels with a reading at full size.
+    k : int
+        Subsampling step.
+
+    Returns
+    -------
+    ndarray of int8, shape (H, W)
+    """
+    return _upsample(cls, np.ascontiguousarray(valid), int(k))
+
+
+@njit(cache=True)
+def _upsample(cls: NDArray[np.int8], valid: NDArray[np.bool_], k: int) -> NDArray[np.int8]:
+    # one pass for numpy's two repeats, crop, masked write and copy (0.4 ms at 640 x 480)
+    # (a table of source columns: an integer division per pixel made it 10x slower)
+    h, w = valid.shape
+    out = np.empty((h, w), np.int8)
+    src = np.empty(w, np.int64)
+    for x in range(w):
+        src[x] = x // k
+    for y in range(h):
+        crow = cls[y // k]
+        for x in range(w):
+            out[y, x] = crow[src[x]] if valid[y, x] else FACING
     return out
