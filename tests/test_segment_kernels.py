@@ -28,7 +28,6 @@ from depthgram.segment.slices import (
     slice_parts,
     support_components,
     support_pieces,
-    support_pieces_of,
 )
 from depthgram.segment.validate import check_depth
 
@@ -310,26 +309,3 @@ def test_slice_parts_match_per_slice_numpy_sums() -> None:
             assert p.area == area
             assert p.depth == pytest.approx(mean, rel=1e-12)
             assert p.center == pytest.approx((cx, cy), rel=1e-12)
-
-
-@pytest.mark.parametrize("seed", range(12))
-def test_support_pieces_of_two_classes_equal_one_class_passes(seed: int) -> None:
-    # random classes and holes over a smooth ramp with steps: every output (labels, sums to the
-    # last bit, boxes, plane sums) equals the one-class pass of each class
-    rng = np.random.default_rng(seed)
-    h, w = (int(v) for v in rng.integers(2, 40, 2))
-    depth = (800 + 40 * np.arange(h)[:, None] + 3 * np.arange(w)[None, :]).astype(np.float32)
-    depth += (rng.random((h, w)) < 0.1) * np.float32(300.0)  # steps cutting components
-    depth += rng.random((h, w)).astype(np.float32)
-    ok = rng.random((h, w)) > 0.2
-    depth[~ok] = 0
-    classes = rng.choice(np.array([0, 1, 2], np.int8), (h, w), p=[0.2, 0.5, 0.3])
-    cam = Intrinsics(50.0, 50.0, w / 2, h / 2)
-    kw = {"jump_rel": 0.05, "bridge": int(rng.integers(0, 3)), "min_fit_px": 4}
-    both = support_pieces_of(depth, ok, classes, [1, 2], cam, **kw)
-    for cls, got in zip((1, 2), both, strict=True):
-        want = support_pieces(depth, ok, classes, cls, cam, **kw)
-        np.testing.assert_array_equal(got[0], want[0])
-        assert got[1] == want[1]
-        for a, b in zip(got[2:], want[2:], strict=True):
-            np.testing.assert_array_equal(a, b)

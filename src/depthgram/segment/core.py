@@ -35,7 +35,6 @@ from depthgram.segment.slices import (
     slice_parts,
     support_kind,
     support_pieces,
-    support_pieces_of,
 )
 from depthgram.segment.validate import check_depth
 
@@ -191,19 +190,7 @@ def _slices(
             classes[classes == cls] = FACING
     min_px = cfg.min_area_px(depth.size)
     # supports first: a piece of surface too small to matter goes back to the facing pixels
-    # both classes are labelled in one pass: the pixels one class's step below hands over
-    # (facing <-> its own class) block the other class either way, so its labels do not change
-    fit_px = max(min_px // 2, 10)
-    pieces = (
-        support_pieces_of(
-            depth, ok, classes, wanted, cam, jump_rel=cfg.jump_rel, bridge=cfg.fill_holes_px, min_fit_px=fit_px
-        )
-        if wanted
-        else []
-    )
-    support_maps = [
-        _support_class(depth, ok, classes, cls, p, cam, cfg, min_px) for cls, p in zip(wanted, pieces, strict=True)
-    ]
+    support_maps = [_support_class(depth, ok, classes, cls, cam, cfg, min_px) for cls in wanted]
     facing = classes == FACING
     labels, objects, bands, fsums, fboxes = _facing_objects(depth, ok, facing, intrinsics, cfg)
     next_id = len(objects) + 1
@@ -358,18 +345,19 @@ def _support_class(
     ok: NDArray[np.bool_],
     classes: NDArray[np.int8],
     cls: int,
-    pieces: tuple[NDArray[np.int32], int, NDArray[np.float64], NDArray[np.int64], NDArray[np.float64]],
     cam: Intrinsics,
     cfg: SegmentConfig,
     min_px: int,
 ) -> tuple[int, NDArray[np.int32], int, NDArray[np.float64], NDArray[np.int64]]:
     """Supports of one orientation class, small or flat ones handed back to the facing pixels.
 
-    ``pieces`` is the class's :func:`support_pieces`. Updates ``classes`` in place. Returns the
-    class, labels 1..n, n, and the statistics and inclusive boxes of each support (row 0 unused).
+    Updates ``classes`` in place. Returns the class, labels 1..n, n, and the statistics and
+    inclusive boxes of each support (row 0 unused).
     """
     fit_px = max(min_px // 2, 10)
-    lab, n, sums, boxes, planes = pieces
+    lab, n, sums, boxes, planes = support_pieces(
+        depth, ok, classes, cls, cam, jump_rel=cfg.jump_rel, bridge=cfg.fill_holes_px, min_fit_px=fit_px
+    )
     # noise makes some support pixels look facing; those lying on a big support's plane
     # go back to it (an upright object meets that plane only along its base row)
     candidates = ok & (classes == FACING)

@@ -21,15 +21,7 @@ from numpy.typing import NDArray
 
 from depthgram.frame import Intrinsics
 from depthgram.segment.attributes import Stats, label_stats, make_objects
-from depthgram.segment.label import (
-    ACTIVE,
-    BLOCK,
-    HOLE,
-    label_classes_stats,
-    label_keyed,
-    label_keyed_stats,
-    plane_sums,
-)
+from depthgram.segment.label import ACTIVE, BLOCK, HOLE, label_keyed, label_keyed_stats, plane_sums
 from depthgram.segment.objects import SceneObject
 from depthgram.segment.orientation import HORIZONTAL, VERTICAL
 
@@ -47,7 +39,6 @@ __all__ = [
     "support_components",
     "support_kind",
     "support_pieces",
-    "support_pieces_of",
 ]
 
 
@@ -572,47 +563,6 @@ def support_pieces(
     state = _class_state(valid, classes, np.int8(cls))
     labels, n, sums, boxes = label_keyed_stats(depth_mm, state, depth_mm, rel=jump_rel, bridge=bridge)
     planes = plane_sums(labels, n, depth_mm, cam.fx, cam.fy, cam.cx, cam.cy)
-    return _merge_pieces(labels, n, sums, boxes, planes, min_fit_px)
-
-
-def support_pieces_of(
-    depth_mm: NDArray[np.float32],
-    valid: NDArray[np.bool_],
-    classes: NDArray[np.int8],
-    wanted: list[int],
-    cam: Intrinsics,
-    *,
-    jump_rel: float,
-    bridge: int,
-    min_fit_px: int,
-) -> list[tuple[NDArray[np.int32], int, NDArray[np.float64], NDArray[np.int64], NDArray[np.float64]]]:
-    """:func:`support_pieces` of each class in ``wanted`` (one or two classes), labelled in one pass.
-
-    Each entry equals ``support_pieces(depth_mm, valid, classes, cls, ...)``: a pixel of the
-    other class blocks exactly as any other valid pixel does. Two classes in one pass cost
-    1.7 ms at 640 x 480 where two one-class passes cost 2.8 ms.
-    """
-    if len(wanted) == 1:
-        return [
-            support_pieces(
-                depth_mm, valid, classes, wanted[0], cam, jump_rel=jump_rel, bridge=bridge, min_fit_px=min_fit_px
-            )
-        ]
-    both = label_classes_stats(
-        depth_mm, classes, valid, wanted[0], wanted[1], cam.fx, cam.fy, cam.cx, cam.cy, rel=jump_rel, bridge=bridge
-    )
-    return [_merge_pieces(*piece, min_fit_px) for piece in both]
-
-
-def _merge_pieces(
-    labels: NDArray[np.int32],
-    n: int,
-    sums: NDArray[np.float64],
-    boxes: NDArray[np.int64],
-    planes: NDArray[np.float64],
-    min_fit_px: int,
-) -> tuple[NDArray[np.int32], int, NDArray[np.float64], NDArray[np.int64], NDArray[np.float64]]:
-    """Coplanar pieces joined (:func:`coplanar_groups`), their rows of statistics added."""
     if n < 2:
         return labels, n, sums, boxes, planes
     normal, off, count = planes_from_sums(planes)
