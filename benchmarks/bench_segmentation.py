@@ -3,7 +3,9 @@
 For each size (simulated ``table`` scene, seeded): thresholding, thresholding + slicing and
 region growing, all with object attributes; one ``np.bincount`` pass over the same frame as the
 floor no method can beat (every method reads every pixel at least once), and each time as a
-multiple of it. Targets: 2,000 frames/s at 176x132, 300 at 640x480, 100 at 1280x720.
+multiple of it. Targets: 2,000 frames/s at 176x132, 300 at 640x480, 100 at 1280x720. Then, when
+``../shared/data`` is present, thresholding and slicing on the first frame of three real
+recordings (with their dropouts).
 
 Run: ``.venv/bin/python benchmarks/bench_segmentation.py`` (``--stages`` adds the time of each
 step of thresholding; ``--profile`` adds where the time goes for thresholding + slicing at
@@ -20,6 +22,7 @@ import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from functools import partial
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -27,6 +30,9 @@ import numpy as np
 from depthgram.segment import segment
 
 SIZES = ((176, 132), (640, 480), (1280, 720))
+#: Real recordings timed beside the simulator (../shared/data; skipped when absent).
+SHARED = Path(__file__).resolve().parents[1].parent / "shared" / "data"
+REAL = ("nvlabs_ucn_demo_tabletop", "7scenes_redkitchen_seq", "azure_kinect_tof_mug_single")
 TARGET_FPS = {(176, 132): 2000.0, (640, 480): 300.0, (1280, 720): 100.0}
 METHODS = ("threshold", "slices", "region")
 
@@ -85,6 +91,26 @@ def format_rows(rows: Sequence[BenchRow]) -> str:
             f"{r.floor_ms:11.3f} {r.x_floor:10.1f}"
         )
     return "\n".join(lines)
+
+
+def real_rows(methods: Sequence[str] = ("threshold", "slices")) -> list[tuple[str, tuple[int, int], str, float, float]]:
+    """(recording, size, method, ms, invalid share) for the first frame of each real recording.
+
+    Real frames have dropouts (holes) and more depth bands than the simulator's; empty when
+    ``../shared/data`` is absent.
+    """
+    from depthgram import read
+
+    out = []
+    for name in REAL:
+        path = SHARED / name
+        if not path.is_dir():
+            continue
+        f = next(iter(read(path)))
+        for m in methods:
+            ms = _best_ms(partial(segment, f.depth, valid=f.valid, intrinsics=f.intrinsics, method=m))
+            out.append((name, f.size, m, ms, 1.0 - float(f.valid.mean())))
+    return out
 
 
 def compare_labellers(size: tuple[int, int] = (640, 480), tol_per_m: float = 10.0) -> dict[str, float]:
@@ -184,6 +210,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     sizes = [tuple(int(v) for v in s.split("x")) for s in spec.split(",")]
     print(f"one core, {os.cpu_count()} cpus visible; best of repeated runs")
     print(format_rows(run_bench([(s[0], s[1]) for s in sizes])))
+    real = real_rows()
+    if not real:
+        print("real recordings: ../shared/data not found, skipped")
+    for name, (w, h), m, ms, invalid in real:
+        print(f"{name:28} {w}x{h} {m:10} {ms:8.3f} ms {1e3 / ms:7.0f} frames/s  ({invalid:.1%} invalid)")
     if args.stages:
         for size in sizes:
             st = threshold_stages((size[0], size[1]))
