@@ -309,3 +309,15 @@ def test_slice_parts_match_per_slice_numpy_sums() -> None:
             assert p.area == area
             assert p.depth == pytest.approx(mean, rel=1e-12)
             assert p.center == pytest.approx((cx, cy), rel=1e-12)
+
+
+def test_relabel_equals_numpy_fancy_indexing() -> None:
+    from depthgram.segment.label import relabel
+
+    rng = np.random.default_rng(8)
+    labels = rng.integers(0, 40, (37, 53)).astype(np.int32)
+    lut = rng.integers(0, 9, 40).astype(np.int32)
+    out = relabel(labels, lut)
+    assert out.dtype == np.int32
+    np.testing.assert_array_equal(out, lut[labels])
+    np.testing.assert_array_equal(relabel(labels[:, ::2], lut), lut[labels[:, ::2]])  # a strided view

@@ -12,7 +12,7 @@ from depthgram.frame import Intrinsics
 from depthgram.segment.attributes import Stats, make_objects
 from depthgram.segment.config import SegmentConfig
 from depthgram.segment.histogram import Bands, bin_index, depth_bands
-from depthgram.segment.label import label_bands_stats, plane_sums
+from depthgram.segment.label import label_bands_stats, plane_sums, relabel
 from depthgram.segment.objects import Histogram, SceneObject, Segmentation
 from depthgram.segment.orientation import (
     FACING,
@@ -240,7 +240,7 @@ def _slices(
     remap = {oid: new for new, oid in enumerate(old, start=1)}
     renum = np.zeros(next_id, np.int32)
     renum[old] = np.arange(1, len(old) + 1, dtype=np.int32)
-    labels = renum[fold][labels] if fronts else renum[labels]
+    labels = relabel(labels, renum[fold] if fronts else renum)
     objects = [replace(o, id=remap[o.id]) for o in objects]
     floor_ids = {o.id for c, o in compounds if c == HORIZONTAL and below[o.id] > 0}
     lowest = max(

@@ -33,6 +33,7 @@ __all__ = [
     "label_keyed_stats",
     "label_stats_fused",
     "plane_sums",
+    "relabel",
 ]
 
 #: Pixel states for :func:`label_keyed`: a hole may be bridged, an active pixel is labelled,
@@ -714,3 +715,26 @@ def plane_sums(
 
 #: Stand-in for a missing ``only`` table of :func:`plane_sums` (numba wants an array).
 _NO_WANT = np.ones(1, np.bool_)
+
+
+@njit(cache=True)
+def _relabel(labels: NDArray[np.int32], lut: NDArray[np.int32]) -> NDArray[np.int32]:
+    h, w = labels.shape
+    out = np.empty((h, w), np.int32)
+    uw = np.uint64(w)
+    for y in range(h):
+        src = labels[y]
+        dst = out[y]
+        for x in range(uw):
+            dst[x] = lut[np.uint64(src[x])]
+    return out
+
+
+def relabel(labels: NDArray[np.int32], lut: NDArray[np.integer]) -> NDArray[np.int32]:
+    """``lut[labels]`` as int32, in one compiled pass.
+
+    numpy's fancy indexing with an int32 index image took 0.95 ms at 640 x 576 against 0.2 ms
+    for this loop, and the slicing method renumbers full label maps several times per frame.
+    ``labels`` must hold indices into ``lut`` (0 .. lut.size - 1).
+    """
+    return _relabel(np.ascontiguousarray(labels, np.int32), np.ascontiguousarray(lut, np.int32))

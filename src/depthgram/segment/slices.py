@@ -21,7 +21,7 @@ from numpy.typing import NDArray
 
 from depthgram.frame import Intrinsics
 from depthgram.segment.attributes import Stats, label_stats, make_objects
-from depthgram.segment.label import ACTIVE, BLOCK, HOLE, label_keyed, label_keyed_stats, plane_sums
+from depthgram.segment.label import ACTIVE, BLOCK, HOLE, label_keyed, label_keyed_stats, plane_sums, relabel
 from depthgram.segment.objects import SceneObject
 from depthgram.segment.orientation import HORIZONTAL, VERTICAL
 
@@ -246,8 +246,7 @@ def merge_coplanar(
     )
     if m == n:
         return labels, n
-    out: NDArray[np.int32] = lut[labels]
-    return out, m
+    return relabel(labels, lut), m
 
 
 def coplanar_groups(
@@ -581,5 +580,5 @@ def support_pieces(
     np.minimum.at(mboxes[:, 1], lut, boxes[:, 1])
     np.maximum.at(mboxes[:, 2], lut, boxes[:, 2])
     np.maximum.at(mboxes[:, 3], lut, boxes[:, 3])
-    merged: NDArray[np.int32] = lut[labels]
+    merged = relabel(labels, lut)
     return merged, m, msums, mboxes, mplanes
