@@ -321,3 +321,20 @@ def test_relabel_equals_numpy_fancy_indexing() -> None:
     assert out.dtype == np.int32
     np.testing.assert_array_equal(out, lut[labels])
     np.testing.assert_array_equal(relabel(labels[:, ::2], lut), lut[labels[:, ::2]])  # a strided view
+
+
+@pytest.mark.parametrize("sigma", [0.6, 1.0, 2.5])
+def test_histogram_smoothing_gives_scipys_numbers(sigma: float) -> None:
+    # the compiled smoothing must equal gaussian_filter1d exactly (peak positions and cuts
+    # depend on comparisons of neighbouring bins), edges reflected, tiny histograms too
+    from scipy.ndimage import gaussian_filter1d
+
+    from depthgram.segment.histogram import _gaussian_weights, _smooth_padded
+
+    rng = np.random.default_rng(int(sigma * 10))
+    for _ in range(200):
+        n = int(rng.integers(1, 300))
+        counts = rng.integers(0, int(rng.choice([3, 100, 50_000])), n).astype(np.int64)
+        padded = _smooth_padded(counts, _gaussian_weights(sigma))
+        np.testing.assert_array_equal(padded[1:-1], gaussian_filter1d(counts.astype(np.float64), sigma))
+        assert padded[0] == 0.0 and padded[-1] == 0.0

@@ -18,7 +18,7 @@ from functools import lru_cache
 import numpy as np
 from numba import njit
 from numpy.typing import NDArray
-from scipy.ndimage import correlate1d, gaussian_filter1d
+from scipy.ndimage import gaussian_filter1d
 from scipy.signal import find_peaks
 
 from depthgram.segment.binning import bin_linear, bin_pixels, depth_range
@@ -128,18 +128,37 @@ def _cuts(
 
 @lru_cache(maxsize=16)
 def _gaussian_weights(sigma: float) -> NDArray[np.float64]:
-    """The kernel ``gaussian_filter1d`` uses for ``sigma``: its response to a unit impulse.
-
-    Filtering with these weights through ``correlate1d`` gives the same numbers as
-    ``gaussian_filter1d``, without building the kernel on every frame (a fifth of the
-    histogram step at 176 x 132).
-    """
+    """The kernel ``gaussian_filter1d`` uses for ``sigma``: its response to a unit impulse."""
     radius = int(4.0 * sigma + 0.5)  # gaussian_filter1d's default truncate=4.0
     impulse = np.zeros(2 * radius + 1)
     impulse[radius] = 1.0
     weights = gaussian_filter1d(impulse, sigma, mode="constant")
     weights.setflags(write=False)
     return weights
+
+
+@njit(cache=True)
+def _smooth_padded(counts: NDArray[np.int64], weights: NDArray[np.float64]) -> NDArray[np.float64]:
+    # scipy's gaussian_filter1d (mode "reflect") with the same weights and the same order of
+    # operations, so the same numbers (a test compares them on random histograms), written
+    # into a zero-padded array for find_peaks. Compiled because on a histogram of a few
+    # hundred bins scipy.ndimage's call costs ten times its arithmetic: 40 us of a 500 us
+    # frame at 176 x 132.
+    n = counts.size
+    r = (weights.size - 1) // 2
+    out = np.zeros(n + 2)
+    for i in range(n):
+        t = counts[i] * weights[r]
+        for j in range(r, 0, -1):  # outermost pair first, as scipy sums a symmetric kernel
+            a = i - j
+            while a < 0 or a >= n:  # reflect about the edges: (d c b a | a b c d | d c b a)
+                a = -a - 1 if a < 0 else 2 * n - a - 1
+            b = i + j
+            while b < 0 or b >= n:
+                b = -b - 1 if b < 0 else 2 * n - b - 1
+            t += (counts[a] + counts[b]) * weights[r + j]
+        out[i + 1] = t
+    return out
 
 
 def depth_bands(counts: NDArray[np.int64], edges: NDArray[np.float64], config: SegmentConfig) -> Bands:
@@ -149,13 +168,12 @@ def depth_bands(counts: NDArray[np.int64], edges: NDArray[np.float64], config: S
     if nb == 0 or n_valid == 0:
         empty = np.zeros(0)
         return Bands(Histogram(edges, counts, empty, empty), np.full(max(nb, 1), -1, np.int32), empty)
-    smooth = (
-        correlate1d(counts.astype(np.float64), _gaussian_weights(float(config.smooth_bins)), mode="reflect")
-        if config.smooth_bins > 0
-        else counts
-    )
-    # pad so that a peak in the first or last bin is found too
-    padded = np.concatenate(([0.0], smooth, [0.0]))
+    # padded with a zero bin at each end so that a peak in the first or last bin is found too
+    if config.smooth_bins > 0:
+        padded = _smooth_padded(np.ascontiguousarray(counts, np.int64), _gaussian_weights(float(config.smooth_bins)))
+    else:
+        padded = np.concatenate(([0.0], counts.astype(np.float64), [0.0]))
+    smooth = padded[1:-1]
     found, _ = find_peaks(padded, prominence=max(config.min_prominence * n_valid, 1e-9))
     peaks = found - 1
     t = 1.0 - config.fraction if config.cut_from == "minimum" else config.fraction

@@ -645,6 +645,10 @@ def _plane_sums(
     # not wanted are stepped over (no division per pixel): a few supports among all objects.
     h, w = labels.shape
     out = np.zeros((n + 1, 9), np.float64)
+    # u' of each column once rather than at every pixel (the same division, the same numbers)
+    ucol = np.empty(w, np.float64)
+    for x in range(w):
+        ucol[x] = (x - cx) / fx
     for y in range(h):
         v = (y - cy) / fy
         x = 0
@@ -663,7 +667,7 @@ def _plane_sums(
             sq = 0.0
             suq = 0.0
             while x < w and labels[y, x] == i:
-                u = (x - cx) / fx
+                u = ucol[x]
                 q = 1.0 / depth[y, x]
                 c += 1.0
                 su += u
