@@ -219,6 +219,10 @@ def _assign(
     # numpy route needs half a dozen full-frame temporaries per plane
     h, w = depth.shape
     out = np.zeros((h, w), np.int8)
+    # each column's cell once: an integer division at every pixel cost more than the test
+    cell_of = np.empty(w, np.int64)
+    for x in range(w):
+        cell_of[x] = x // step
     for y in range(h):
         cy = y // step
         for x in range(w):
@@ -226,7 +230,7 @@ def _assign(
                 continue
             z = np.float64(depth[y, x])
             tol = max(tol_mm, tol_rel * z)
-            cx = x // step
+            cx = cell_of[x]
             for k in range(coefs.shape[0]):
                 if not allowed[k, cy, cx]:
                     continue

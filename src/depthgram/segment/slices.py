@@ -460,6 +460,9 @@ def _near(
     # per support, one loop over its box grown by a tenth; numpy built six box-sized
     # temporaries per support (1.6 ms per frame at 640 x 480). Same float64 arithmetic.
     h, w = depth.shape
+    ucol = np.empty(w, np.float64)  # u of each column once (the same division, the same numbers)
+    for x in range(w):
+        ucol[x] = (x - cx) / fx
     for i in ids:
         bx0, by0, bx1, by1 = boxes[i, 0], boxes[i, 1], boxes[i, 2], boxes[i, 3]
         my = (by1 - by0 + 1) // 10 + 1
@@ -472,7 +475,7 @@ def _near(
             for x in range(x0, x1):
                 if not candidates[y, x]:
                     continue
-                u = (x - cx) / fx
+                u = ucol[x]
                 # 1/Z predicted by the plane: -(n . ray) / d
                 inv_pred = -(n0 * u + n1 * v + n2) / d
                 if inv_pred > 0 and abs(inv_pred * np.float64(depth[y, x]) - 1.0) <= tol_rel:
