@@ -211,7 +211,8 @@ def test_server_skips_frames_when_behind_and_counts_every_one() -> None:
                 seen.append(msg)
             state = client.get("/api/recordings/cheap").json()
     assert msg["ended"] is True and state["ended"] is True
-    # every frame not shown is counted, including those skipped after the last one shown
+    assert seen[-1]["index"] == 119  # the last frame is shown even when behind
+    # every frame not shown is counted
     gaps = sum(b["index"] - a["index"] - 1 for a, b in itertools.pairwise(seen))
     gaps += seen[0]["index"] + 119 - seen[-1]["index"]
     assert seen[-1]["dropped"] > 0

@@ -8,7 +8,9 @@ own delivery slot holding only the newest frame: a page that has not yet acknowl
 frame it drew gets the newest one when it is ready, and the frames it missed are counted as
 dropped for that page. The player itself skips frames (and counts them) when it falls behind
 the recording's rate and skipping can catch up, i.e. when reading a frame is cheaper than its
-period. The player only runs while at least one page is connected.
+period; the recording's last frame is always shown, even when behind, so that playback ends on
+the last scene and the sound covers the whole recording. The player only runs while at least
+one page is connected.
 
 HTTP interface (all JSON errors are ``{"error": message}`` with a 4xx status):
 
@@ -362,6 +364,7 @@ class Player:
         due = loop_clock()
         advanced = 0  # frames of the recording since the last pushed one (for the audio duration)
         fresh = True  # the next frame is the first since playback (re)started
+        tail = None  # the newest frame skipped since the last one pushed
         while True:
             want = bool(self._steps) or (self.playing and bool(self.clients))
             if not want:
@@ -382,6 +385,7 @@ class Player:
                 self.ended = False
                 self._iter = None
                 self._held = None
+                tail = None
                 self.pipeline.reset()
             frame, self._held = self._held, None
             if frame is None:
@@ -396,6 +400,13 @@ class Player:
                 # so that a step after a pause shows the very next frame.
                 self._held = frame
                 continue
+            last = False
+            if frame is None and tail is not None:
+                # The recording ended while behind: its last frame is shown rather than
+                # dropped, so the page ends on the recording's last scene and the sound lasts
+                # as long as the recording (the skipped frames' time goes with it).
+                frame, tail, last = tail, None, True
+                self.dropped -= 1
             if frame is None:
                 self.ended = True
                 self.playing = False
@@ -403,13 +414,15 @@ class Player:
                 for c in self.clients:
                     c.notify({"type": "end", **self.state()})
                 continue
-            advanced += 1
+            if not last:
+                advanced += 1
             now = loop_clock()
-            if not stepping and now - due > period and self._read_s < period:
+            if not last and not stepping and now - due > period and self._read_s < period:
                 # Behind the recording: skipping catches up only because reading is cheaper
                 # than a period; otherwise (a slow source) playback slows down instead.
                 self.dropped += 1
                 due += period
+                tail = frame
                 continue
             if self.config is not self.pipeline.config:
                 self.pipeline.config = self.config  # tracks survive a parameter change
@@ -422,6 +435,7 @@ class Player:
                 self._fail(f"{frame.name or self.name}: frame {frame.index}: {exc}")
                 continue
             advanced = 0
+            tail = None
             self.index = frame.index
             self.processed += 1
             for c in self.clients:
