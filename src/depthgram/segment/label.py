@@ -443,11 +443,13 @@ def _resolve(
     boxes[0, 1] = h
     boxes[0, 2] = -1
     boxes[0, 3] = -1
+    # final[0] is 0: one branch-free gather per pixel, with unsigned indices so that it
+    # vectorises (the test-and-branch version took twice as long at 1280 x 720)
+    uw = np.uint64(w)
     for y in range(h):
-        for x in range(w):
-            v = lab[y, x]
-            if v:
-                lab[y, x] = final[v]
+        row = lab[y]
+        for x in range(uw):
+            row[x] = final[np.uint64(row[x])]
     return lab, n, sums, boxes
 
 
