@@ -274,6 +274,7 @@ def _label_bands(
     for y in range(h):
         brow = bins[y]
         vrow = valid[y]
+        holes = 0
         for ux in range(uw):
             b = brow[ux]
             kb = lut[np.uint64(max(b, 0))]
@@ -281,6 +282,7 @@ def _label_bands(
             if use_include:
                 on &= include[y, ux]
             code[ux] = kb if on else (-1 if vrow[ux] else -2)
+            holes += not vrow[ux]
         code[w] = -1  # sentinel: ends the last run
         zrow = depth[y]
         lrow = lab[y]
@@ -294,18 +296,25 @@ def _label_bands(
                 x += 1
                 continue
             a = x
-            last = x
-            n_in = 1
             x += 1
-            while True:
-                kx = code[x]
-                if kx == k:
-                    last = x
-                    n_in += 1
-                elif kx != -2 or x - last >= reach:
-                    break
-                x += 1
-            x = last + 1
+            if holes == 0:
+                # a row without holes: a run is a stretch of equal codes (one test per pixel)
+                while code[x] == k:
+                    x += 1
+                last = x - 1
+                n_in = x - a
+            else:
+                last = a
+                n_in = 1
+                while True:
+                    kx = code[x]
+                    if kx == k:
+                        last = x
+                        n_in += 1
+                    elif kx != -2 or x - last >= reach:
+                        break
+                    x += 1
+                x = last + 1
             ua = np.uint64(a)
             ue = np.uint64(last + 1)
             whole = n_in == last + 1 - a
