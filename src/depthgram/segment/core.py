@@ -103,9 +103,9 @@ def segment(
     - Depth-dependent bins change nothing on the simulator (97.8 / 98.3 % on ``table``); on the
       real 7-Scenes frame they label 92.2 % of valid pixels instead of 89.5 %. Off by default.
     - Speed (``benchmarks/bench_segmentation.py``, one core of a 2.5 GHz Xeon, with attributes):
-      thresholding about 2,040 frames/s at 176 x 132, 336 at 640 x 480 and 110 at 1280 x 720
-      (6.5x one ``np.bincount`` pass at 640 x 480); slicing about 167, 42 and 18; region
-      growing about 1,420, 122 and 43.
+      thresholding about 2,280 frames/s at 176 x 132, 347 at 640 x 480 and 111 at 1280 x 720
+      (6.3x one ``np.bincount`` pass at 640 x 480); slicing about 171, 44 and 19; region
+      growing about 1,430, 121 and 43.
     """
     cfg = (config or _DEFAULTS).with_overrides(**overrides)
     depth, ok = check_depth(depth_mm, valid)
