@@ -367,6 +367,12 @@ class Player:
         tail = None  # the newest frame skipped since the last one pushed
         while True:
             want = bool(self._steps) or (self.playing and bool(self.clients))
+            if not want and tail is not None and self._held is None:
+                # Paused just after skipping a frame: it is shown by the next step or play
+                # rather than lost, so a step after a pause shows the very next frame.
+                self._held, tail = tail, None
+                self.dropped -= 1
+                advanced -= 1
             if not want:
                 self._idle.set()
                 await self._wait(None)
