@@ -18,7 +18,7 @@ from numpy.typing import NDArray
 from scipy import ndimage
 
 from depthgram.frame import Intrinsics
-from depthgram.segment.label import label_stats_fused
+from depthgram.segment.label import label_stats_fused, relabel
 from depthgram.segment.objects import SceneObject
 
 __all__ = ["Stats", "fused_stats", "label_stats", "label_stats_bincount", "make_objects", "relabel_small"]
@@ -116,7 +116,7 @@ def fused_stats(
     sel = np.concatenate(([0], np.flatnonzero(keep)))
     s = sums[sel]
     stats = Stats(s[:, 0], s[:, 1], s[:, 2], s[:, 3], s[:, 4], s[:, 5], s[:, 6], boxes[sel])
-    out: NDArray[np.int32] = lut[labels] if n else labels
+    out = relabel(labels, lut) if n else labels
     return out, stats, s[:, 7]
 
 

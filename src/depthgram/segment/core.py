@@ -160,10 +160,7 @@ def _facing_objects(
 
 
 def _extras(bands: Bands) -> dict[str, object]:
-    limits = np.empty((bands.lower.size, 2))
-    limits[:, 0] = bands.lower
-    limits[:, 1] = bands.upper
-    return {"bands_mm": limits}
+    return {"bands_mm": bands.limits_mm()}
 
 
 def _threshold(

@@ -75,6 +75,13 @@ class Bands:
         self.lower = lower
         self.upper = histogram.cuts
 
+    def limits_mm(self) -> NDArray[np.float64]:
+        """Leading and trailing cut of each band (K x 2, mm), nearest band first."""
+        limits = np.empty((self.lower.size, 2))
+        limits[:, 0] = self.lower
+        limits[:, 1] = self.upper
+        return limits
+
     @property
     def n(self) -> int:
         """Number of bands."""

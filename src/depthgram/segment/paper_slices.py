@@ -43,7 +43,7 @@ from depthgram.frame import Intrinsics
 from depthgram.segment.attributes import fused_stats, label_stats, make_objects
 from depthgram.segment.config import SegmentConfig
 from depthgram.segment.histogram import Bands, bin_index, depth_bands
-from depthgram.segment.label import ACTIVE, BLOCK, HOLE, label_keyed
+from depthgram.segment.label import ACTIVE, BLOCK, HOLE, label_keyed, relabel
 from depthgram.segment.objects import SceneObject, Segmentation
 from depthgram.segment.threshold import band_image, threshold_labels
 
@@ -377,9 +377,9 @@ def paper_slices(
         renamed = tuple(replace(p, id=part_id + i) for i, p in enumerate(c.parts))
         part_id += len(renamed)
         out.append(replace(c, id=new, parts=renamed))
-    labels = lut[labels]
+    labels = relabel(labels, lut)
     extras: dict[str, object] = {
-        "bands_mm": np.stack([bands.lower, bands.upper], axis=1) if bands.lower.size else np.zeros((0, 2)),
+        "bands_mm": bands.limits_mm(),
         "aperture_px": apertures,
     }
     return Segmentation(labels, tuple(out), bands.histogram, "paper", extras)
