@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+import asyncio
 import base64
 import itertools
 import json
+import threading
 from collections.abc import Iterator
 from typing import Any
 
@@ -219,6 +221,43 @@ def test_server_skips_frames_when_behind_and_counts_every_one() -> None:
     assert seen[-1]["dropped"] == seen[-1]["server_dropped"] + seen[-1]["page_dropped"]
     assert gaps == state["dropped"] + seen[-1]["page_dropped"]
     assert state["processed"] + state["dropped"] == 120
+
+
+def test_a_pause_while_behind_ends_on_the_newest_frame_read_and_a_step_shows_the_next() -> None:
+    # At 1000 frames/s the player skips frames; the read of the first frame after a skipped one
+    # waits until the test has asked for a pause, so the pause arrives with a skipped frame
+    # behind it and a fresh one in hand (what a CI run on a slow spell hit in the browser).
+    reading, release = threading.Event(), threading.Event()
+    player = Player(lambda: frames(), "cheap", Config(), ViewerConfig(fps=1000.0, loop=False, min_width_px=40),
+                    frames=120)
+
+    def frames() -> Iterator[Any]:
+        for f in _cheap_frames(120):
+            if not reading.is_set() and player.index is not None and player.index < f.index - 1:
+                reading.set()  # frame f.index - 1 was read and skipped
+                release.wait(10)
+            yield f
+
+    async def run() -> tuple[int, int, int, dict[str, Any]]:
+        player.start()
+        page = player.connect()
+        player.play()
+        assert await asyncio.to_thread(reading.wait, 20), "the player never skipped a frame"
+        pause = asyncio.create_task(player.pause())
+        await asyncio.sleep(0)  # the pause is asked for while the frame is being read
+        release.set()
+        await asyncio.wait_for(pause, 20)
+        k, shown = player.index, page.slot["index"] if page.slot else None
+        await asyncio.wait_for(player.step(), 20)
+        state = player.state()
+        await player.stop()
+        assert k is not None and shown is not None and page.slot is not None
+        return k, shown, page.slot["index"], state
+
+    k, shown, stepped, state = asyncio.run(run())
+    assert shown == k  # the page ends on the frame the pause reports ...
+    assert stepped == k + 1  # ... and a step shows the very next one
+    assert state["processed"] + state["dropped"] == k + 2  # every frame read is shown or counted
 
 
 def test_sound_is_sent_to_pages_that_turn_it_on_and_lasts_as_long_as_the_frames() -> None:

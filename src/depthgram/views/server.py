@@ -9,8 +9,9 @@ frame it drew gets the newest one when it is ready, and the frames it missed are
 dropped for that page. The player itself skips frames (and counts them) when it falls behind
 the recording's rate and skipping can catch up, i.e. when reading a frame is cheaper than its
 period; the recording's last frame is always shown, even when behind, so that playback ends on
-the last scene and the sound covers the whole recording. The player only runs while at least
-one page is connected.
+the last scene and the sound covers the whole recording. A pause likewise shows the newest frame
+read, so that a step after it shows the very next frame of the recording. The player only runs
+while at least one page is connected.
 
 HTTP interface (all JSON errors are ``{"error": message}`` with a 4xx status):
 
@@ -235,7 +236,6 @@ class Player:
         self.error: str | None = None  # why playback last stopped on its own, if it did
         self.clients: set[_Client] = set()
         self._iter: Iterator[Frame] | None = None
-        self._held: Frame | None = None  # read, but paused before it could be shown
         self._wake = asyncio.Event()
         self._idle = asyncio.Event()
         self._steps: list[asyncio.Future[None]] = []
@@ -280,8 +280,15 @@ class Player:
         self._wake.set()
 
     async def pause(self) -> None:
-        """Stop after the frame in progress, which is still delivered; return once it is."""
+        """Stop after the frame in progress, which is still delivered; return once it is.
+
+        A frame read but skipped because playback was behind counts as in progress: the page
+        ends on the newest frame read, so that a step then shows the very next one.
+        """
         self.playing = False
+        # The loop may be idle waiting for a frame's due time with a skipped frame in hand:
+        # wait for it to wake and settle rather than answer with the frame before.
+        self._idle.clear()
         self._wake.set()
         await self._idle.wait()
 
@@ -367,20 +374,14 @@ class Player:
         tail = None  # the newest frame skipped since the last one pushed
         while True:
             want = bool(self._steps) or (self.playing and bool(self.clients))
-            if not want and tail is not None and self._held is None:
-                # Paused just after skipping a frame: it is shown by the next step or play
-                # rather than lost, so a step after a pause shows the very next frame.
-                self._held, tail = tail, None
-                self.dropped -= 1
-                advanced -= 1
-            if not want:
+            if not want and tail is None:
                 self._idle.set()
                 await self._wait(None)
                 due = loop_clock()
                 fresh = True
                 continue
             period = 1.0 / (self.fps * self.speed)
-            if not self._steps:
+            if want and not self._steps:
                 wait = due - loop_clock()
                 if wait > 0:
                     self._idle.set()
@@ -390,27 +391,25 @@ class Player:
             if self.ended:
                 self.ended = False
                 self._iter = None
-                self._held = None
                 tail = None
                 self.pipeline.reset()
-            frame, self._held = self._held, None
-            if frame is None:
+            frame = None
+            if want:
                 try:
                     frame = await asyncio.to_thread(self._next_frame)
                 except Exception as exc:  # a broken file mid-recording: say so, keep serving
                     self._fail(f"{self.name}: reading the frame after {self.index}: {exc}")
                     continue
             stepping = bool(self._steps)  # a step may have been asked for during the read
-            if frame is not None and not stepping and not self.playing:
-                # Paused while the frame was being read: keep it for the next play or step,
-                # so that a step after a pause shows the very next frame.
-                self._held = frame
-                continue
+            # Paused (before or during the read): the frame in hand is shown rather than kept
+            # or dropped, so the page ends on the newest frame read and a step shows the very
+            # next one; a source cannot be rewound to a frame skipped earlier.
+            settling = not stepping and not self.playing
             last = False
             if frame is None and tail is not None:
-                # The recording ended while behind: its last frame is shown rather than
-                # dropped, so the page ends on the recording's last scene and the sound lasts
-                # as long as the recording (the skipped frames' time goes with it).
+                # The recording ended, or playback paused, just after skipping: the newest
+                # frame read is shown rather than dropped, so the page ends on the recording's
+                # last scene and the sound lasts as long as the recording.
                 frame, tail, last = tail, None, True
                 self.dropped -= 1
             if frame is None:
@@ -423,7 +422,7 @@ class Player:
             if not last:
                 advanced += 1
             now = loop_clock()
-            if not last and not stepping and now - due > period and self._read_s < period:
+            if not last and not stepping and not settling and now - due > period and self._read_s < period:
                 # Behind the recording: skipping catches up only because reading is cheaper
                 # than a period; otherwise (a slow source) playback slows down instead.
                 self.dropped += 1
@@ -432,8 +431,8 @@ class Player:
                 continue
             if self.config is not self.pipeline.config:
                 self.pipeline.config = self.config  # tracks survive a parameter change
-            # Sound only while playing: a step has no duration to fill.
-            sound = not stepping and any(c.sound for c in self.clients)
+            # Sound only while playing: a step or a pause has no duration to fill.
+            sound = not stepping and not settling and any(c.sound for c in self.clients)
             try:
                 payload, audio = await asyncio.to_thread(self._render, frame, advanced / (self.fps * self.speed),
                                                          sound)
