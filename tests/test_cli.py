@@ -66,6 +66,11 @@ def test_run_fast_reports_latency(sim_dir: Path, capsys: pytest.CaptureFixture[s
     assert main(["run", str(sim_dir), "--fast", "--quiet"]) == 0
     out = capsys.readouterr().out
     assert "6 processed, 0 dropped" in out and "latency per frame" in out
+    assert "start-up before the first frame" in out  # kept out of the first frame's latency
+    assert main(["run", str(sim_dir), "--fast", "--quiet", "--read-ahead", "0"]) == 0
+    assert "6 processed, 0 dropped" in capsys.readouterr().out
+    assert main(["run", str(sim_dir), "--read-ahead", "-1"]) == 2
+    assert "--read-ahead must be >= 0, got -1" in capsys.readouterr().err
 
 
 def test_report_writes_pictures_and_index(sim_dir: Path, tmp_path: Path) -> None:
