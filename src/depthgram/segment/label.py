@@ -68,12 +68,6 @@ def _union(parent: NDArray[np.int32], a: int, b: int) -> int:
 def _label_runs(
     key: NDArray[np.float32],
     state: NDArray[np.int8],
-    bins: NDArray[np.int32],
-    lut: NDArray[np.int32],
-    valid: NDArray[np.bool_],
-    include: NDArray[np.bool_],
-    from_bins: bool,
-    use_include: bool,
     tol: float,
     rel: float,
     bridge: int,
@@ -85,12 +79,9 @@ def _label_runs(
     # across a bridged hole is found in O(1) instead of by walking back over the holes. A pixel
     # takes its left or upper neighbour's label; only a meeting of two labels costs a union.
     # With `stats`, sums are gathered per run of one label along a row and flushed once per run.
-    # With `from_bins` the key and state come from the histogram bin of each pixel through the
-    # bin -> band table (no band image is written).
-    if from_bins:
-        h, w = bins.shape
-    else:
-        h, w = state.shape
+    # (Band images have their own run-based labeller, _label_bands: a mode for them here, with
+    # its tests on runtime flags inside the pixel loop, made this loop 16-26 % slower.)
+    h, w = state.shape
     lab = np.zeros((h, w), np.int32)
     # one provisional label per pixel at most; np.empty only reserves the memory, the pages
     # of labels never used are never touched (growing the tables inside the loop instead made
@@ -119,22 +110,11 @@ def _label_runs(
         rk = np.float32(0.0)
         merged_up = 0
         for x in range(w):
-            if from_bins:
-                if not valid[y, x]:
-                    continue
-                b = bins[y, x]
-                # branch-free: the short-circuit form cost 0.6 ms at 640 x 480
-                kb = lut[max(b, 0)]
-                active = (kb >= 0) & (b >= 0)
-                if use_include:
-                    active &= include[y, x]
-                kp = np.float32(kb)
-            else:
-                s = state[y, x]
-                if s == HOLE:
-                    continue
-                active = s == ACTIVE
-                kp = key[y, x]
+            s = state[y, x]
+            if s == HOLE:
+                continue
+            active = s == ACTIVE
+            kp = key[y, x]
             if not active:
                 last_x = x
                 last_lab = 0
@@ -545,10 +525,7 @@ def label_keyed(
     """
     k = np.ascontiguousarray(key, dtype=np.float32)
     s = np.ascontiguousarray(state, dtype=np.int8)
-    i2, b2, f2 = _dummies()
-    lab, parent, nxt, ps, pb = _label_runs(
-        k, s, i2, i2[0], b2, b2, False, False, float(tol), float(rel), int(bridge), f2, False
-    )
+    lab, parent, nxt, ps, pb = _label_runs(k, s, float(tol), float(rel), int(bridge), _NO_DEPTH, False)
     labels, n, _, _ = _resolve(lab, parent, nxt, ps, pb, 0, False)
     return labels, int(n)
 
@@ -582,10 +559,7 @@ def label_keyed_stats(
     k = np.ascontiguousarray(key, dtype=np.float32)
     s = np.ascontiguousarray(state, dtype=np.int8)
     z = np.ascontiguousarray(depth_mm, dtype=np.float32)
-    i2, b2, _ = _dummies()
-    lab, parent, nxt, ps, pb = _label_runs(
-        k, s, i2, i2[0], b2, b2, False, False, float(tol), float(rel), int(bridge), z, True
-    )
+    lab, parent, nxt, ps, pb = _label_runs(k, s, float(tol), float(rel), int(bridge), z, True)
     labels, n, sums, boxes = _resolve(lab, parent, nxt, ps, pb, int(min_px), True)
     return labels, int(n), sums, boxes
 
@@ -638,9 +612,8 @@ def _label_bands_resolved(
     return _resolve(lab, parent, nxt, ps, pb, min_px, True)
 
 
-def _dummies() -> tuple[NDArray[np.int32], NDArray[np.bool_], NDArray[np.float32]]:
-    """Stand-ins for the arrays a mode of :func:`_label_runs` does not read (numba wants types)."""
-    return np.zeros((1, 1), np.int32), np.zeros((1, 1), np.bool_), np.zeros((1, 1), np.float32)
+#: Stand-in for the depth image :func:`_label_runs` does not read without statistics.
+_NO_DEPTH = np.zeros((1, 1), np.float32)
 
 
 @njit(cache=True)
