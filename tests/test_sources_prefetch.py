@@ -88,3 +88,20 @@ def test_warm_up_leaves_the_pipeline_as_it_was() -> None:
     assert warmed.warm_up(frames[0]) > 0
     fresh = Pipeline()
     assert [warmed.process(f).sentence for f in frames] == [fresh.process(f).sentence for f in frames]
+
+
+def test_a_live_camera_is_never_read_ahead() -> None:
+    class Live:
+        live = True
+
+        def __init__(self) -> None:
+            self.threads: set[str] = set()
+
+        def __iter__(self) -> Iterator[int]:
+            for i in range(5):
+                self.threads.add(threading.current_thread().name)
+                yield i
+
+    cam = Live()
+    assert list(prefetch(cam, ahead=2)) == list(range(5))
+    assert cam.threads == {threading.current_thread().name}

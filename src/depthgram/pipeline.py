@@ -288,7 +288,8 @@ class Pipeline:
         """Process frames one at a time (memory stays flat however long the recording).
 
         ``read_ahead`` frames are read (decoded) in a background thread while the pipeline
-        works, as a sensor delivers them; 0 reads on the caller's thread. On the 300 PNG frames
+        works, as a sensor delivers them; 0 reads on the caller's thread, as does a live camera
+        (a source with ``live`` true), whose queued frames would be stale. On the 300 PNG frames
         of 7-Scenes this raised throughput from about 24 to 27-30 frames/s on one core.
         """
         for frame in prefetch(frames, ahead=read_ahead):

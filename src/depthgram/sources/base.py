@@ -118,12 +118,16 @@ class Source(ABC):
         Frame rate (frames/s), when known.
     intrinsics : Intrinsics or None
         Camera intrinsics (px), when known.
+    live : bool
+        A camera delivering frames as they happen: never read ahead, since a frame queued
+        while the pipeline works would be stale by the time it is processed.
     """
 
     name: str = ""
     kind: str = ""
     fps: float | None = None
     intrinsics: Intrinsics | None = None
+    live: bool = False
 
     @abstractmethod
     def __iter__(self) -> Iterator[Frame]:

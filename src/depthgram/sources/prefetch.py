@@ -27,7 +27,8 @@ def prefetch(items: Iterable[T], ahead: int = 2) -> Iterator[T]:
     items : iterable
         Frames (or anything else) to read; iterated in the background thread only.
     ahead : int
-        How many items may wait read but not yet taken (0 reads on the caller's thread).
+        How many items may wait read but not yet taken. 0 reads on the caller's thread, as
+        does a live source (``items.live`` true, e.g. a RealSense camera).
 
     Yields
     ------
@@ -37,7 +38,8 @@ def prefetch(items: Iterable[T], ahead: int = 2) -> Iterator[T]:
     """
     if ahead < 0:
         raise ValueError(f"ahead must be >= 0, got {ahead}")
-    if ahead == 0:
+    if ahead == 0 or getattr(items, "live", False):
+        # a live camera is read when asked: a queued frame would be stale when processed
         yield from items
         return
     box: queue.Queue[tuple[object, BaseException | None]] = queue.Queue(maxsize=ahead)

@@ -68,6 +68,7 @@ class RealSenseSource(Source):
     """Depth frames from a RealSense camera, one at a time, as the device delivers them."""
 
     kind = "realsense"
+    live = True
 
     def __init__(self, spec: RealSenseSpec, *, name: str = PREFIX, timeout_ms: int = 5000) -> None:
         self.spec = spec
