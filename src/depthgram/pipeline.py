@@ -290,7 +290,7 @@ class Pipeline:
         ``read_ahead`` frames are read (decoded) in a background thread while the pipeline
         works, as a sensor delivers them; 0 reads on the caller's thread, as does a live camera
         (a source with ``live`` true), whose queued frames would be stale. On the 300 PNG frames
-        of 7-Scenes this raised throughput from about 24 to 27-30 frames/s on a 2-core machine.
+        of 7-Scenes this raised throughput from 23-25 to 25-28 frames/s (2 cores, alternating runs).
         """
         for frame in prefetch(frames, ahead=read_ahead):
             yield self.process(frame)
