@@ -104,7 +104,7 @@ def segment(
       real 7-Scenes frame they label 92.2 % of valid pixels instead of 89.5 %. Off by default.
     - Speed (``benchmarks/bench_segmentation.py``, one core of a 2.5 GHz Xeon, with attributes):
       thresholding about 2,280 frames/s at 176 x 132, 347 at 640 x 480 and 111 at 1280 x 720
-      (6.3x one ``np.bincount`` pass at 640 x 480); slicing about 171, 44 and 19; region
+      (6.3x one ``np.bincount`` pass at 640 x 480); slicing about 178, 48 and 21; region
       growing about 1,430, 121 and 43.
     """
     cfg = (config or _DEFAULTS).with_overrides(**overrides)
