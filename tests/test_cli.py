@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import gc
 import json
 import tomllib
 from pathlib import Path
@@ -67,6 +68,7 @@ def test_run_fast_reports_latency(sim_dir: Path, capsys: pytest.CaptureFixture[s
     out = capsys.readouterr().out
     assert "6 processed, 0 dropped" in out and "latency per frame" in out
     assert "start-up before the first frame" in out  # kept out of the first frame's latency
+    assert gc.get_freeze_count() == 0  # the collector is given back as it was
     assert main(["run", str(sim_dir), "--fast", "--quiet", "--read-ahead", "0"]) == 0
     assert "6 processed, 0 dropped" in capsys.readouterr().out
     assert main(["run", str(sim_dir), "--read-ahead", "-1"]) == 2
