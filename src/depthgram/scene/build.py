@@ -16,6 +16,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
+from numba import njit
 from numpy.typing import NDArray
 
 from depthgram.errors import InputError
@@ -122,33 +123,64 @@ def _contact_fractions(
     objects with ``need[i]`` False (no support passed the geometric test) are not read at all.
     """
     n = len(objects)
+    if n == 0:
+        return np.zeros((0, 0))
+    ids = np.array([o.id for o in objects], np.int64)
+    boxes = np.array([o.bbox for o in objects], np.int64).reshape(n, 4)
+    todo = np.array([o.kind not in _SURFACES for o in objects], np.bool_)
+    if need is not None:
+        todo &= np.asarray(need, np.bool_)
+    top = max(int(labels.max(initial=0)), int(ids.max()))
+    column_of = np.full(top + 1, -1, np.int64)  # object id -> its row and column in the result
+    for oid, j in index.items():
+        if 0 <= oid <= top:
+            column_of[oid] = j
+    return _contacts_below(np.ascontiguousarray(labels), ids, boxes, todo, column_of, int(rows), n)
+
+
+@njit(cache=True)
+def _contacts_below(
+    labels: NDArray[np.integer],
+    ids: NDArray[np.int64],
+    boxes: NDArray[np.int64],
+    todo: NDArray[np.bool_],
+    column_of: NDArray[np.int64],
+    rows: int,
+    n: int,
+) -> NDArray[np.float64]:
+    # Per column of each object: its lowest pixel, then the first other label within `rows`
+    # below it. The numpy version built a dozen box-sized temporaries per object (1.3 ms per
+    # 7-Scenes frame); this reads each box once.
     out = np.zeros((n, n))
     h = labels.shape[0]
-    for i, o in enumerate(objects):
-        if o.kind in _SURFACES or (need is not None and not need[i]):
+    for i in range(ids.size):
+        if not todo[i]:
             continue
-        x0, y0, x1, y1 = o.bbox
-        sub = labels[y0 : y1 + 1, x0 : x1 + 1] == o.id
-        present = sub.any(axis=0)
-        if not present.any():
-            continue
-        # Lowest row of the object in each column: where the object would touch what holds it.
-        bottom = y0 + sub.shape[0] - 1 - np.argmax(sub[::-1], axis=0)
-        cols = np.arange(x0, x1 + 1)[present]
-        bottom = bottom[present]
-        found = np.zeros(cols.size, dtype=np.int64)
-        for k in range(1, rows + 1):
-            r = bottom + k
-            inside = r < h
-            lab = np.zeros(cols.size, dtype=np.int64)
-            lab[inside] = labels[r[inside], cols[inside]]
-            take = (found == 0) & (lab != 0) & (lab != o.id)
-            found[take] = lab[take]
-        ids, counts = np.unique(found[found != 0], return_counts=True)
-        for sid, c in zip(ids.tolist(), counts.tolist(), strict=True):
-            j = index.get(int(sid))
-            if j is not None:
-                out[i, j] = c / cols.size
+        oid = ids[i]
+        x0, y0, x1, y1 = boxes[i, 0], boxes[i, 1], boxes[i, 2], boxes[i, 3]
+        cols = 0
+        for x in range(x0, x1 + 1):
+            bottom = -1
+            for y in range(y1, y0 - 1, -1):
+                if labels[y, x] == oid:
+                    bottom = y
+                    break
+            if bottom < 0:
+                continue
+            cols += 1
+            for k in range(1, rows + 1):
+                r = bottom + k
+                if r >= h:
+                    break
+                lab = labels[r, x]
+                if lab != 0 and lab != oid:
+                    j = column_of[lab]
+                    if j >= 0:
+                        out[i, j] += 1.0
+                    break
+        if cols:
+            for j in range(n):
+                out[i, j] = out[i, j] / cols
     return out
 
 
