@@ -130,10 +130,11 @@ def _contact_fractions(
     todo = np.array([o.kind not in _SURFACES for o in objects], np.bool_)
     if need is not None:
         todo &= np.asarray(need, np.bool_)
-    top = max(int(labels.max(initial=0)), int(ids.max()))
-    column_of = np.full(top + 1, -1, np.int64)  # object id -> its row and column in the result
+    # object id -> its row and column in the result; ids beyond the table (labels of objects
+    # not passed) are looked up as -1 in the kernel, so the label map needs no max() pass
+    column_of = np.full(max(max(index, default=0), int(ids.max())) + 1, -1, np.int64)
     for oid, j in index.items():
-        if 0 <= oid <= top:
+        if oid >= 0:
             column_of[oid] = j
     return _contacts_below(np.ascontiguousarray(labels), ids, boxes, todo, column_of, int(rows), n)
 
@@ -174,7 +175,7 @@ def _contacts_below(
                     break
                 lab = labels[r, x]
                 if lab != 0 and lab != oid:
-                    j = column_of[lab]
+                    j = column_of[lab] if 0 < lab < column_of.size else -1
                     if j >= 0:
                         out[i, j] += 1.0
                     break
