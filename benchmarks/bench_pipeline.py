@@ -42,7 +42,7 @@ def stage_rows(*, quick: bool = False) -> list[dict[str, Any]]:
     from depthgram.act import plan
     from depthgram.dynamics import Tracker
     from depthgram.scene import build_tree, to_sentence
-    from depthgram.segment import SegmentConfig, region_grow, segment
+    from depthgram.segmentation import SegmentConfig, region_grow, segment
     from depthgram.sensor import simulate
     from depthgram.sound import Sonifier, SoundMapping
 

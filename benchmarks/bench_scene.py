@@ -16,7 +16,7 @@ from collections.abc import Callable, Sequence
 import numpy as np
 
 from depthgram.scene import build_tree, parse_sentence, to_sentence
-from depthgram.segment.objects import SceneObject
+from depthgram.segmentation.objects import SceneObject
 
 W, H = 640, 480
 BUDGET_FALLBACK_MS = 0.33
@@ -60,8 +60,8 @@ def rows(n_objects: int = 20, repeats: int = 50) -> list[dict[str, object]]:
     depth, lab, objs = synthetic_scene(n_objects)
     out: list[dict[str, object]] = []
     seg_ms: float | None = None
-    if importlib.util.find_spec("depthgram.segment.core") is not None:
-        from depthgram.segment import segment
+    if importlib.util.find_spec("depthgram.segmentation.core") is not None:
+        from depthgram.segmentation import segment
 
         valid = depth > 0
         seg_ms = _best_ms(lambda: segment(depth, valid=valid), max(3, repeats // 10))

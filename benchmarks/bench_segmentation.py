@@ -27,7 +27,7 @@ from typing import Any
 
 import numpy as np
 
-from depthgram.segment import segment
+from depthgram.segmentation import segment
 
 SIZES = ((176, 132), (640, 480), (1280, 720))
 #: Real recordings timed beside the simulator (../shared/data; skipped when absent).
@@ -130,7 +130,7 @@ def compare_labellers(size: tuple[int, int] = (640, 480), tol_per_m: float = 10.
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components
 
-    from depthgram.segment.label import ACTIVE, HOLE, label_keyed, label_keyed_stats
+    from depthgram.segmentation.label import ACTIVE, HOLE, label_keyed, label_keyed_stats
     from depthgram.sensor import simulate
 
     f = next(iter(simulate("table", 1, size=size, seed=0))).frame
@@ -159,11 +159,11 @@ def compare_labellers(size: tuple[int, int] = (640, 480), tol_per_m: float = 10.
 
 def threshold_stages(size: tuple[int, int], seed: int = 0) -> dict[str, float]:
     """Time (ms) of each step of thresholding at one size, and the whole call."""
-    from depthgram.segment.attributes import Stats, make_objects
-    from depthgram.segment.config import SegmentConfig
-    from depthgram.segment.histogram import bin_index, depth_bands
-    from depthgram.segment.label import label_bands_stats
-    from depthgram.segment.validate import check_depth
+    from depthgram.segmentation.attributes import Stats, make_objects
+    from depthgram.segmentation.config import SegmentConfig
+    from depthgram.segmentation.histogram import bin_index, depth_bands
+    from depthgram.segmentation.label import label_bands_stats
+    from depthgram.segmentation.validate import check_depth
     from depthgram.sensor import simulate
 
     f = next(iter(simulate("table", 1, size=size, seed=seed))).frame

@@ -17,7 +17,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from depthgram.dynamics import Tracker
-from depthgram.segment.objects import SceneObject
+from depthgram.segmentation.objects import SceneObject
 
 W, H = 640, 480
 
@@ -104,7 +104,7 @@ def real_rows(frames: int = 300) -> dict[str, float] | None:
     import cv2
 
     from depthgram.frame import Intrinsics, make_frame
-    from depthgram.segment import segment
+    from depthgram.segmentation import segment
 
     folder = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "7scenes_redkitchen_seq" / "depth"
     paths = sorted(folder.glob("*.png"))[:frames]

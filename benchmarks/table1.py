@@ -25,7 +25,7 @@ from typing import Any
 
 import numpy as np
 
-from depthgram.segment import SegmentConfig, evaluate, segment
+from depthgram.segmentation import SegmentConfig, evaluate, segment
 
 ROOT = Path(__file__).resolve().parents[1]
 SHARED = ROOT.parent / "shared" / "data"

@@ -37,7 +37,7 @@ def _frames(folder: Path, n: int) -> list[Frame]:
 
 
 def test_real_sequence_velocities_stay_physical(shared_data: Path) -> None:
-    from depthgram.segment import segment
+    from depthgram.segmentation import segment
 
     folder = shared_data / "7scenes_redkitchen_seq" / "depth"
     if not folder.is_dir():

@@ -10,19 +10,19 @@ import pytest
 from depthgram.dynamics import Tracker, TrackerConfig
 from depthgram.errors import InputError
 from depthgram.scene.tree import Motion
-from depthgram.segment.objects import SceneObject
+from depthgram.segmentation.objects import SceneObject
 
 W, H = 640, 480
 FPS = 30.0
 
 
-def box(oid: int, cx: float, cy: float, w: float, h: float, z: float, label: int = 0) -> SceneObject:
+def box(oid: int, cx: float, cy: float, w: float, h: float, z: float, depth_label: int = 0) -> SceneObject:
     """A rectangular object clipped to the image, as segmentation would report it."""
     x0, x1 = max(0, round(cx - w / 2)), min(W - 1, round(cx + w / 2) - 1)
     y0, y1 = max(0, round(cy - h / 2)), min(H - 1, round(cy + h / 2) - 1)
     area = (x1 - x0 + 1) * (y1 - y0 + 1)
     center = ((x0 + x1) / 2, (y0 + y1) / 2)
-    return SceneObject(oid, "object", label, z, 5.0, area, area / (W * H), center, (x0, y0, x1, y1))
+    return SceneObject(oid, "object", depth_label, z, 5.0, area, area / (W * H), center, (x0, y0, x1, y1))
 
 
 def approaching(speed: float, z0: float, n: int, noise: float, seed: int = 0) -> list[SceneObject]:
@@ -118,7 +118,7 @@ def test_two_objects_crossing_one_behind_the_other() -> None:
         objs = [box(1, xa, 240, 90, 90, 1000.0 - 3 * k)]
         hidden = abs(xa - xb) < 60  # frames 21..28: 8 frames, within the budget of 10
         if not hidden:
-            objs.append(box(2, xb, 250, 60, 60, 2500.0, label=1))
+            objs.append(box(2, xb, 250, 60, 60, 2500.0, depth_label=1))
         upd = tr.update(objs, k / FPS, (W, H))
         ids_a.add(upd.motions[1].track_id)
         if hidden:

@@ -20,7 +20,7 @@ from depthgram.scene import (
     support_depth_at,
     to_sentence,
 )
-from depthgram.segment.objects import SceneObject
+from depthgram.segmentation.objects import SceneObject
 
 # ---------------------------------------------------------------------------------------------
 # A ray-cast room with ground truth: camera 1.2 m above the floor looking level, a solid table
@@ -76,7 +76,7 @@ def _objects(depth: np.ndarray, lab: np.ndarray) -> list[SceneObject]:
         ys, xs = np.nonzero(lab == i)
         d = depth[ys, xs]
         out.append(SceneObject(
-            id=i, kind=kinds.get(i, "object"), label=order.index(i), depth=float(d.mean()),
+            id=i, kind=kinds.get(i, "object"), depth_label=order.index(i), depth=float(d.mean()),
             depth_std=float(d.std()), area=int(d.size), area_fraction=d.size / depth.size,
             center=(float(xs.mean()), float(ys.mean())),
             bbox=(int(xs.min()), int(ys.min()), int(xs.max()), int(ys.max())),
@@ -258,15 +258,15 @@ def test_proposition_1_random_segmentations_parse(seg, use_labels, precision):
     assert parse_sentence(sentence) == round_tree(tree, precision)
 
 
-_HAVE_SEGMENT = importlib.util.find_spec("depthgram.segment.core") is not None
+_HAVE_SEGMENT = importlib.util.find_spec("depthgram.segmentation.core") is not None
 _HAVE_SENSOR = importlib.util.find_spec("depthgram.sensor.simulate") is not None
 
 
-@pytest.mark.skipif(not _HAVE_SEGMENT, reason="depthgram.segment.segment not available")
+@pytest.mark.skipif(not _HAVE_SEGMENT, reason="depthgram.segmentation.segment not available")
 @settings(max_examples=5, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(st.integers(0, 2**31 - 1))
 def test_proposition_1_segment_of_random_depth(seed):
-    from depthgram.segment import segment
+    from depthgram.segmentation import segment
 
     rng = np.random.default_rng(seed)
     depth = rng.uniform(500.0, 5000.0, (24, 32)).repeat(4, 0).repeat(4, 1).astype(np.float32)
@@ -280,7 +280,7 @@ def test_proposition_1_segment_of_random_depth(seed):
 def simulated_table():
     if not (_HAVE_SEGMENT and _HAVE_SENSOR):
         pytest.skip("simulator or segmentation not available")
-    from depthgram.segment import segment
+    from depthgram.segmentation import segment
     from depthgram.sensor import simulate
 
     sf = next(iter(simulate("table", 1)))
@@ -336,7 +336,7 @@ def test_simulated_table_supports_match_truth(simulated_table, use_labels):
 
 @pytest.mark.skipif(not (_HAVE_SEGMENT and _HAVE_SENSOR), reason="simulator or segmentation not available")
 def test_proposition_1_simulated_scenes():
-    from depthgram.segment import segment
+    from depthgram.segmentation import segment
     from depthgram.sensor import SCENES, simulate
 
     for name in SCENES:

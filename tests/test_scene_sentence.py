@@ -34,8 +34,8 @@ def test_example_reads_as_written():
     assert t.root.kind == "Bkg" and t.root.id == 0 and t.root.area == 307200
     assert t.parent_of() == {1: 0, 2: 1, 3: 2, 4: 0}
     floor, wall = t.root.children
-    assert (floor.kind, floor.label, floor.parts) == ("floor", 4, (4, 5, 6))
-    assert (wall.label, wall.parts) == (3, (3, 5, 6))
+    assert (floor.kind, floor.depth_label, floor.parts) == ("floor", 4, (4, 5, 6))
+    assert (wall.depth_label, wall.parts) == (3, (3, 5, 6))
     cup = floor.children[0].children[0]
     assert (cup.area, cup.center, cup.depth) == (300, (290.0, 180.5), 1420.0)
     assert (cup.v_radial, cup.ttc, cup.status) == (-120.0, 11.8, "visible")
@@ -93,7 +93,7 @@ def scene_trees(draw: st.DrawFn) -> SceneTree:
             parts = ()
         fields.append(dict(
             kind=draw(st.sampled_from(["object", "floor", "wall", "ceiling", "compound", "part", "table"])),
-            label=label,
+            depth_label=label,
             depth=draw(st.floats(0.0, 20_000.0)),
             area=draw(st.integers(0, 10**7)),
             center=(draw(finite), draw(finite)),

@@ -7,8 +7,8 @@ import pytest
 
 from depthgram.errors import InputError
 from depthgram.frame import Intrinsics
-from depthgram.segment import SegmentConfig, evaluate, region_grow, segment
-from depthgram.segment.histogram import bin_index, depth_bands
+from depthgram.segmentation import SegmentConfig, evaluate, region_grow, segment
+from depthgram.segmentation.histogram import bin_index, depth_bands
 
 CAM = Intrinsics(fx=140.0, fy=140.0, cx=87.5, cy=65.5)
 
@@ -65,7 +65,7 @@ def test_fronto_parallel_objects_and_their_attributes() -> None:
     ev = evaluate(seg.labels, truth)
     assert ev.correct == 3 and ev.area > 0.99 and ev.precision == 1.0
     near = min(seg.objects, key=lambda o: o.depth)
-    assert near.label == 0 and near.kind == "object"
+    assert near.depth_label == 0 and near.kind == "object"
     assert near.area == 40 * 50 and near.area_fraction == pytest.approx(2000 / z.size)
     assert near.depth == pytest.approx(1000.0) and near.depth_std == pytest.approx(0.0, abs=1e-6)
     assert near.center == pytest.approx((44.5, 39.5))
@@ -73,7 +73,7 @@ def test_fronto_parallel_objects_and_their_attributes() -> None:
     # pinhole back-projection: X = (u - cx) Z / fx; area per pixel (Z / f)^2
     assert near.centroid_mm == pytest.approx(((44.5 - 87.5) * 1000 / 140, (39.5 - 65.5) * 1000 / 140, 1000.0))
     assert near.area_mm2 == pytest.approx(2000 * (1000 / 140) ** 2)
-    assert [o.label for o in sorted(seg.objects, key=lambda o: o.depth)] == [0, 1, 2]
+    assert [o.depth_label for o in sorted(seg.objects, key=lambda o: o.depth)] == [0, 1, 2]
     assert seg.labels.dtype == np.int32 and set(np.unique(seg.labels)) == {1, 2, 3}
 
 
@@ -173,9 +173,9 @@ def test_boxes_on_the_floor_come_out_separate_from_it(noise_rel: float) -> None:
     # horizontal slices of a floor: depth grows slice by slice, labels never go down
     depths = [p.depth for p in fl.parts]
     assert depths == sorted(depths)
-    labels = [p.label for p in fl.parts]
+    labels = [p.depth_label for p in fl.parts]
     assert labels == sorted(labels) and labels[-1] > labels[0]
-    assert fl.label == labels[0]
+    assert fl.depth_label == labels[0]
     # the global histogram alone merges the boxes with the floor rows at their depth
     plain = evaluate(segment(z, method="threshold", intrinsics=CAM).labels, truth)
     assert min(plain.score(3).precision, plain.score(4).precision) < 0.9
@@ -221,7 +221,7 @@ def test_depth_dependent_bins_widen_with_depth() -> None:
 
 
 def test_overrides_are_checked_every_time_even_when_cached() -> None:
-    from depthgram.segment.config import SegmentConfig
+    from depthgram.segmentation.config import SegmentConfig
 
     cfg = SegmentConfig()
     first = cfg.with_overrides(method="threshold", fill_holes_px=3)

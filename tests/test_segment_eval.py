@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from depthgram.errors import InputError
-from depthgram.segment import evaluate
-from depthgram.segment.attributes import label_stats, label_stats_bincount
+from depthgram.segmentation import evaluate
+from depthgram.segmentation.attributes import label_stats, label_stats_bincount
 
 
 def hoover_case() -> tuple[np.ndarray, np.ndarray]:

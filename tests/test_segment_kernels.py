@@ -13,12 +13,12 @@ import numpy as np
 import pytest
 
 from depthgram.frame import Intrinsics
-from depthgram.segment.attributes import label_stats, label_stats_bincount, relabel_small
-from depthgram.segment.binning import band_state, bin_pixels, depth_range
-from depthgram.segment.label import ACTIVE, BLOCK, HOLE, label_bands_stats, label_keyed, label_keyed_stats
-from depthgram.segment.objects import SceneObject
-from depthgram.segment.orientation import _jumps, _jumps_cols, _one_sided, _one_sided_cols, upsample_classes
-from depthgram.segment.slices import (
+from depthgram.segmentation.attributes import label_stats, label_stats_bincount, relabel_small
+from depthgram.segmentation.binning import band_state, bin_pixels, depth_range
+from depthgram.segmentation.label import ACTIVE, BLOCK, HOLE, label_bands_stats, label_keyed, label_keyed_stats
+from depthgram.segmentation.objects import SceneObject
+from depthgram.segmentation.orientation import _jumps, _jumps_cols, _one_sided, _one_sided_cols, upsample_classes
+from depthgram.segmentation.slices import (
     front_faces,
     merge_coplanar,
     near_planes,
@@ -29,7 +29,7 @@ from depthgram.segment.slices import (
     support_components,
     support_pieces,
 )
-from depthgram.segment.validate import check_depth
+from depthgram.segmentation.validate import check_depth
 
 
 def _random_keyed(rng: np.random.Generator, smooth: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -312,7 +312,7 @@ def test_slice_parts_match_per_slice_numpy_sums() -> None:
 
 
 def test_relabel_equals_numpy_fancy_indexing() -> None:
-    from depthgram.segment.label import relabel
+    from depthgram.segmentation.label import relabel
 
     rng = np.random.default_rng(8)
     labels = rng.integers(0, 40, (37, 53)).astype(np.int32)
@@ -329,7 +329,7 @@ def test_histogram_smoothing_gives_scipys_numbers(sigma: float) -> None:
     # depend on comparisons of neighbouring bins), edges reflected, tiny histograms too
     from scipy.ndimage import gaussian_filter1d
 
-    from depthgram.segment.histogram import _gaussian_weights, _smooth_padded
+    from depthgram.segmentation.histogram import _gaussian_weights, _smooth_padded
 
     rng = np.random.default_rng(int(sigma * 10))
     for _ in range(200):

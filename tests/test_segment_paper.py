@@ -14,8 +14,8 @@ from numpy.typing import NDArray
 
 from depthgram.errors import InputError
 from depthgram.frame import Intrinsics
-from depthgram.segment import SegmentConfig, evaluate, segment
-from depthgram.segment.paper_slices import aperture_px, slice_segments
+from depthgram.segmentation import SegmentConfig, evaluate, segment
+from depthgram.segmentation.paper_slices import aperture_px, slice_segments
 
 H, W = 120, 160
 CAM = Intrinsics(150.0, 150.0, 80.0, 60.0)
@@ -96,7 +96,7 @@ def test_fronto_parallel_scene_gives_the_global_histogram_objects() -> None:
         match = paper.by_id()[int(ids[np.argmax(counts)])]
         # within a pixel at band edges: every pixel here is well inside its band
         assert _iou(mask, paper.labels == match.id) >= 0.99
-        assert match.label == o.label and abs(match.depth - o.depth) < 1.0
+        assert match.depth_label == o.depth_label and abs(match.depth - o.depth) < 1.0
 
 
 def test_floor_is_a_compound_of_horizontal_slices_with_successive_labels() -> None:
@@ -114,8 +114,8 @@ def test_floor_is_a_compound_of_horizontal_slices_with_successive_labels() -> No
     # nearest part at the bottom of the image, depth growing upward; labels never go back
     rows = [p.center[1] for p in parts]
     assert rows[0] == max(rows) and np.all(np.diff(rows) < 0)
-    labels = [p.label for p in parts]
-    assert labels == sorted(labels) and labels[-1] > labels[0] and f.label == labels[0]
+    labels = [p.depth_label for p in parts]
+    assert labels == sorted(labels) and labels[-1] > labels[0] and f.depth_label == labels[0]
     assert sum(p.area for p in parts) == f.area
     # part and object ids do not collide
     ids = [o.id for o in seg.objects] + [p.id for o in seg.objects for p in o.parts]

@@ -10,8 +10,8 @@ from numpy.typing import NDArray
 
 from depthgram.errors import InputError
 from depthgram.frame import Intrinsics
-from depthgram.segment import SegmentConfig, segment
-from depthgram.segment.planes import find_planes, plane_distance_mm, plane_normal, plane_residual_mask
+from depthgram.segmentation import SegmentConfig, segment
+from depthgram.segmentation.planes import find_planes, plane_distance_mm, plane_normal, plane_residual_mask
 
 W, H = 320, 240
 CAM = Intrinsics(300.0, 300.0, (W - 1) / 2.0, (H - 1) / 2.0)

@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from depthgram.segment import evaluate, segment
+from depthgram.segmentation import evaluate, segment
 
 sensor = pytest.importorskip("depthgram.sensor")
 
@@ -39,7 +39,7 @@ def test_table_scene_meets_the_area_and_precision_targets(table) -> None:  # typ
     # the table top is a compound of horizontal slices with successive depth labels
     top = seg.by_id()[ev.score(3).detected]
     assert top.kind == "compound" and len(top.parts) >= 5
-    labels = [p.label for p in top.parts]
+    labels = [p.depth_label for p in top.parts]
     assert labels == sorted(labels) and labels[-1] > labels[0]
 
 
@@ -114,7 +114,7 @@ def test_cart_side_face_joins_its_front_not_a_wall() -> None:
     """On `crossing` the cart shows its front and an oblique side: one compound, not a wall piece."""
     import numpy as np
 
-    from depthgram.segment import segment
+    from depthgram.segmentation import segment
     from depthgram.sensor import simulate
 
     sim = list(simulate("crossing", 13, seed=1))[-1]  # cart entering from the side

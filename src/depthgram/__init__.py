@@ -3,7 +3,7 @@
 The public API, loaded lazily so that ``import depthgram`` stays light:
 
 - :func:`read` (from :mod:`depthgram.sources`): frames from any source, one at a time;
-- :func:`segment` (from :mod:`depthgram.segment`): one depth image to objects and a label map;
+- :func:`segment` (from :mod:`depthgram.segmentation`, the stage's package): one depth image to objects and a label map;
 - :func:`describe`: one depth image to its scene (objects, tree, sentence, plan);
 - :class:`Pipeline` and :class:`Config` (from :mod:`depthgram.pipeline`): frame in, scene out;
 - :class:`Frame` and :func:`make_frame` (from :mod:`depthgram.frame`).
@@ -20,7 +20,7 @@ __all__ = ["Config", "Frame", "Pipeline", "describe", "make_frame", "read", "seg
 
 _LAZY = {
     "read": "depthgram.sources",
-    "segment": "depthgram.segment",
+    "segment": "depthgram.segmentation",
     "Pipeline": "depthgram.pipeline",
     "Config": "depthgram.pipeline",
     "describe": "depthgram.pipeline",
@@ -31,7 +31,7 @@ _LAZY = {
 if TYPE_CHECKING:
     from depthgram.frame import Frame, make_frame
     from depthgram.pipeline import Config, Pipeline, describe
-    from depthgram.segment import segment
+    from depthgram.segmentation import segment
     from depthgram.sources import read
 
 

@@ -25,9 +25,9 @@ from depthgram.errors import InputError
 from depthgram.frame import Frame
 from depthgram.scene import TreeConfig, build_tree, to_sentence, tree_to_dict
 from depthgram.scene.tree import Motion, SceneTree
-from depthgram.segment import SegmentConfig, segment
-from depthgram.segment.label import relabel
-from depthgram.segment.objects import SceneObject, Segmentation
+from depthgram.segmentation import SegmentConfig, segment
+from depthgram.segmentation.label import relabel
+from depthgram.segmentation.objects import SceneObject, Segmentation
 from depthgram.sound import SoundMapping
 from depthgram.sources.prefetch import prefetch
 
@@ -46,7 +46,7 @@ _SECTIONS: dict[str, type] = {
 class Config:
     """Every stage's settings in one place; see each section's class for units and meaning.
 
-    Sections: ``segment`` (:class:`depthgram.segment.SegmentConfig`), ``tree``
+    Sections: ``segment`` (:class:`depthgram.segmentation.SegmentConfig`), ``tree``
     (:class:`depthgram.scene.TreeConfig`), ``tracker`` (:class:`depthgram.dynamics.TrackerConfig`),
     ``act`` (:class:`depthgram.act.ActConfig`), ``sound`` (:class:`depthgram.sound.SoundMapping`).
     """
@@ -194,7 +194,7 @@ def _object_record(o: SceneObject, node: Mapping[str, Any], m: Motion | None) ->
     rec: dict[str, Any] = {
         "id": o.id,
         "kind": o.kind,
-        "label": o.label,
+        "depth_label": o.depth_label,
         "depth": _clean(o.depth, 1),
         "depth_std": _clean(o.depth_std, 1),
         "area": o.area,
@@ -206,7 +206,12 @@ def _object_record(o: SceneObject, node: Mapping[str, Any], m: Motion | None) ->
         "parent": node.get("parent"),
         "children": node.get("children", []),
         "parts": [
-            {"label": p.label, "depth": _clean(p.depth, 1), "area": p.area, "center": [_clean(c) for c in p.center]}
+            {
+                "depth_label": p.depth_label,
+                "depth": _clean(p.depth, 1),
+                "area": p.area,
+                "center": [_clean(c) for c in p.center],
+            }
             for p in o.parts
         ],
     }

@@ -46,7 +46,7 @@ class Action:
     cost : float
         Effort of the action: the travel along the action vector (m). Ranking uses the depth
         label first (the paper's cost) and this to break ties.
-    label : int
+    depth_label : int
         Depth label of the object (0 nearest).
     kind : str
         Node kind (``object``, ``wall``, ...).
@@ -59,7 +59,7 @@ class Action:
     direction: tuple[float, ...]
     distance_mm: float
     cost: float
-    label: int
+    depth_label: int
     kind: str
     reason: str
 
@@ -210,10 +210,10 @@ def plan(
             continue
         direction, dist = _direction(node, size, k)
         action, reason = _decide(node, size, k, cfg, dist)
-        actions.append(Action(node.id, action, direction, dist, dist / 1000.0, node.label, node.kind, reason))
+        actions.append(Action(node.id, action, direction, dist, dist / 1000.0, node.depth_label, node.kind, reason))
         if node.ttc is not None and 0 <= node.ttc < cfg.ttc_warning_s:
             warnings.append(TtcWarning(node.id, float(node.ttc), float(node.depth), node.v_radial))
-    actions.sort(key=lambda a: (ACTIONS.index(a.action), a.label, a.cost, a.object_id))
+    actions.sort(key=lambda a: (ACTIONS.index(a.action), a.depth_label, a.cost, a.object_id))
     warnings.sort(key=lambda w: w.ttc)
     channel = clearance_channel(frame, cfg) if frame is not None else None
     return Plan(tuple(actions), channel, tuple(warnings), frame is not None)
@@ -232,7 +232,7 @@ def plan_to_dict(p: Plan) -> dict[str, Any]:
                 "object": a.object_id,
                 "action": a.action,
                 "kind": a.kind,
-                "label": a.label,
+                "depth_label": a.depth_label,
                 "direction": [round(c, 4) for c in a.direction],
                 "distance_mm": _r(a.distance_mm, 1),
                 "cost": _r(a.cost, 4),
@@ -262,7 +262,7 @@ def plan_to_text(p: Plan) -> str:
              for w in p.warnings]
     for a in p.actions:
         d = ", ".join(f"{c:+.2f}" for c in a.direction)
-        lines.append(f"{a.action:<7} object {a.object_id} ({a.kind}, label {a.label}) "
+        lines.append(f"{a.action:<7} object {a.object_id} ({a.kind}, label {a.depth_label}) "
                      f"at {a.distance_mm:.0f} mm toward ({d}): {a.reason}")
     ch = p.channel
     if ch is None:

@@ -17,7 +17,7 @@ from scipy import ndimage
 
 from depthgram.dynamics.config import TrackerConfig
 from depthgram.dynamics.tracker import Tracker
-from depthgram.segment.objects import SceneObject
+from depthgram.segmentation.objects import SceneObject
 
 __all__ = ["BodyScore", "TrackingScore", "evaluate_tracking", "objects_from_labels", "primary_segments"]
 
@@ -210,14 +210,14 @@ def evaluate_tracking(
         velocity is scored: the brief's "after 3 frames" (a turn of the simulated hand is
         a step in velocity no fit over past frames can follow at once).
     segmenter : str
-        ``segment``: :func:`depthgram.segment.segment`, the real pipeline; ``truth``: the
+        ``segment``: :func:`depthgram.segmentation.segment`, the real pipeline; ``truth``: the
         simulator's instance map, a perfect segmentation, to score the tracker alone.
 
     Returns
     -------
     TrackingScore
     """
-    from depthgram.segment import segment
+    from depthgram.segmentation import segment
     from depthgram.sensor import simulate
 
     tracker = Tracker(config)

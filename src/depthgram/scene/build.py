@@ -24,7 +24,7 @@ from depthgram.scene.sentence import ROOT_KIND, ROOT_LABEL
 from depthgram.scene.tree import Motion, Node, Relation, SceneTree
 
 if TYPE_CHECKING:  # only the type: the scene stage must import even while segment changes
-    from depthgram.segment.objects import SceneObject
+    from depthgram.segmentation.objects import SceneObject
 
 __all__ = ["TreeConfig", "build_tree", "support_depth_at"]
 
@@ -257,21 +257,21 @@ def build_tree(
         return Node(
             id=o.id,
             kind=o.kind,
-            label=o.label,
+            depth_label=o.depth_label,
             depth=float(o.depth),
             area=int(o.area),
             center=(float(o.center[0]), float(o.center[1])),
             v_radial=None if m is None else m.v_radial,
             ttc=None if m is None else m.ttc,
             status=None if m is None else m.status,
-            parts=tuple(sorted({p.label for p in o.parts})),
+            parts=tuple(sorted({p.depth_label for p in o.parts})),
             children=tuple(node(c) for c in kids.get(o.id, [])),
         )
 
     root = Node(
         id=0,
         kind=ROOT_KIND,
-        label=ROOT_LABEL,
+        depth_label=ROOT_LABEL,
         depth=0.0,
         area=width * height,
         center=((width - 1) / 2.0, (height - 1) / 2.0),

@@ -15,7 +15,7 @@ def _node_dict(n: Node, parent: int | None) -> dict[str, Any]:
     return {
         "id": n.id,
         "kind": n.kind,
-        "label": n.label,
+        "depth_label": n.depth_label,
         "depth": n.depth,
         "area": n.area,
         "center": [n.center[0], n.center[1]],
@@ -79,7 +79,7 @@ def tree_from_dict(data: Mapping[str, Any]) -> SceneTree:
             return Node(
                 id=nid,
                 kind=str(d["kind"]),
-                label=int(d["label"]),
+                depth_label=int(d["depth_label"]),
                 depth=float(d["depth"]),
                 area=int(d["area"]),
                 center=(float(d["center"][0]), float(d["center"][1])),

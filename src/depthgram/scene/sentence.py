@@ -78,8 +78,8 @@ def _attrs(n: Node, precision: int, root: bool) -> str:
         f"c=({_num(n.center[0], precision)},{_num(n.center[1], precision)})",
         f"z={_num(n.depth, precision)}",
     ]
-    if root and n.label != ROOT_LABEL:
-        parts.append(f"L={int(n.label)}")
+    if root and n.depth_label != ROOT_LABEL:
+        parts.append(f"L={int(n.depth_label)}")
     if n.v_radial is not None:
         parts.append(f"v={_num(n.v_radial, precision)}")
     if n.ttc is not None:
@@ -90,13 +90,13 @@ def _attrs(n: Node, precision: int, root: bool) -> str:
 
 
 def _terminal(n: Node) -> str:
-    if n.label < 0:
-        raise InputError(f"node {n.id}: depth label must be >= 0 to be written as o_<label>, got {n.label}")
+    if n.depth_label < 0:
+        raise InputError(f"node {n.id}: depth label must be >= 0 to be written as o_<label>, got {n.depth_label}")
     if not n.parts:
-        return f"o_{n.label}"
-    if len(n.parts) > 1 and n.parts == tuple(range(n.label, n.label + len(n.parts))):
-        return f"o_{n.label}..{n.parts[-1]}"
-    return f"o_{n.label}(" + ",".join(str(int(p)) for p in n.parts) + ")"
+        return f"o_{n.depth_label}"
+    if len(n.parts) > 1 and n.parts == tuple(range(n.depth_label, n.depth_label + len(n.parts))):
+        return f"o_{n.depth_label}..{n.parts[-1]}"
+    return f"o_{n.depth_label}(" + ",".join(str(int(p)) for p in n.parts) + ")"
 
 
 def _write(n: Node, precision: int, out: list[str]) -> None:
@@ -154,7 +154,7 @@ def round_tree(tree: SceneTree, precision: int = 1) -> SceneTree:
         return Node(
             id=n.id,
             kind=n.kind,
-            label=n.label,
+            depth_label=n.depth_label,
             depth=float(_num(n.depth, precision)),
             area=int(n.area),
             center=(float(_num(n.center[0], precision)), float(_num(n.center[1], precision))),
@@ -271,7 +271,7 @@ class _Reader:
         kids_t = next((c for c in rest if isinstance(c, Tree) and c.data == "children"), None)
         values = self.node_attrs(self.attrs(attrs_t, root=False), kind_tok, required=True)
         kids = tuple(self.p_object(c, nid) for c in kids_t.children) if kids_t is not None else ()
-        return Node(id=nid, kind=str(kind_tok), label=label, parts=parts, children=kids, **values)
+        return Node(id=nid, kind=str(kind_tok), depth_label=label, parts=parts, children=kids, **values)
 
     def relations(self, t: Tree | None) -> tuple[Relation, ...]:
         if t is None:
@@ -303,7 +303,7 @@ class _Reader:
         kids = tuple(
             self.p_object(c, 0) for c in bkg.children if isinstance(c, Tree) and c.data == "p_object"
         )
-        root = Node(id=0, kind=ROOT_KIND, label=label, children=kids, **values)
+        root = Node(id=0, kind=ROOT_KIND, depth_label=label, children=kids, **values)
         return SceneTree(root=root, relations=self.relations(rel_t))
 
 

@@ -53,7 +53,7 @@ class Node:
 
     id: int
     kind: str
-    label: int
+    depth_label: int
     depth: float
     area: int
     center: tuple[float, float]

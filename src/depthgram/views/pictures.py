@@ -20,7 +20,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from depthgram.frame import Frame
-from depthgram.segment.objects import Histogram, Segmentation
+from depthgram.segmentation.objects import Histogram, Segmentation
 
 __all__ = ["draw_histogram", "draw_overlay", "draw_tracks", "label_anchor", "overlay_image"]
 

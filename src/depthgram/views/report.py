@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from depthgram.segment.objects import Histogram
+from depthgram.segmentation.objects import Histogram
 
 if TYPE_CHECKING:
     from depthgram.pipeline import SceneResult
@@ -33,7 +33,7 @@ def _slice_histograms(result: SceneResult) -> list[tuple[str, str, Histogram]]:
     The paper's Fig. 5: a slice about 10 % of the frame wide, thresholded by the same rule as the
     whole frame; walls peak in vertical slices, the floor in horizontal ones.
     """
-    from depthgram.segment import segment
+    from depthgram.segmentation import segment
 
     f = result.frame
     h, w = f.shape
@@ -102,7 +102,7 @@ class ReportWriter:
         draw_tree(result.tree, self.out / f"{stem}_tree.png")
         pics.append(f"{stem}_tree.png")
         rows = "".join(
-            f"<tr><td>{o['id']}</td><td>{o['kind']}</td><td>o_{o['label']}</td><td>{o['depth']}</td>"
+            f"<tr><td>{o['id']}</td><td>{o['kind']}</td><td>o_{o['depth_label']}</td><td>{o['depth']}</td>"
             f"<td>{o['area']}</td><td>({o['center'][0]}, {o['center'][1]})</td><td>{o['parent']}</td>"
             f"<td>{o.get('v_radial')}</td><td>{o.get('ttc')}</td><td>{o.get('status', '')}</td></tr>"
             for o in result.to_record()["objects"]

@@ -58,7 +58,7 @@ from starlette.exceptions import HTTPException as StarletteHTTPException
 from depthgram.errors import InputError
 from depthgram.frame import Frame
 from depthgram.pipeline import Config, Pipeline, SceneResult
-from depthgram.segment import METHODS
+from depthgram.segmentation import METHODS
 
 __all__ = ["LOOPBACK_HOSTS", "STATIC_DIR", "Player", "ViewerConfig", "create_app", "recording_name", "tree_lines"]
 

@@ -45,9 +45,9 @@ def tree_layout(tree: SceneTree) -> dict[int, tuple[float, float]]:
 def _text(n: Node) -> str:
     if n.kind == "Bkg":
         return f"Bkg\nA={n.area}\nc=({n.center[0]:.0f},{n.center[1]:.0f})"
-    term = f"o_{n.label}"
+    term = f"o_{n.depth_label}"
     if n.parts:
-        run = n.parts == tuple(range(n.label, n.label + len(n.parts))) and len(n.parts) > 1
+        run = n.parts == tuple(range(n.depth_label, n.depth_label + len(n.parts))) and len(n.parts) > 1
         term += f"..{n.parts[-1]}" if run else "(" + ",".join(map(str, n.parts)) + ")"
     lines = [f"{n.kind}#{n.id}  {term}", f"A={n.area}  z={n.depth:.0f} mm", f"c=({n.center[0]:.1f},{n.center[1]:.1f})"]
     dyn = []

@@ -2,7 +2,7 @@
 
 Neighbouring valid pixels join while their depth difference stays under a tolerance (optionally
 growing with depth, since sensor noise does). This is unseeded region growing done with one
-union-find pass over the 4-neighbour graph (:func:`depthgram.segment.label.label_keyed_stats`), so the
+union-find pass over the 4-neighbour graph (:func:`depthgram.segmentation.label.label_keyed_stats`), so the
 comparison with thresholding measures the method, not an interpreter loop.
 """
 
@@ -12,10 +12,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from depthgram.frame import Intrinsics
-from depthgram.segment.attributes import Stats, make_objects
-from depthgram.segment.label import ACTIVE, HOLE, label_keyed_stats
-from depthgram.segment.objects import Segmentation
-from depthgram.segment.validate import check_depth
+from depthgram.segmentation.attributes import Stats, make_objects
+from depthgram.segmentation.label import ACTIVE, HOLE, label_keyed_stats
+from depthgram.segmentation.objects import Segmentation
+from depthgram.segmentation.validate import check_depth
 
 __all__ = ["region_grow"]
 

@@ -13,7 +13,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-from depthgram.segment.label import ACTIVE, BLOCK, HOLE
+from depthgram.segmentation.label import ACTIVE, BLOCK, HOLE
 
 __all__ = ["band_state", "bin_linear", "bin_pixels", "depth_range"]
 
@@ -126,7 +126,7 @@ def depth_range(
     """Smallest and largest valid depth (mm) and the number of valid pixels.
 
     ``zero_outside=True`` promises that ``valid`` is exactly ``depth_mm > 0`` with finite
-    depths (what :func:`depthgram.segment.validate.check_depth` returns): the range is then
+    depths (what :func:`depthgram.segmentation.validate.check_depth` returns): the range is then
     read from the bit patterns, about 7x faster (0.06 against 0.40 ms at 640 x 480).
     """
     if not zero_outside:

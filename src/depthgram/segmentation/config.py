@@ -37,7 +37,7 @@ _RANGES = (
 
 @dataclass(frozen=True)
 class SegmentConfig:
-    """Parameters of :func:`depthgram.segment.segment`.
+    """Parameters of :func:`depthgram.segmentation.segment`.
 
     Attributes
     ----------
@@ -111,7 +111,7 @@ class SegmentConfig:
         not at all (``benchmarks/table1.py --paper``).
     support_planes : bool
         ``slices`` method: also find the dominant oblique planes with a robust fit of
-        ``1/Z = a u + b v + c`` (:func:`depthgram.segment.planes.find_planes`), so that a table
+        ``1/Z = a u + b v + c`` (:func:`depthgram.segmentation.planes.find_planes`), so that a table
         top seen from above at a slant is a support whatever the camera's pitch; its pixels join
         the horizontal (or wall) supports of the orientation field. Planes are searched among
         the pixels the field left facing, so the two complement each other: on the simulator

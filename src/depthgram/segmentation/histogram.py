@@ -7,7 +7,7 @@ the peak (``cut_from="peak"``); pixels between bands are background in the paper
 (``gap_pixels="background"``), or go to the band on their side of the minimum (``nearest``).
 
 Both readings were measured on the simulator's seeded scenes (``benchmarks/table1.py
---readings``); the figures are in the notes of :func:`depthgram.segment.segment`.
+--readings``); the figures are in the notes of :func:`depthgram.segmentation.segment`.
 """
 
 from __future__ import annotations
@@ -21,9 +21,9 @@ from numpy.typing import NDArray
 from scipy.ndimage import gaussian_filter1d
 from scipy.signal import find_peaks
 
-from depthgram.segment.binning import bin_linear, bin_pixels, depth_range
-from depthgram.segment.config import SegmentConfig
-from depthgram.segment.objects import Histogram
+from depthgram.segmentation.binning import bin_linear, bin_pixels, depth_range
+from depthgram.segmentation.config import SegmentConfig
+from depthgram.segmentation.objects import Histogram
 
 __all__ = ["Bands", "bin_index", "depth_bands"]
 
@@ -35,7 +35,7 @@ def bin_index(
 
     Invalid pixels get bin -1. With ``depth_dependent_bins`` the edges are geometric, so a
     bin is ``bin_mm`` wide at ``ref_depth_mm`` and proportional to depth elsewhere.
-    ``zero_outside``: see :func:`depthgram.segment.binning.depth_range`.
+    ``zero_outside``: see :func:`depthgram.segmentation.binning.depth_range`.
     """
     depth = np.ascontiguousarray(depth_mm, np.float32)
     ok = np.ascontiguousarray(valid, np.bool_)

@@ -3,7 +3,7 @@
 The paper cuts the image into slices perpendicular to an oblique surface's running direction:
 inside a thin slice the surface has one depth, and successive slices give successive depth
 labels, joined into one super-object. Here the surface's running direction is read from the
-local orientation (:mod:`depthgram.segment.orientation`): horizontal surfaces are cut into
+local orientation (:mod:`depthgram.segmentation.orientation`): horizontal surfaces are cut into
 horizontal slices (rows), walls into vertical slices (columns). Pixels of one orientation class
 join while depth stays continuous between neighbours, which is exactly "runs of slice segments
 with successive depth labels"; each slice of such a run is a ``part``. Objects standing on a
@@ -20,10 +20,10 @@ from numba import njit
 from numpy.typing import NDArray
 
 from depthgram.frame import Intrinsics
-from depthgram.segment.attributes import Stats, label_stats, make_objects
-from depthgram.segment.label import ACTIVE, BLOCK, HOLE, label_keyed, label_keyed_stats, plane_sums, relabel
-from depthgram.segment.objects import SceneObject
-from depthgram.segment.orientation import HORIZONTAL, VERTICAL
+from depthgram.segmentation.attributes import Stats, label_stats, make_objects
+from depthgram.segmentation.label import ACTIVE, BLOCK, HOLE, label_keyed, label_keyed_stats, plane_sums, relabel
+from depthgram.segmentation.objects import SceneObject
+from depthgram.segmentation.orientation import HORIZONTAL, VERTICAL
 
 __all__ = [
     "add_labels",
@@ -104,7 +104,7 @@ def slice_parts(
             SceneObject(
                 id=first_id + j,
                 kind="part",
-                label=int(fn(p.depth)),  # type: ignore[operator]
+                depth_label=int(fn(p.depth)),  # type: ignore[operator]
                 depth=p.depth,
                 depth_std=p.depth_std,
                 area=p.area,
@@ -551,7 +551,7 @@ def support_pieces(
 ) -> tuple[NDArray[np.int32], int, NDArray[np.float64], NDArray[np.int64], NDArray[np.float64]]:
     """:func:`support_components` then :func:`merge_coplanar`, with statistics and plane sums.
 
-    One labelling pass gathers the sums of :func:`depthgram.segment.label.label_stats_fused`,
+    One labelling pass gathers the sums of :func:`depthgram.segmentation.label.label_stats_fused`,
     one pass the plane sums; pieces joined into one plane add their rows (the sums are
     additive), so neither is taken again on the merged labels.
 

@@ -577,11 +577,11 @@ def label_bands_stats(
     """Same-band components straight from histogram bins, with their statistics.
 
     Equal to :func:`label_keyed_stats` on the band image and state of
-    :func:`depthgram.segment.binning.band_state` (``tol=0``), without writing either image:
+    :func:`depthgram.segmentation.binning.band_state` (``tol=0``), without writing either image:
     the band of a pixel is ``lut[bins]``, pixels without a reading are holes, valid pixels
     outside every band or outside ``include`` block. Column 7 of ``sums`` is the band.
     ``depth_mm`` must be 0 wherever ``valid`` is False (as
-    :func:`depthgram.segment.validate.check_depth` returns it): holes inside a run are summed
+    :func:`depthgram.segmentation.validate.check_depth` returns it): holes inside a run are summed
     with the run's pixels and must add nothing.
     """
     inc = include if include is not None else _NO_MASK

@@ -9,10 +9,10 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from depthgram.segment.binning import band_state
-from depthgram.segment.config import SegmentConfig
-from depthgram.segment.histogram import Bands, bin_index, depth_bands
-from depthgram.segment.label import label_keyed
+from depthgram.segmentation.binning import band_state
+from depthgram.segmentation.config import SegmentConfig
+from depthgram.segmentation.histogram import Bands, bin_index, depth_bands
+from depthgram.segmentation.label import label_keyed
 
 __all__ = ["band_image", "threshold_labels"]
 

@@ -9,7 +9,7 @@ steadily. Runs with a constant depth label are objects facing the sensor, and th
 the global histogram, so that on fronto-parallel scenes both methods agree (the paper's
 "compatible with bulk histogram segmentation").
 
-Unlike :mod:`depthgram.segment.slices` (the default ``slices`` method), nothing here looks at
+Unlike :mod:`depthgram.segmentation.slices` (the default ``slices`` method), nothing here looks at
 surface normals: an object standing on a support shares the support's depth where they touch,
 so the literal method may join them (measured in ``benchmarks/table1.py``).
 
@@ -40,12 +40,12 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
 from depthgram.frame import Intrinsics
-from depthgram.segment.attributes import fused_stats, label_stats, make_objects
-from depthgram.segment.config import SegmentConfig
-from depthgram.segment.histogram import Bands, bin_index, depth_bands
-from depthgram.segment.label import ACTIVE, BLOCK, HOLE, label_keyed, relabel
-from depthgram.segment.objects import SceneObject, Segmentation
-from depthgram.segment.threshold import band_image, threshold_labels
+from depthgram.segmentation.attributes import fused_stats, label_stats, make_objects
+from depthgram.segmentation.config import SegmentConfig
+from depthgram.segmentation.histogram import Bands, bin_index, depth_bands
+from depthgram.segmentation.label import ACTIVE, BLOCK, HOLE, label_keyed, relabel
+from depthgram.segmentation.objects import SceneObject, Segmentation
+from depthgram.segmentation.threshold import band_image, threshold_labels
 
 __all__ = ["SliceRuns", "aperture_px", "paper_slices", "slice_runs", "slice_segments"]
 
@@ -294,7 +294,7 @@ def paper_slices(
     Parameters
     ----------
     depth_mm : ndarray of float32, shape (H, W)
-        Depth (mm), 0 where invalid (as from :func:`depthgram.segment.validate.check_depth`).
+        Depth (mm), 0 where invalid (as from :func:`depthgram.segmentation.validate.check_depth`).
     valid : ndarray of bool, shape (H, W)
         Pixels with a reading.
     intrinsics : Intrinsics, optional
@@ -363,7 +363,7 @@ def paper_slices(
             ps = sorted(by_group[g], key=lambda p: p.depth)
             sign = int(runs.sign[np.flatnonzero(runs.group == g)[0]])
             kind = _kind(horizontal, sign, o.bbox, depth_mm.shape, ap)
-            compounds.append(replace(o, kind=kind, label=min(p.label for p in ps), parts=tuple(ps)))
+            compounds.append(replace(o, kind=kind, depth_label=min(p.depth_label for p in ps), parts=tuple(ps)))
         on = gmap > 0
         labels[on] = gmap[on] + (next_id - 1)
         next_id += ng

@@ -29,7 +29,7 @@ class SceneObject:
         Object id, >= 1; the value of its pixels in :attr:`Segmentation.labels`.
     kind : str
         One of :data:`KINDS`.
-    label : int
+    depth_label : int
         Depth label: index of the histogram band (peak) the object belongs to, from 0 nearest.
         For a compound object, the label of its nearest part.
     depth : float
@@ -56,7 +56,7 @@ class SceneObject:
 
     id: int
     kind: str
-    label: int
+    depth_label: int
     depth: float
     depth_std: float
     area: int

@@ -9,12 +9,12 @@ import numpy as np
 from numpy.typing import NDArray
 
 from depthgram.frame import Intrinsics
-from depthgram.segment.attributes import Stats, make_objects
-from depthgram.segment.config import SegmentConfig
-from depthgram.segment.histogram import Bands, bin_index, depth_bands
-from depthgram.segment.label import label_bands_stats, plane_sums, relabel
-from depthgram.segment.objects import Histogram, SceneObject, Segmentation
-from depthgram.segment.orientation import (
+from depthgram.segmentation.attributes import Stats, make_objects
+from depthgram.segmentation.config import SegmentConfig
+from depthgram.segmentation.histogram import Bands, bin_index, depth_bands
+from depthgram.segmentation.label import label_bands_stats, plane_sums, relabel
+from depthgram.segmentation.objects import Histogram, SceneObject, Segmentation
+from depthgram.segmentation.orientation import (
     FACING,
     HORIZONTAL,
     VERTICAL,
@@ -22,10 +22,10 @@ from depthgram.segment.orientation import (
     orientation_classes,
     upsample_classes,
 )
-from depthgram.segment.paper_slices import paper_slices
-from depthgram.segment.planes import find_planes, plane_normal
-from depthgram.segment.region import region_grow
-from depthgram.segment.slices import (
+from depthgram.segmentation.paper_slices import paper_slices
+from depthgram.segmentation.planes import find_planes, plane_normal
+from depthgram.segmentation.region import region_grow
+from depthgram.segmentation.slices import (
     add_labels,
     drop_pieces,
     front_faces,
@@ -36,7 +36,7 @@ from depthgram.segment.slices import (
     support_kind,
     support_pieces,
 )
-from depthgram.segment.validate import check_depth
+from depthgram.segmentation.validate import check_depth
 
 __all__ = ["segment"]
 
@@ -87,7 +87,7 @@ def segment(
     (holes of up to ``fill_holes_px`` bridged), small ones dropped. ``slices``: the same for
     pixels facing the sensor, while horizontal surfaces and walls become compound objects
     (``floor``, ``ceiling``, ``wall``, ``compound``) made of slice ``part``s. ``region``: region
-    growing, see :func:`depthgram.segment.region_grow`.
+    growing, see :func:`depthgram.segmentation.region_grow`.
 
     Measured on the seeded simulator (176 x 132, ``benchmarks/table1.py --readings``; area =
     share of true area labelled by segments assigned to the right object, and precision):
@@ -266,12 +266,12 @@ def _slices(
             first_id=part_id,
         )
         part_id += len(parts)
-        label = min(p.label for p in parts) if parts else int(bands.depth_label(o.depth))
+        label = min(p.depth_label for p in parts) if parts else int(bands.depth_label(o.depth))
         objects.append(
             replace(
                 whole,
                 kind=kind,
-                label=label,
+                depth_label=label,
                 parts=parts,
                 centroid_mm=whole.centroid_mm if keep_metric else None,
                 area_mm2=whole.area_mm2 if keep_metric else None,

@@ -1,6 +1,6 @@
 """Dominant support planes of any orientation: table tops and floors seen from above at a slant.
 
-The orientation classes of :mod:`depthgram.segment.orientation` are taken against the camera's
+The orientation classes of :mod:`depthgram.segmentation.orientation` are taken against the camera's
 axes, which suits a level camera. A camera looking down at a table at 45 degrees sees the table
 top with its normal 45 degrees from every image axis, so it comes out facing, and the table with
 everything on it is one object. Any plane, however oriented, has an inverse depth exactly affine

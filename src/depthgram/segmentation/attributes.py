@@ -18,8 +18,8 @@ from numpy.typing import NDArray
 from scipy import ndimage
 
 from depthgram.frame import Intrinsics
-from depthgram.segment.label import label_stats_fused, relabel
-from depthgram.segment.objects import SceneObject
+from depthgram.segmentation.label import label_stats_fused, relabel
+from depthgram.segmentation.objects import SceneObject
 
 __all__ = ["Stats", "fused_stats", "label_stats", "label_stats_bincount", "make_objects", "relabel_small"]
 
@@ -226,7 +226,7 @@ def make_objects(
             SceneObject(
                 id=int(id_l[j]),
                 kind=kinds[j + 1] if kinds is not None else "object",
-                label=int(lab_l[j]),
+                depth_label=int(lab_l[j]),
                 depth=mean,
                 depth_std=std,
                 area=int(c),
