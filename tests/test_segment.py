@@ -226,7 +226,7 @@ def test_overrides_are_checked_every_time_even_when_cached() -> None:
     cfg = SegmentConfig()
     first = cfg.with_overrides(method="threshold", fill_holes_px=3)
     assert first is cfg.with_overrides(fill_holes_px=3, method="threshold")  # cached, order-free
-    assert first.method == "threshold" and first.fill_holes_px == 3 and cfg.method == "slices"
+    assert first.method == "threshold" and first.fill_holes_px == 3 and cfg.method == "surfaces"
     # 3.0 == 3 and hashes alike, but only an integer is a pixel count
     with pytest.raises(InputError, match="fill_holes_px"):
         cfg.with_overrides(fill_holes_px=3.0)
