@@ -119,15 +119,7 @@ def segment(
     cfg = (config or _DEFAULTS).with_overrides(**overrides)
     depth, ok = check_depth(depth_mm, valid)
     if cfg.method == "region":
-        return region_grow(
-            depth,
-            valid=ok,
-            tol_mm=cfg.region_tol_mm,
-            relative=cfg.region_relative,
-            min_area=cfg.min_area,
-            fill_holes_px=cfg.fill_holes_px,
-            intrinsics=intrinsics,
-        )
+        return region_grow(depth, valid=ok, intrinsics=intrinsics, config=cfg)
     if not ok.any():
         empty = Histogram(np.zeros(1), np.zeros(0, np.int64), np.zeros(0), np.zeros(0))
         return Segmentation(np.zeros(depth.shape, np.int32), (), empty, cfg.method, {"bands_mm": np.zeros((0, 2))})
@@ -168,7 +160,7 @@ def _facing_objects(
     bins, edges, counts = bin_index(depth, hist_mask, cfg, zero_outside=include is None)
     bands = depth_bands(counts, edges, cfg)
     labels, _, sums, boxes = label_bands_stats(
-        bins, bands.lut, ok, include, depth, bridge=cfg.fill_holes_px, min_px=cfg.min_area_px(depth.size)
+        bins, bands.lut, ok, include, depth, bridge=cfg.fill_holes_px, min_px=cfg.min_pixels(depth.size)
     )
     stats = Stats.from_sums(sums, boxes, metric=intrinsics is not None)
     objects = make_objects(labels, stats, depth_labels=sums[:, 7].astype(np.int64), intrinsics=intrinsics)
@@ -206,7 +198,7 @@ def _surface_objects(
     facing = ok & include
     state[facing & ~creases] = ACTIVE
     labels, n = label_surfaces(depth, state, tol_0=t0, tol_2=t2, slope_per_px=slope, bridge_px=cfg.fill_holes_px)
-    min_px = cfg.min_area_px(depth.size)
+    min_px = cfg.min_pixels(depth.size)
     # crease pixels and pieces too small to keep (the inside of a cup cut off by the crease of
     # its bottom) go to the surface they continue, then what is still too small is dropped
     small = np.bincount(labels.ravel(), minlength=n + 1) < min_px
@@ -263,7 +255,7 @@ def _slices(
     for cls in (HORIZONTAL, VERTICAL):
         if cls not in wanted:
             classes[classes == cls] = FACING
-    min_px = cfg.min_area_px(depth.size)
+    min_px = cfg.min_pixels(depth.size)
     # supports first: a piece of surface too small to matter goes back to the facing pixels
     support_maps = [_support_class(depth, ok, classes, cls, cam, cfg, min_px) for cls in wanted]
     facing = classes == FACING
