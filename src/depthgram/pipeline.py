@@ -28,6 +28,7 @@ from depthgram.scene.tree import Motion, SceneTree
 from depthgram.segmentation import SegmentConfig, segment
 from depthgram.segmentation.label import relabel
 from depthgram.segmentation.objects import SceneObject, Segmentation
+from depthgram.segmentation.sensor import SensorModel, estimate_sensor
 from depthgram.sound import SoundMapping
 from depthgram.sources.prefetch import prefetch
 
@@ -223,6 +224,10 @@ def _object_record(o: SceneObject, node: Mapping[str, Any], m: Motion | None) ->
     return rec
 
 
+#: Frames between two estimates of the sensor model in a stream.
+_SENSOR_EVERY = 30
+
+
 class Pipeline:
     """Frame in, scene out.
 
@@ -246,10 +251,28 @@ class Pipeline:
         self.config = config or Config()
         self.track = track
         self._tracker = Tracker(self.config.tracker)
+        self._sensor: SensorModel | None = None
+        self._sensor_age = 0
 
     def reset(self) -> None:
-        """Forget all tracks (start of a new recording)."""
+        """Forget all tracks and the sensor estimate (start of a new recording)."""
         self._tracker = Tracker(self.config.tracker)
+        self._sensor = None
+
+    def _sensor_model(self, frame: Frame) -> SensorModel | None:
+        """The camera's sensor model, estimated from the stream every ``_SENSOR_EVERY`` frames.
+
+        A camera's depth step and noise do not change from frame to frame; estimating them
+        costs about 2.4 ms at 640 x 480, a tenth of a frame's segmentation.
+        """
+        seg = self.config.segment
+        if seg.method != "surfaces" or seg.sensor != "auto":
+            return None
+        if self._sensor is None or self._sensor_age >= _SENSOR_EVERY:
+            self._sensor = estimate_sensor(frame.depth, frame.valid)
+            self._sensor_age = 0
+        self._sensor_age += 1
+        return self._sensor
 
     def warm_up(self, frame: Frame) -> float:
         """Run ``frame`` through a throwaway copy of this pipeline; return the time it took (s).
@@ -269,7 +292,13 @@ class Pipeline:
         """Segment one frame, build its tree, update tracks and plan actions."""
         t0 = time.perf_counter()
         cfg = self.config
-        seg = segment(frame.depth, valid=frame.valid, intrinsics=frame.intrinsics, config=cfg.segment)
+        seg = segment(
+            frame.depth,
+            valid=frame.valid,
+            intrinsics=frame.intrinsics,
+            config=cfg.segment,
+            sensor=self._sensor_model(frame),
+        )
         motions: dict[int, Motion] = {}
         occluded: tuple[tuple[SceneObject, Motion], ...] = ()
         if self.track:

@@ -61,6 +61,9 @@ def format_info(info: object) -> str:
     k = info.intrinsics
     intr = "unknown" if k is None else f"fx {k.fx:.2f}  fy {k.fy:.2f}  cx {k.cx:.2f}  cy {k.cy:.2f} px"
     lines.append(f"intrinsics  {intr}")
+    sensor = getattr(info, "sensor", None)
+    if sensor:
+        lines.append(f"sensor      {sensor} (estimated from the first frame; set [segment] sensor to a profile)")
     return "\n".join(lines)
 
 

@@ -59,6 +59,7 @@ def segment(
     valid: NDArray[np.bool_] | None = None,
     intrinsics: Intrinsics | None = None,
     config: SegmentConfig | None = None,
+    sensor: SensorModel | str | None = None,
     **overrides: Any,
 ) -> Segmentation:
     """Segment one depth image into salient objects (paper, section 3).
@@ -74,6 +75,12 @@ def segment(
         uses them for surface orientation (a 64 degree field of view is assumed without).
     config : SegmentConfig, optional
         Parameters; defaults when omitted.
+    sensor : SensorModel or str, optional
+        The camera's depth step and noise, for the ``surfaces`` method: a model, or a profile
+        name or ``auto`` as the config's ``sensor`` takes; by default the config's (estimated
+        from this frame when ``auto``). A stream passes the
+        model it estimated once (:class:`depthgram.pipeline.Pipeline` does) instead of paying
+        for an estimate on every frame.
     **overrides
         Fields of :class:`SegmentConfig` to change, e.g. ``method="threshold"``.
 
@@ -116,6 +123,9 @@ def segment(
       (6.3x one ``np.bincount`` pass at 640 x 480); slicing about 178, 48 and 21; region
       growing about 1,430, 121 and 43.
     """
+    if isinstance(sensor, str):
+        overrides["sensor"] = sensor
+        sensor = None
     cfg = (config or _DEFAULTS).with_overrides(**overrides)
     depth, ok = check_depth(depth_mm, valid)
     if cfg.method == "region":
@@ -127,7 +137,7 @@ def segment(
         return _threshold(depth, ok, intrinsics, cfg)
     if cfg.method == "paper":
         return paper_slices(depth, ok, intrinsics, cfg)
-    return _slices(depth, ok, intrinsics, cfg)
+    return _slices(depth, ok, intrinsics, cfg, sensor)
 
 
 def frame_sensor(depth: NDArray[np.float32], ok: NDArray[np.bool_], cfg: SegmentConfig) -> SensorModel:
@@ -241,7 +251,11 @@ def _threshold(
 
 
 def _slices(
-    depth: NDArray[np.float32], ok: NDArray[np.bool_], intrinsics: Intrinsics | None, cfg: SegmentConfig
+    depth: NDArray[np.float32],
+    ok: NDArray[np.bool_],
+    intrinsics: Intrinsics | None,
+    cfg: SegmentConfig,
+    sensor: SensorModel | None = None,
 ) -> Segmentation:
     cam = intrinsics or default_intrinsics(depth.shape)
     classes = _orientation(depth, ok, cam, cfg)
@@ -260,7 +274,7 @@ def _slices(
     support_maps = [_support_class(depth, ok, classes, cls, cam, cfg, min_px) for cls in wanted]
     facing = classes == FACING
     if cfg.method == "surfaces":
-        sensor = frame_sensor(depth, ok, cfg)
+        sensor = sensor or frame_sensor(depth, ok, cfg)
         labels, objects, bands, fsums, fboxes = _surface_objects(depth, ok, facing, intrinsics, cam, cfg, sensor)
     else:
         labels, objects, bands, fsums, fboxes = _facing_objects(depth, ok, facing, intrinsics, cfg)

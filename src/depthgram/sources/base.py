@@ -45,6 +45,9 @@ class SourceInfo:
         Camera intrinsics (px), when known.
     duration_s : float or None
         Time from first to last frame (s), when frames carry times.
+    sensor : str or None
+        The camera's depth step and noise as estimated from the first frame with readings
+        (:func:`depthgram.segmentation.sensor.estimate_sensor`), for people; None without one.
     """
 
     path: str
@@ -59,6 +62,7 @@ class SourceInfo:
     fps: float | None
     intrinsics: Intrinsics | None = None
     duration_s: float | None = None
+    sensor: str | None = None
 
     def to_dict(self) -> dict[str, object]:
         """Plain JSON-ready dictionary."""
@@ -79,10 +83,15 @@ class DepthSummary:
         self.valid = 0
         self.lo = np.inf
         self.hi = -np.inf
+        self.sensor: str | None = None
 
     def add(self, frame: Frame) -> None:
         """Count one frame's pixels."""
         d = frame.depth[frame.valid]
+        if self.sensor is None and d.size:
+            from depthgram.segmentation.sensor import estimate_sensor
+
+            self.sensor = estimate_sensor(frame.depth, frame.valid).describe()
         self.pixels += frame.valid.size
         self.valid += d.size
         if d.size == 0:
@@ -186,6 +195,7 @@ class Source(ABC):
             depth_median_mm=summary.median(),
             depth_max_mm=summary.hi if summary.valid else None,
             invalid_fraction=1.0 - summary.valid / summary.pixels if summary.pixels else 1.0,
+            sensor=summary.sensor,
             fps=fps,
             intrinsics=self.intrinsics,
             duration_s=duration,
