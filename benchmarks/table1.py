@@ -35,6 +35,7 @@ SHARED = ROOT.parent / "shared" / "data"
 METHODS: tuple[tuple[str, dict[str, Any]], ...] = (
     ("thresholding", {"method": "threshold"}),
     ("thresholding + slicing", {"method": "slices"}),
+    ("surfaces (default)", {"method": "surfaces"}),
     ("region growing", {"method": "region", "region_tol_mm": 10.0}),
     ("paper slicing (3%, both)", {"method": "paper"}),
 )

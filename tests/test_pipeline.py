@@ -13,12 +13,12 @@ from depthgram.sensor import simulate
 
 
 def test_config_round_trips_through_toml(tmp_path) -> None:
-    cfg = Config().replace(segment={"min_area": 123}, tracker={"max_missed": 7})
+    cfg = Config().replace(segment={"min_area_px": 123}, tracker={"max_missed": 7})
     path = tmp_path / "cfg.toml"
     cfg.save(path)
     back = Config.load(path)
     assert back == cfg
-    assert back.segment.min_area == 123 and back.tracker.max_missed == 7
+    assert back.segment.min_area_px == 123 and back.tracker.max_missed == 7
 
 
 def test_config_refuses_unknown_keys_and_sections(tmp_path) -> None:

@@ -27,5 +27,5 @@ def test_depthgram_segment_is_callable_after_the_stages_are_imported() -> None:
 
     depth = np.full((30, 40), 2000.0, np.float32)
     depth[5:15, 5:15] = 700.0
-    seg = depthgram.segment(depth, min_area=20)
+    seg = depthgram.segment(depth, min_area_px=20)
     assert any(abs(o.depth - 700.0) < 1 and o.area == 100 for o in seg.objects)

@@ -119,7 +119,7 @@ def test_sieve_of_holes_keeps_one_object_and_a_gap_keeps_two() -> None:
     ok2 = np.ones(z2.shape, bool)
     z2[10:50, 10:70] = 1000.0
     ok2[10:50, 38:42] = False
-    seg2 = segment(z2, valid=ok2, method="threshold", fill_holes_px=2, min_area=50)
+    seg2 = segment(z2, valid=ok2, method="threshold", fill_holes_px=2, min_area_px=50)
     near = [o for o in seg2.objects if o.depth < 1500]
     assert len(near) == 2 and {o.area for o in near} == {40 * 28, 40 * 28}
 
@@ -184,15 +184,15 @@ def test_boxes_on_the_floor_come_out_separate_from_it(noise_rel: float) -> None:
 
 def test_region_growing_reference() -> None:
     z, truth = fronto_scene(noise_mm=5.0)
-    seg = region_grow(z, tol_mm=30.0, relative=False, min_area=50)
+    seg = region_grow(z, region_tol_mm=30.0, region_relative=False, min_area_px=50)
     assert seg.method == "region"
     assert evaluate(seg.labels, truth).correct == 3
     # a gentle ramp is one region (steps 5 mm < tol), a 100 mm step splits it
     ramp = np.tile(1000 + 5.0 * np.arange(100, dtype=np.float32), (30, 1))
-    assert len(region_grow(ramp, tol_mm=10, relative=False, min_area=1).objects) == 1
+    assert len(region_grow(ramp, region_tol_mm=10.0, region_relative=False, min_area_px=1).objects) == 1
     ramp[:, 50:] += 100
-    assert len(region_grow(ramp, tol_mm=10, relative=False, min_area=1).objects) == 2
-    assert segment(ramp, method="region", region_tol_mm=10, region_relative=False, min_area=1).method == "region"
+    assert len(region_grow(ramp, region_tol_mm=10.0, region_relative=False, min_area_px=1).objects) == 2
+    assert segment(ramp, method="region", region_tol_mm=10, region_relative=False, min_area_px=1).method == "region"
 
 
 def test_gap_pixels_between_bands_are_background_only_on_request() -> None:
@@ -203,8 +203,8 @@ def test_gap_pixels_between_bands_are_background_only_on_request() -> None:
     # empty), band 0 ends at 0 + 0.9 * 1 -> bin 0, band 1 starts at 40 - 0.9 * 39 = 4.9 -> bin 5:
     # bins 1..4 are the gap
     z[:, 28:30] = 1025.0
-    keep = segment(z, method="threshold", min_area=1, smooth_bins=0.0, min_prominence=0.05)
-    drop = segment(z, method="threshold", min_area=1, smooth_bins=0.0, min_prominence=0.05, gap_pixels="background")
+    keep = segment(z, method="threshold", min_area_px=1, smooth_bins=0.0, min_prominence=0.05)
+    drop = segment(z, method="threshold", min_area_px=1, smooth_bins=0.0, min_prominence=0.05, gap_pixels="background")
     assert not drop.labels[:, 28:30].any() and drop.labels[:, :28].all() and drop.labels[:, 30:].all()
     assert keep.labels[:, 28:30].all()
     lower, upper = drop.extras["bands_mm"].T  # type: ignore[union-attr]
@@ -227,7 +227,7 @@ def test_overrides_are_checked_every_time_even_when_cached() -> None:
     cfg = SegmentConfig()
     first = cfg.with_overrides(method="threshold", fill_holes_px=3)
     assert first is cfg.with_overrides(fill_holes_px=3, method="threshold")  # cached, order-free
-    assert first.method == "threshold" and first.fill_holes_px == 3 and cfg.method == "slices"
+    assert first.method == "threshold" and first.fill_holes_px == 3 and cfg.method == "surfaces"
     # 3.0 == 3 and hashes alike, but only an integer is a pixel count
     with pytest.raises(InputError, match="fill_holes_px"):
         cfg.with_overrides(fill_holes_px=3.0)
@@ -235,3 +235,17 @@ def test_overrides_are_checked_every_time_even_when_cached() -> None:
         cfg.with_overrides(bogus=1)
     with pytest.raises(InputError, match="min_area"):
         cfg.with_overrides(min_area=[1])  # unhashable: not cached, still checked
+
+
+def test_min_area_is_two_explicit_limits_and_the_old_spelling_still_works() -> None:
+    from depthgram.segmentation.config import SegmentConfig
+
+    cfg = SegmentConfig(min_area_fraction=0.01, min_area_px=500)
+    assert cfg.min_pixels(100 * 100) == 500 and cfg.min_pixels(1000 * 1000) == 10_000
+    with pytest.warns(DeprecationWarning, match="min_area_px"):
+        old = SegmentConfig(min_area=50)
+    assert old.min_pixels(1000 * 1000) == 50
+    with pytest.warns(DeprecationWarning):
+        assert SegmentConfig(min_area=0.01).min_pixels(100 * 100) == 100
+    with pytest.raises(InputError, match="min_area_px"):
+        SegmentConfig(min_area_px=0)

@@ -49,6 +49,11 @@ def _objects_on(seg: Segmentation, sup_id: int, max_depth_mm: float) -> int:
     )
 
 
+def _majority(window: np.ndarray) -> int:
+    values, counts = np.unique(window[window > 0], return_counts=True)
+    return int(values[np.argmax(counts)]) if values.size else 0
+
+
 def test_nvlabs_frame0_table_is_an_oblique_support(shared_data: Path) -> None:
     z = _depth(shared_data / "nvlabs_ucn_demo_tabletop" / "000000-depth.png")
     plane = find_planes(z, z > 0)[0]
@@ -70,7 +75,9 @@ def test_nvlabs_frame0_objects_stand_apart_from_the_table(shared_data: Path) -> 
     # by eye: Cheez-It box, mustard bottle, spam tin, soup can, blue mug, white mug
     points = {"cheez-it": (500, 240), "mustard": (285, 100), "spam": (70, 305), "soup": (540, 360)}
     points |= {"blue mug": (205, 190), "white mug": (300, 250)}
-    ids = {name: int(seg.labels[y, x]) for name, (x, y) in points.items()}
+    # the label most of a 9 x 9 window around each point holds: a point on the white mug's near
+    # rim lies on its occlusion edge, whose mixed pixels belong to no surface
+    ids = {name: _majority(seg.labels[y - 4 : y + 5, x - 4 : x + 5]) for name, (x, y) in points.items()}
     for name, i in ids.items():
         assert i and i != sup_id and seg.by_id()[i].kind == "object", name
     assert len(set(ids.values())) == len(ids)

@@ -331,7 +331,7 @@ def test_bad_requests_get_a_clear_json_error(method: str, path: str, body: Any, 
         assert needle in r.json()["error"]
         # a refused change leaves the settings as they were
         state = client.get("/api/recordings/sim-table").json()
-        assert state["params"]["method"] == "slices" and state["speed"] == 1.0
+        assert state["params"]["method"] == "surfaces" and state["speed"] == 1.0
 
 
 def test_unknown_recording_stream_is_refused() -> None:

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from collections.abc import Iterable
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -211,7 +212,8 @@ def evaluate_tracking(
         a step in velocity no fit over past frames can follow at once).
     segmenter : str
         ``segment``: :func:`depthgram.segmentation.segment`, the real pipeline; ``truth``: the
-        simulator's instance map, a perfect segmentation, to score the tracker alone.
+        simulator's instance map, a perfect segmentation, to score the tracker alone; a
+        segmentation method's name (``slices``, ...): that method.
 
     Returns
     -------
@@ -230,7 +232,8 @@ def evaluate_tracking(
             labels = np.where(fr.valid, sf.instances, 0)
             objects = objects_from_labels(labels, fr.depth, {b.id: b.kind for b in sf.truth})
         else:
-            seg = segment(fr.depth, valid=fr.valid, intrinsics=fr.intrinsics)
+            method: dict[str, Any] = {} if segmenter == "segment" else {"method": segmenter}
+            seg = segment(fr.depth, valid=fr.valid, intrinsics=fr.intrinsics, **method)
             labels, objects = seg.labels, seg.objects
         upd = tracker.update(objects, fr.time_s, fr.size)
         prim = primary_segments(labels, sf.instances)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import replace
 from typing import Any
 
@@ -12,7 +13,7 @@ from depthgram.frame import Intrinsics
 from depthgram.segmentation.attributes import Stats, make_objects
 from depthgram.segmentation.config import SegmentConfig
 from depthgram.segmentation.histogram import Bands, bin_index, depth_bands
-from depthgram.segmentation.label import label_bands_stats, plane_sums, relabel
+from depthgram.segmentation.label import ACTIVE, BLOCK, HOLE, label_bands_stats, label_stats_fused, plane_sums, relabel
 from depthgram.segmentation.objects import Histogram, SceneObject, Segmentation
 from depthgram.segmentation.orientation import (
     FACING,
@@ -25,6 +26,7 @@ from depthgram.segmentation.orientation import (
 from depthgram.segmentation.paper_slices import paper_slices
 from depthgram.segmentation.planes import find_planes, plane_normal
 from depthgram.segmentation.region import region_grow
+from depthgram.segmentation.sensor import SensorModel, estimate_sensor, sensor_model
 from depthgram.segmentation.slices import (
     add_labels,
     drop_pieces,
@@ -35,6 +37,13 @@ from depthgram.segmentation.slices import (
     slice_parts,
     support_kind,
     support_pieces,
+)
+from depthgram.segmentation.surfaces import (
+    concave_creases,
+    crease_scale_px,
+    label_surfaces,
+    merge_openings,
+    reattach,
 )
 from depthgram.segmentation.validate import check_depth
 
@@ -110,15 +119,7 @@ def segment(
     cfg = (config or _DEFAULTS).with_overrides(**overrides)
     depth, ok = check_depth(depth_mm, valid)
     if cfg.method == "region":
-        return region_grow(
-            depth,
-            valid=ok,
-            tol_mm=cfg.region_tol_mm,
-            relative=cfg.region_relative,
-            min_area=cfg.min_area,
-            fill_holes_px=cfg.fill_holes_px,
-            intrinsics=intrinsics,
-        )
+        return region_grow(depth, valid=ok, intrinsics=intrinsics, config=cfg)
     if not ok.any():
         empty = Histogram(np.zeros(1), np.zeros(0, np.int64), np.zeros(0), np.zeros(0))
         return Segmentation(np.zeros(depth.shape, np.int32), (), empty, cfg.method, {"bands_mm": np.zeros((0, 2))})
@@ -127,6 +128,13 @@ def segment(
     if cfg.method == "paper":
         return paper_slices(depth, ok, intrinsics, cfg)
     return _slices(depth, ok, intrinsics, cfg)
+
+
+def frame_sensor(depth: NDArray[np.float32], ok: NDArray[np.bool_], cfg: SegmentConfig) -> SensorModel:
+    """The sensor model of ``cfg.sensor``: a named profile, or estimated from this frame."""
+    if cfg.sensor == "auto":
+        return estimate_sensor(depth, ok)
+    return sensor_model(cfg.sensor)
 
 
 def _band_of_labels(labels: NDArray[np.int32], band: NDArray[np.int32], n: int) -> NDArray[np.int64]:
@@ -152,8 +160,70 @@ def _facing_objects(
     bins, edges, counts = bin_index(depth, hist_mask, cfg, zero_outside=include is None)
     bands = depth_bands(counts, edges, cfg)
     labels, _, sums, boxes = label_bands_stats(
-        bins, bands.lut, ok, include, depth, bridge=cfg.fill_holes_px, min_px=cfg.min_area_px(depth.size)
+        bins, bands.lut, ok, include, depth, bridge=cfg.fill_holes_px, min_px=cfg.min_pixels(depth.size)
     )
+    stats = Stats.from_sums(sums, boxes, metric=intrinsics is not None)
+    objects = make_objects(labels, stats, depth_labels=sums[:, 7].astype(np.int64), intrinsics=intrinsics)
+    return labels, objects, bands, sums, boxes
+
+
+def _surface_objects(
+    depth: NDArray[np.float32],
+    ok: NDArray[np.bool_],
+    include: NDArray[np.bool_],
+    intrinsics: Intrinsics | None,
+    cam: Intrinsics,
+    cfg: SegmentConfig,
+    sensor: SensorModel,
+) -> tuple[NDArray[np.int32], list[SceneObject], Bands, NDArray[np.float64], NDArray[np.int64]]:
+    """Facing objects as depth-continuous surfaces (:mod:`depthgram.segmentation.surfaces`).
+
+    The same outputs as :func:`_facing_objects`; the histogram's bands give each object its
+    depth label only. Its bins follow the sensor: geometric, and at the far end of the frame
+    three resolutions wide, so that a structured-light camera's depth steps (which grow with the
+    square of depth) never make a comb of one-bin peaks.
+    """
+    hist_mask = ok & include
+    sample = depth[::4, ::4][hist_mask[::4, ::4]]
+    far = float(np.percentile(sample, 95)) if sample.size else cfg.ref_depth_mm
+    bin_far = max(cfg.bin_mm * far / cfg.ref_depth_mm, 3.0 * float(sensor.resolution(far)))
+    bin_cfg = cfg.with_overrides(depth_dependent_bins=True, ref_depth_mm=max(far, 1.0), bin_mm=min(bin_far, 10_000.0))
+    _, edges, counts = bin_index(depth, hist_mask, bin_cfg, zero_outside=False)
+    bands = depth_bands(counts, edges, bin_cfg)
+    r = crease_scale_px(depth.shape[1])
+    creases = concave_creases(depth, ok, sensor, scale_px=r, min_angle_deg=cfg.crease_deg, focal_px=cam.fx)
+    t0, t2 = sensor.tolerance(0.0, cfg.join_resolutions)
+    slope = math.tan(math.radians(cfg.max_slope_deg)) / cam.fx
+    state = np.where(ok, np.int8(BLOCK), np.int8(HOLE))
+    facing = ok & include
+    state[facing & ~creases] = ACTIVE
+    labels, n = label_surfaces(depth, state, tol_0=t0, tol_2=t2, slope_per_px=slope, bridge_px=cfg.fill_holes_px)
+    min_px = cfg.min_pixels(depth.size)
+    # crease pixels and pieces too small to keep (the inside of a cup cut off by the crease of
+    # its bottom) go to the surface they continue, then what is still too small is dropped
+    small = np.bincount(labels.ravel(), minlength=n + 1) < min_px
+    small[0] = True
+    loose = facing & small[labels]
+    labels[loose] = 0
+    labels = reattach(labels, depth, loose, tol_0=t0, tol_2=t2, slope_per_px=slope, max_px=4 * r + 1)
+    count = np.bincount(labels.ravel(), minlength=n + 1)
+    keep = count >= min_px
+    keep[0] = False
+    lut = np.zeros(n + 1, np.int32)
+    lut[keep] = np.arange(1, int(keep.sum()) + 1, dtype=np.int32)
+    labels = relabel(labels, lut)
+    n = int(keep.sum())
+    no_key = np.zeros(depth.shape, np.float32)
+    sums, boxes = label_stats_fused(labels, n, depth, no_key)
+    mean = sums[:, 1] / np.maximum(sums[:, 0], 1.0)
+    step = t0 + t2 * float(np.median(mean[1:])) ** 2 if n else t0
+    joined = merge_openings(labels, depth, boxes, mean, focal_px=cam.fx, ring_px=2 * r, jump_mm=4.0 * step)
+    if joined is not None:
+        labels = relabel(labels, joined)
+        n = int(joined.max())
+        sums, boxes = label_stats_fused(labels, n, depth, no_key)
+        mean = sums[:, 1] / np.maximum(sums[:, 0], 1.0)
+    sums[:, 7] = bands.depth_label(mean)
     stats = Stats.from_sums(sums, boxes, metric=intrinsics is not None)
     objects = make_objects(labels, stats, depth_labels=sums[:, 7].astype(np.int64), intrinsics=intrinsics)
     return labels, objects, bands, sums, boxes
@@ -185,11 +255,15 @@ def _slices(
     for cls in (HORIZONTAL, VERTICAL):
         if cls not in wanted:
             classes[classes == cls] = FACING
-    min_px = cfg.min_area_px(depth.size)
+    min_px = cfg.min_pixels(depth.size)
     # supports first: a piece of surface too small to matter goes back to the facing pixels
     support_maps = [_support_class(depth, ok, classes, cls, cam, cfg, min_px) for cls in wanted]
     facing = classes == FACING
-    labels, objects, bands, fsums, fboxes = _facing_objects(depth, ok, facing, intrinsics, cfg)
+    if cfg.method == "surfaces":
+        sensor = frame_sensor(depth, ok, cfg)
+        labels, objects, bands, fsums, fboxes = _surface_objects(depth, ok, facing, intrinsics, cam, cfg, sensor)
+    else:
+        labels, objects, bands, fsums, fboxes = _facing_objects(depth, ok, facing, intrinsics, cfg)
     next_id = len(objects) + 1
     first_support = next_id
     # statistics of every id (facing objects, then supports) stacked: later steps add rows
@@ -279,7 +353,7 @@ def _slices(
         )
     extras = _extras(bands)
     extras["classes"] = classes
-    return Segmentation(labels, tuple(objects), bands.histogram, "slices", extras)
+    return Segmentation(labels, tuple(objects), bands.histogram, cfg.method, extras)
 
 
 def _below_camera(

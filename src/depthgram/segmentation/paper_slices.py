@@ -316,7 +316,7 @@ def paper_slices(
     """
     h, w = depth_mm.shape
     band, state, bands = band_image(depth_mm, valid, config)
-    min_px = config.min_area_px(depth_mm.size)
+    min_px = config.min_pixels(depth_mm.size)
     directions = [d for d in (True, False) if config.slice_directions in ("both", "horizontal" if d else "vertical")]
     claimed = np.zeros(depth_mm.shape, bool)
     found: list[tuple[bool, int, SliceRuns, NDArray[np.int32]]] = []

@@ -8,11 +8,14 @@ comparison with thresholding measures the method, not an interpreter loop.
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 from numpy.typing import NDArray
 
 from depthgram.frame import Intrinsics
 from depthgram.segmentation.attributes import Stats, make_objects
+from depthgram.segmentation.config import SegmentConfig
 from depthgram.segmentation.label import ACTIVE, HOLE, label_keyed_stats
 from depthgram.segmentation.objects import Segmentation
 from depthgram.segmentation.validate import check_depth
@@ -24,11 +27,9 @@ def region_grow(
     depth_mm: NDArray[np.floating],
     *,
     valid: NDArray[np.bool_] | None = None,
-    tol_mm: float = 20.0,
-    relative: bool = True,
-    min_area: float = 0.005,
-    fill_holes_px: int = 2,
     intrinsics: Intrinsics | None = None,
+    config: SegmentConfig | None = None,
+    **overrides: Any,
 ) -> Segmentation:
     """Segment by region growing on depth continuity.
 
@@ -38,16 +39,15 @@ def region_grow(
         Depth (mm); 0 or NaN where invalid.
     valid : ndarray of bool, optional
         Pixels with a reading; finite and > 0 by default.
-    tol_mm : float
-        Largest depth step (mm) between joined neighbours; per metre of depth when ``relative``.
-    relative : bool
-        Scale the tolerance with depth (``tol_mm * Z / 1000``).
-    min_area : float
-        Smallest region kept: pixels when >= 1, fraction of the frame when < 1.
-    fill_holes_px : int
-        Longest run of invalid pixels (px) bridged along a row or a column.
     intrinsics : Intrinsics, optional
         For metric centroids and areas.
+    config : SegmentConfig, optional
+        Its ``region_tol_mm`` (largest depth step between joined neighbours, mm; per metre of
+        depth when ``region_relative``), ``min_area_px`` / ``min_area_fraction`` and
+        ``fill_holes_px`` are used; defaults when omitted, so that the defaults live in one
+        place.
+    **overrides
+        Fields of :class:`SegmentConfig` to change, e.g. ``region_tol_mm=30.0``.
 
     Returns
     -------
@@ -55,9 +55,11 @@ def region_grow(
         ``method="region"``; every region is an object of kind ``object`` with label 0 (region
         growing has no depth bands).
     """
+    cfg = (config or SegmentConfig()).with_overrides(**overrides)
     depth, ok = check_depth(depth_mm, valid)
     state = np.where(ok, np.int8(ACTIVE), np.int8(HOLE))
-    min_px = int(np.ceil(min_area)) if min_area >= 1 else max(1, int(np.ceil(min_area * depth.size)))
+    min_px = cfg.min_pixels(depth.size)
+    tol_mm, relative, fill_holes_px = cfg.region_tol_mm, cfg.region_relative, cfg.fill_holes_px
     # one labelling pass gathers every region's sums; regions under min_px are dropped and the
     # rest renumbered in the same relabelling pass (no separate statistics passes)
     tol, rel = (0.0, tol_mm / 1000.0) if relative else (tol_mm, 0.0)

@@ -1,0 +1,135 @@
+"""The default ``surfaces`` segmentation on scenes with exact truth, seen by a structured-light
+camera (disparity quantised in 1/8 px with noise, as a Kinect v1 / Xtion): the failure modes
+of issue 12 (a small object with no histogram peak, touching objects, a box showing two faces,
+a person cut into depth slabs) and the sensor model estimated from the frames."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from depthgram.frame import Intrinsics
+from depthgram.segmentation import evaluate, segment
+from depthgram.segmentation.sensor import PROFILES, estimate_sensor
+from depthgram.sensor.geometry import Body, Box, Camera, Cylinder, Ellipsoid, Plane, cast
+
+W, H = 640, 480
+F_SL, BASELINE = 580.0, 75.0  # Kinect v1 optics
+
+
+def _structured_light(depth: np.ndarray, rng: np.random.Generator, noise_px: float = 0.065) -> np.ndarray:
+    """Depth as a structured-light camera reports it: disparity f b / z, noisy, in 1/8 px steps."""
+    out = np.zeros_like(depth, dtype=np.float32)
+    ok = depth > 0
+    disp = F_SL * BASELINE / depth[ok]
+    disp = np.round((disp + noise_px * rng.standard_normal(disp.shape)) * 8.0) / 8.0
+    out[ok] = (F_SL * BASELINE / np.maximum(disp, 1e-3)).astype(np.float32)
+    return out
+
+
+def _render(bodies: tuple[Body, ...], camera: Camera, seed: int = 0) -> tuple[np.ndarray, np.ndarray, Intrinsics]:
+    hits = cast(camera, bodies, 0.0)
+    depth = _structured_light(hits.depth, np.random.default_rng(seed))
+    return depth, hits.instances, camera.intrinsics
+
+
+def _best(labels: np.ndarray, truth: np.ndarray, k: int) -> tuple[int, float]:
+    """Segment of best IoU with truth instance ``k``, and that IoU."""
+    scores = evaluate(labels, truth).objects
+    s = next(o for o in scores if o.truth_id == k)
+    return s.detected, s.iou
+
+
+def _camera(pitch: float = 0.0, height: float = 1000.0) -> Camera:
+    # Kinect v1's 57 degree horizontal field of view at 640 px: f = 589 px
+    return Camera(W, H, fov_x_deg=57.0, position=(0.0, height, 0.0), pitch_deg=pitch)
+
+
+def test_sensor_model_is_estimated_from_a_structured_light_frame() -> None:
+    # a floor and a wall running from 0.8 to 4.5 m give every depth its own step
+    floor = Body(1, "floor", "floor", (Plane((0, 0, 0), (0, 1, 0)),))
+    wall = Body(2, "wall", "wall", (Plane((-900, 0, 0), (1, 0, 0)),))
+    back = Body(3, "back", "wall", (Plane((0, 0, 4500), (0, 0, 1)),))
+    depth, _, _ = _render((floor, wall, back), _camera(pitch=15.0))
+    model = estimate_sensor(depth, depth > 0)
+    for z in (1000.0, 2500.0):
+        true_step = z * z / (F_SL * BASELINE) / 8.0
+        assert model.step(z) == pytest.approx(true_step, rel=0.3), (z, model.describe())
+    # and a ToF camera with millimetre output: constant steps, noise from the data
+    rng = np.random.default_rng(1)
+    tof = np.round(np.linspace(800, 3000, W)[None, :] + 4.0 * rng.standard_normal((H, W))).astype(np.float32)
+    m = estimate_sensor(tof, tof > 0)
+    assert m.step(3000.0) < 3.0 and m.sigma(1500.0) == pytest.approx(4.0, rel=0.35), m.describe()
+
+
+def test_a_small_sphere_in_front_of_a_wall_is_its_own_object() -> None:
+    # 0.5 % of the frame, 0.4 m in front of a wall at 2 m: no histogram peak of its own
+    f = _camera().intrinsics.fx
+    r_px = math.sqrt(0.005 * W * H / math.pi)
+    z_front = 1600.0
+    r_mm = r_px * z_front / f
+    wall = Body(1, "wall", "wall", (Plane((0, 0, 2000), (0, 0, 1)),))
+    ball = Body(2, "ball", "object", (Ellipsoid((150.0, 1050.0, z_front + r_mm), (r_mm, r_mm, r_mm)),))
+    depth, truth, cam = _render((wall, ball), _camera())
+    assert 0.004 < np.mean(truth == 2) < 0.006
+    seg = segment(depth, valid=depth > 0, intrinsics=cam)
+    sid, iou = _best(seg.labels, truth, 2)
+    assert iou >= 0.85
+    # no wall pixel in it: the ball's segment holds one surface only
+    assert np.mean(truth[seg.labels == sid] == 1) < 0.01
+    # the paper's histogram method hands it to the wall's band (the failure this fixes)
+    _, iou_hist = _best(segment(depth, valid=depth > 0, intrinsics=cam, method="threshold").labels, truth, 2)
+    assert iou_hist < 0.5
+
+
+def test_a_cylinder_against_a_box_on_a_table_comes_out_as_two_objects() -> None:
+    table = Body(1, "table", "floor", (Plane((0, 700, 0), (0, 1, 0)),))
+    box = Body(2, "box", "object", (Box((-180.0, 700.0, 1200.0), (20.0, 950.0, 1350.0)),), parent=1)
+    # touching the box's right side, its front 60 mm behind the box's front face
+    can = Body(3, "can", "object", (Cylinder((70.0, 700.0, 1310.0), 50.0, 180.0),), parent=1)
+    depth, truth, cam = _render((table, box, can), _camera(pitch=25.0, height=1300.0))
+    seg = segment(depth, valid=depth > 0, intrinsics=cam)
+    box_id, box_iou = _best(seg.labels, truth, 2)
+    can_id, can_iou = _best(seg.labels, truth, 3)
+    assert box_iou >= 0.8 and can_iou >= 0.7 and box_id != can_id, (box_iou, can_iou)
+
+
+def test_a_box_showing_its_top_and_front_is_one_object() -> None:
+    # seen from above at 35 degrees: two faces meeting at a convex edge
+    floor = Body(1, "floor", "floor", (Plane((0, 0, 0), (0, 1, 0)),))
+    box = Body(2, "box", "object", (Box((-200.0, 0.0, 1500.0), (200.0, 300.0, 1800.0)),), parent=1)
+    depth, truth, cam = _render((floor, box), _camera(pitch=35.0, height=1400.0))
+    seg = segment(depth, valid=depth > 0, intrinsics=cam)
+    _, iou = _best(seg.labels, truth, 2)
+    assert iou >= 0.9
+
+
+def test_a_person_far_from_a_kinect_is_not_cut_into_depth_slabs() -> None:
+    # at 3.5 m the depth step is 35 mm: 10 mm histogram bins would make a comb of peaks
+    wall = Body(1, "wall", "wall", (Plane((0, 0, 5500), (0, 0, 1)),))
+    person = Body(
+        2,
+        "person",
+        "object",
+        (Cylinder((0.0, 0.0, 3500.0), 220.0, 1500.0), Ellipsoid((0.0, 1650.0, 3500.0), (110.0, 130.0, 110.0))),
+    )
+    floor = Body(3, "floor", "floor", (Plane((0, 0, 0), (0, 1, 0)),))
+    depth, truth, cam = _render((wall, person, floor), _camera(pitch=5.0, height=1200.0))
+    seg = segment(depth, valid=depth > 0, intrinsics=cam)
+    _, iou = _best(seg.labels, truth, 2)
+    assert iou >= 0.85
+
+
+def test_named_sensor_profiles_are_settings() -> None:
+    depth = np.full((60, 80), 1500.0, np.float32)
+    depth[20:40, 30:50] = 1200.0
+    for name in ("kinect-v1", "xtion", "realsense-d400", "azure-kinect", "tof"):
+        seg = segment(depth, sensor=name, min_area_px=50)
+        assert sorted(o.area for o in seg.objects) == [400, 80 * 60 - 400], name
+    assert PROFILES["kinect-v1"].step(1000.0) == pytest.approx(1000.0**2 / (580 * 75) / 8)
+    from depthgram.errors import InputError
+
+    with pytest.raises(InputError, match="sensor"):
+        segment(depth, sensor="kinect-v9")
