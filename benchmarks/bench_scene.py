@@ -41,7 +41,7 @@ def synthetic_scene(n_objects: int = 20, seed: int = 0) -> tuple[np.ndarray, np.
         d = depth[ys, xs]
         objs.append(SceneObject(int(i), "floor" if i == 1 else "object", int(i) - 1, float(d.mean()),
                                 float(d.std()), int(d.size), d.size / (W * H), (float(xs.mean()), float(ys.mean())),
-                                (int(xs.min()), int(ys.min()), int(xs.max()), int(ys.max()))))
+                                (int(xs.min()), int(ys.min()), int(xs.max()) + 1, int(ys.max()) + 1)))
     return depth, lab, objs
 
 

@@ -39,7 +39,7 @@ def _scene(n: int, frames: int, seed: int) -> list[list[SceneObject]]:
             cx, cy = base[i] + vel[i] * k
             z = z0[i] + vz[i] * k + rng.normal(0, 3)
             x0, y0 = int(cx - side / 2), int(cy - side / 2)
-            bbox = (x0, y0, x0 + side - 1, y0 + side - 1)
+            bbox = (x0, y0, x0 + side, y0 + side)
             area = side * side
             obj = SceneObject(int(i) + 1, "object", int(z // 500), float(z), 5.0, area, area / (W * H), (cx, cy), bbox)
             objs.append(obj)

@@ -228,7 +228,7 @@ def tabletop_rows(**overrides: Any) -> list[str]:
             lines.append(f"{rel:44} {'-':>10} {by_eye:6d}  none")
             continue
         sup = max(supports, key=lambda o: o.area)
-        x0, y0, x1, y1 = sup.bbox
+        x0, y0, x1, y1 = sup.bbox_xy  # half-open
         on = sum(
             1
             for o in seg.objects
@@ -236,8 +236,8 @@ def tabletop_rows(**overrides: Any) -> list[str]:
             and o.id != sup.id
             and o.area_fraction >= 0.003
             and o.depth < 1200.0
-            and x0 <= o.center[0] <= x1
-            and y0 <= o.center[1] <= y1
+            and x0 <= o.center_xy[0] <= x1 - 1
+            and y0 <= o.center_xy[1] <= y1 - 1
         )
         lines.append(f"{rel:44} {on:10d} {by_eye:6d}  {sup.kind}, {100 * sup.area_fraction:.1f} %, {sup.depth:.0f}")
     return lines

@@ -59,8 +59,8 @@ def test_time_to_collision() -> None:
 
 
 def test_bbox_iou_hand_computed() -> None:
-    a = np.array([[0.0, 0.0, 9.0, 9.0]])
-    b = np.array([[5.0, 0.0, 14.0, 9.0], [0.0, 0.0, 9.0, 9.0], [20.0, 20.0, 30.0, 30.0]])
+    a = np.array([[0.0, 0.0, 10.0, 10.0]])  # half-open: 10 x 10 px
+    b = np.array([[5.0, 0.0, 15.0, 10.0], [0.0, 0.0, 10.0, 10.0], [20.0, 20.0, 31.0, 31.0]])
     np.testing.assert_allclose(bbox_iou(a, b), [[50 / 150, 1.0, 0.0]])
 
 
@@ -112,8 +112,8 @@ def test_match_cost_hand_computed_and_gates() -> None:
 
     def cost(obj_depth: float, missed: int) -> float:
         c = match_cost(
-            [[100.0, 100.0]], [1000.0], [400.0], [[90.0, 90.0, 109.0, 109.0]], [0], [missed],
-            [[110.0, 100.0]], [obj_depth], [400.0], [[100.0, 90.0, 119.0, 109.0]], [1],
+            [[100.0, 100.0]], [1000.0], [400.0], [[90.0, 90.0, 110.0, 110.0]], [0], [missed],
+            [[110.0, 100.0]], [obj_depth], [400.0], [[100.0, 90.0, 120.0, 110.0]], [1],
             800.0, cfg,
         )  # fmt: skip
         return float(c[0, 0])

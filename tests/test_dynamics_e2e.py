@@ -56,8 +56,8 @@ def test_objects_from_labels_hand_computed() -> None:
     depth = np.full((4, 6), 1000.0)
     depth[1, 2:5] = 1200.0
     (o,) = objects_from_labels(labels, depth)
-    assert o.id == 3 and o.area == 6 and o.bbox == (2, 1, 4, 2)
-    assert o.center == (3.0, 1.5) and o.depth == pytest.approx(1100.0) and o.depth_std == pytest.approx(100.0)
+    assert o.id == 3 and o.area == 6 and o.bbox_xy == (2, 1, 5, 3)
+    assert o.center_xy == (3.0, 1.5) and o.depth == pytest.approx(1100.0) and o.depth_std == pytest.approx(100.0)
     inst = np.zeros_like(labels)
     inst[1:3, 2:4] = 7
     assert primary_segments(labels, inst) == {7: (3, 4)}

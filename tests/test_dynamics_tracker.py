@@ -18,10 +18,10 @@ FPS = 30.0
 
 def box(oid: int, cx: float, cy: float, w: float, h: float, z: float, depth_label: int = 0) -> SceneObject:
     """A rectangular object clipped to the image, as segmentation would report it."""
-    x0, x1 = max(0, round(cx - w / 2)), min(W - 1, round(cx + w / 2) - 1)
-    y0, y1 = max(0, round(cy - h / 2)), min(H - 1, round(cy + h / 2) - 1)
-    area = (x1 - x0 + 1) * (y1 - y0 + 1)
-    center = ((x0 + x1) / 2, (y0 + y1) / 2)
+    x0, x1 = max(0, round(cx - w / 2)), min(W, round(cx + w / 2))  # half-open
+    y0, y1 = max(0, round(cy - h / 2)), min(H, round(cy + h / 2))
+    area = (x1 - x0) * (y1 - y0)
+    center = ((x0 + x1 - 1) / 2, (y0 + y1 - 1) / 2)
     return SceneObject(oid, "object", depth_label, z, 5.0, area, area / (W * H), center, (x0, y0, x1, y1))
 
 

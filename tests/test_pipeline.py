@@ -46,7 +46,7 @@ def test_table_scene_objects_match_ground_truth_and_record_is_complete() -> None
     ids = {o["id"] for o in rec["objects"]}
     assert ids == set(np.unique(result.segmentation.labels)) - {0}
     for o in rec["objects"]:
-        for key in ("id", "kind", "depth_label", "depth", "area", "center", "bbox", "parent", "parts"):
+        for key in ("id", "kind", "depth_label", "depth", "area", "center_xy", "bbox_xy", "parent", "parts"):
             assert key in o
         assert o["area"] == int(np.count_nonzero(result.segmentation.labels == o["id"]))
     # every compact ground-truth object of at least 1% of the frame is found (IoU >= 0.5)

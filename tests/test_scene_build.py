@@ -78,8 +78,8 @@ def _objects(depth: np.ndarray, lab: np.ndarray) -> list[SceneObject]:
         out.append(SceneObject(
             id=i, kind=kinds.get(i, "object"), depth_label=order.index(i), depth=float(d.mean()),
             depth_std=float(d.std()), area=int(d.size), area_fraction=d.size / depth.size,
-            center=(float(xs.mean()), float(ys.mean())),
-            bbox=(int(xs.min()), int(ys.min()), int(xs.max()), int(ys.max())),
+            center_xy=(float(xs.mean()), float(ys.mean())),
+            bbox_xy=(int(xs.min()), int(ys.min()), int(xs.max()) + 1, int(ys.max()) + 1),
         ))
     return out
 
@@ -107,7 +107,7 @@ def test_rendered_room_supports_with_labels(room):
 def test_floating_object_is_not_supported(room):
     """A hand held above the table, much nearer than the table top, rests on nothing."""
     _, objs = room
-    hand = SceneObject(9, "object", 0, 900.0, 20.0, 400, 0.001, (300.0, 200.0), (290, 190, 310, 212))
+    hand = SceneObject(9, "object", 0, 900.0, 20.0, 400, 0.001, (300.0, 200.0), (290, 190, 311, 213))
     tree = build_tree([*objs, hand], (W, H))
     assert tree.parent_of()[9] == 0
 
@@ -117,20 +117,21 @@ def test_floating_object_is_not_supported(room):
 
 
 def _obj(i: int, kind: str, label: int, depth: float, std: float, bbox: tuple[int, int, int, int]) -> SceneObject:
-    x0, y0, x1, y1 = bbox
-    area = (x1 - x0 + 1) * (y1 - y0 + 1)
-    return SceneObject(i, kind, label, depth, std, area, area / (W * H), ((x0 + x1) / 2, (y0 + y1) / 2), bbox)
+    x0, y0, x1, y1 = bbox  # half-open
+    area = (x1 - x0) * (y1 - y0)
+    center = ((x0 + x1 - 1) / 2, (y0 + y1 - 1) / 2)
+    return SceneObject(i, kind, label, depth, std, area, area / (W * H), center, bbox)
 
 
 def _table_scene() -> list[SceneObject]:
     # Floor: rows 300..479, depth ramp from 4000 mm (row 300) to 1500 mm (row 479): mean 2750,
     # std = 2500 / sqrt(12) = 721.7 for a uniform ramp.
-    floor = _obj(1, "floor", 4, 2750.0, 2500.0 / np.sqrt(12.0), (0, 300, 639, 479))
+    floor = _obj(1, "floor", 4, 2750.0, 2500.0 / np.sqrt(12.0), (0, 300, 640, 480))
     # Table: bottom row 420, where the floor ramp gives 1500 + 2500 * (479 - 420) / 179 = 2324 mm.
-    table = _obj(2, "object", 2, 2300.0, 60.0, (200, 250, 440, 420))
-    cup = _obj(3, "object", 0, 2350.0, 15.0, (250, 200, 280, 262))
-    box = _obj(4, "object", 1, 2400.0, 15.0, (350, 210, 400, 265))
-    wall = _obj(5, "wall", 3, 3000.0, 800.0, (0, 0, 60, 479))
+    table = _obj(2, "object", 2, 2300.0, 60.0, (200, 250, 441, 421))
+    cup = _obj(3, "object", 0, 2350.0, 15.0, (250, 200, 281, 263))
+    box = _obj(4, "object", 1, 2400.0, 15.0, (350, 210, 401, 266))
+    wall = _obj(5, "wall", 3, 3000.0, 800.0, (0, 0, 61, 480))
     return [floor, table, cup, box, wall]
 
 
@@ -139,7 +140,7 @@ def test_hand_built_table_cup_box_floor():
     assert tree.parent_of() == {1: 0, 5: 0, 2: 1, 3: 2, 4: 2}
     assert [c.id for c in tree.root.children] == [5, 1]  # left to right by center x
     # Root carries the frame: area W*H, center at the middle pixel.
-    assert tree.root.area == W * H and tree.root.center == ((W - 1) / 2, (H - 1) / 2)
+    assert tree.root.area == W * H and tree.root.center_xy == ((W - 1) / 2, (H - 1) / 2)
 
 
 def test_support_depth_ramp_matches_hand_value():
@@ -166,8 +167,8 @@ def test_motion_attributes_are_attached():
 
 
 def test_compound_parts_become_labels():
-    part = lambda i, lab: _obj(i, "part", lab, 2000.0 + lab, 5.0, (0, 0, 5, 5))  # noqa: E731
-    wall = SceneObject(1, "wall", 3, 2500.0, 400.0, 100, 0.01, (20.0, 200.0), (0, 0, 40, 479),
+    part = lambda i, lab: _obj(i, "part", lab, 2000.0 + lab, 5.0, (0, 0, 6, 6))  # noqa: E731
+    wall = SceneObject(1, "wall", 3, 2500.0, 400.0, 100, 0.01, (20.0, 200.0), (0, 0, 41, 480),
                        parts=(part(10, 3), part(11, 4), part(12, 4), part(13, 5)))
     tree = build_tree([wall], (W, H))
     (node,) = tree.root.children
@@ -176,10 +177,10 @@ def test_compound_parts_become_labels():
 
 
 def test_relations_by_priority():
-    a = _obj(1, "object", 0, 1000.0, 10.0, (100, 100, 200, 200))
-    b = _obj(2, "object", 1, 1500.0, 10.0, (150, 150, 260, 260))  # overlaps a, farther: a occludes b
-    c = _obj(3, "object", 2, 1200.0, 10.0, (400, 100, 450, 150))  # right of b
-    d = _obj(4, "object", 3, 1210.0, 10.0, (420, 300, 470, 350))  # below c, same depth
+    a = _obj(1, "object", 0, 1000.0, 10.0, (100, 100, 201, 201))
+    b = _obj(2, "object", 1, 1500.0, 10.0, (150, 150, 261, 261))  # overlaps a, farther: a occludes b
+    c = _obj(3, "object", 2, 1200.0, 10.0, (400, 100, 451, 151))  # right of b
+    d = _obj(4, "object", 3, 1210.0, 10.0, (420, 300, 471, 351))  # below c, same depth
     tree = build_tree([a, b, c, d], (W, H), config=TreeConfig(floor_reach=0.0))
     assert tree.parent_of() == {1: 0, 2: 0, 3: 0, 4: 0}
     assert set(tree.relations) == {
@@ -241,10 +242,10 @@ def painted_segmentation(draw: st.DrawFn) -> tuple[np.ndarray, list[SceneObject]
         if kind == "compound":
             k = draw(st.integers(2, 4))
             parts = tuple(SceneObject(100 + j, "part", label + j, float(d.mean()), 0.0, 1, 0.0, (0.0, 0.0),
-                                      (0, 0, 0, 0)) for j in range(k))
+                                      (0, 0, 1, 1)) for j in range(k))
         objs.append(SceneObject(i, kind, label, float(d.mean()), float(d.std()), int(d.size), d.size / (h * w),
                                 (float(xs.mean()), float(ys.mean())),
-                                (int(xs.min()), int(ys.min()), int(xs.max()), int(ys.max())), parts=parts))
+                                (int(xs.min()), int(ys.min()), int(xs.max()) + 1, int(ys.max()) + 1), parts=parts))
     return lab, objs
 
 

@@ -37,7 +37,7 @@ def test_example_reads_as_written():
     assert (floor.kind, floor.depth_label, floor.parts) == ("floor", 4, (4, 5, 6))
     assert (wall.depth_label, wall.parts) == (3, (3, 5, 6))
     cup = floor.children[0].children[0]
-    assert (cup.area, cup.center, cup.depth) == (300, (290.0, 180.5), 1420.0)
+    assert (cup.area, cup.center_xy, cup.depth) == (300, (290.0, 180.5), 1420.0)
     assert (cup.v_radial, cup.ttc, cup.status) == (-120.0, 11.8, "visible")
     assert t.relations == (Relation(2, "left_of", 4), Relation(3, "occludes", 2))
     assert to_sentence(t) == EXAMPLE
@@ -96,7 +96,7 @@ def scene_trees(draw: st.DrawFn) -> SceneTree:
             depth_label=label,
             depth=draw(st.floats(0.0, 20_000.0)),
             area=draw(st.integers(0, 10**7)),
-            center=(draw(finite), draw(finite)),
+            center_xy=(draw(finite), draw(finite)),
             v_radial=draw(st.none() | finite),
             ttc=draw(st.none() | st.floats(0.0, 1e5) | st.just(math.inf)),
             status=draw(st.none() | st.sampled_from(["visible", "entering", "leaving", "occluded"])),

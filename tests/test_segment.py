@@ -68,8 +68,9 @@ def test_fronto_parallel_objects_and_their_attributes() -> None:
     assert near.depth_label == 0 and near.kind == "object"
     assert near.area == 40 * 50 and near.area_fraction == pytest.approx(2000 / z.size)
     assert near.depth == pytest.approx(1000.0) and near.depth_std == pytest.approx(0.0, abs=1e-6)
-    assert near.center == pytest.approx((44.5, 39.5))
-    assert near.bbox == (20, 20, 69, 59)
+    assert near.center_xy == pytest.approx((44.5, 39.5))
+    assert near.bbox_xy == (20, 20, 70, 60)  # half-open
+    assert (seg.labels[near.slice] == near.id).all() and seg.labels[near.slice].shape == (40, 50)
     # pinhole back-projection: X = (u - cx) Z / fx; area per pixel (Z / f)^2
     assert near.centroid_mm == pytest.approx(((44.5 - 87.5) * 1000 / 140, (39.5 - 65.5) * 1000 / 140, 1000.0))
     assert near.area_mm2 == pytest.approx(2000 * (1000 / 140) ** 2)

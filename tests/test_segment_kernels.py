@@ -291,13 +291,13 @@ def test_slice_parts_match_per_slice_numpy_sums() -> None:
         int(ys.size),
         0.0,
         (0.0, 0.0),
-        (int(xs.min()), int(ys.min()), int(xs.max()), int(ys.max())),
+        (int(xs.min()), int(ys.min()), int(xs.max()) + 1, int(ys.max()) + 1),
     )
     for horizontal in (True, False):
         parts = slice_parts(
             labels, depth, obj, horizontal=horizontal, aperture=4, depth_label=lambda z: 0, intrinsics=None, first_id=1
         )
-        coord = ys - obj.bbox[1] if horizontal else xs - obj.bbox[0]
+        coord = ys - obj.bbox_xy[1] if horizontal else xs - obj.bbox_xy[0]
         want = []
         for j in np.unique(coord // 4):
             sel = coord // 4 == j
@@ -308,7 +308,7 @@ def test_slice_parts_match_per_slice_numpy_sums() -> None:
         for p, (mean, area, cx, cy) in zip(parts, want, strict=True):
             assert p.area == area
             assert p.depth == pytest.approx(mean, rel=1e-12)
-            assert p.center == pytest.approx((cx, cy), rel=1e-12)
+            assert p.center_xy == pytest.approx((cx, cy), rel=1e-12)
 
 
 def test_relabel_equals_numpy_fancy_indexing() -> None:

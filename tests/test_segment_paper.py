@@ -112,7 +112,7 @@ def test_floor_is_a_compound_of_horizontal_slices_with_successive_labels() -> No
     parts = f.parts
     assert len(parts) >= 5 and {p.kind for p in parts} == {"part"}
     # nearest part at the bottom of the image, depth growing upward; labels never go back
-    rows = [p.center[1] for p in parts]
+    rows = [p.center_xy[1] for p in parts]
     assert rows[0] == max(rows) and np.all(np.diff(rows) < 0)
     labels = [p.depth_label for p in parts]
     assert labels == sorted(labels) and labels[-1] > labels[0] and f.depth_label == labels[0]
@@ -132,7 +132,7 @@ def test_a_floor_turned_sideways_is_a_wall_of_vertical_slices() -> None:
     assert _iou(both.labels == walls[0].id, floor.T) >= 0.9
     seg = segment(zt, intrinsics=cam, method="paper", slice_directions="horizontal")
     assert not [o for o in seg.objects if o.kind == "wall"]  # rows cannot find it
-    xs = [p.center[0] for p in walls[0].parts]
+    xs = [p.center_xy[0] for p in walls[0].parts]
     assert np.ptp(xs) > 30
 
 

@@ -36,7 +36,7 @@ def _objects_on(seg: Segmentation, sup_id: int, max_depth_mm: float) -> int:
     """Objects and compounds other than the support (>= 0.3 % of the frame, nearer than
     ``max_depth_mm``) centred inside the support's box."""
     sup = seg.by_id()[sup_id]
-    x0, y0, x1, y1 = sup.bbox
+    x0, y0, x1, y1 = sup.bbox_xy  # half-open
     return sum(
         1
         for o in seg.objects
@@ -44,8 +44,8 @@ def _objects_on(seg: Segmentation, sup_id: int, max_depth_mm: float) -> int:
         and o.id != sup_id
         and o.area_fraction >= 0.003
         and o.depth < max_depth_mm
-        and x0 <= o.center[0] <= x1
-        and y0 <= o.center[1] <= y1
+        and x0 <= o.center_xy[0] <= x1 - 1
+        and y0 <= o.center_xy[1] <= y1 - 1
     )
 
 

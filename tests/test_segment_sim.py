@@ -65,8 +65,8 @@ def test_corridor_floor_walls_and_ceiling_are_compound_objects() -> None:
             assert s.iou >= 0.8, (t.name, s)
             assert obj.kind == t.kind and len(obj.parts) >= 3, (t.name, obj.kind)
             # walls are cut in vertical slices, floor and ceiling in horizontal ones
-            xs = [p.center[0] for p in obj.parts]
-            ys = [p.center[1] for p in obj.parts]
+            xs = [p.center_xy[0] for p in obj.parts]
+            ys = [p.center_xy[1] for p in obj.parts]
             spread_x, spread_y = np.ptp(xs), np.ptp(ys)
             assert (spread_x > spread_y) == (t.kind == "wall")
 

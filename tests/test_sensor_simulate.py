@@ -31,7 +31,7 @@ def test_truth_agrees_with_the_instance_map(scene: str) -> None:
     for o in sim.truth:
         mask = sim.instances == o.id
         assert o.area == mask.sum()
-        assert o.center == pytest.approx((cols[mask].mean(), rows[mask].mean()))
+        assert o.center_xy == pytest.approx((cols[mask].mean(), rows[mask].mean()))
         assert o.depth == pytest.approx(sim.true_depth[mask].mean(), rel=1e-6)
         on_border = mask[0].any() or mask[-1].any() or mask[:, 0].any() or mask[:, -1].any()
         assert o.touches_border == on_border
@@ -119,7 +119,7 @@ def test_crossing_occludes_the_cart_for_a_few_frames_then_it_reappears() -> None
     assert cart[hidden[-1] + 1] and person[hidden[0]]
     assert not person[-1] and not cart[-1]  # both have left
     entering = _by_name(sims[2])["person"]
-    assert entering.touches_border and entering.center[0] < 10
+    assert entering.touches_border and entering.center_xy[0] < 10
     assert _by_name(sims[10])["person"].v_radial == pytest.approx(0.0, abs=1e-9)
 
 

@@ -37,7 +37,7 @@ def test_writes_depth_instances_truth_and_camera_that_read_back(tmp_path: Path) 
         assert [o["id"] for o in truth["objects"]] == [o.id for o in sim.truth]
         for got, want in zip(truth["objects"], sim.truth, strict=True):
             assert got["name"] == want.name and got["area"] == want.area == int((inst == want.id).sum())
-            assert tuple(got["center"]) == pytest.approx(want.center)
+            assert tuple(got["center_xy"]) == pytest.approx(want.center_xy)
             assert got["v_radial"] == pytest.approx(want.v_radial)
             assert got["parent"] == want.parent
 

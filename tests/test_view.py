@@ -128,9 +128,10 @@ def test_stream_delivers_the_table_scene_with_its_true_objects() -> None:
     for t in sim.truth:
         if t.kind != "object" or t.area > 0.1 * 176 * 132:
             continue
-        near = [o for o in objects if np.hypot(o["center"][0] - t.center[0], o["center"][1] - t.center[1]) < 6
+        tx, ty = t.center_xy
+        near = [o for o in objects if np.hypot(o["center_xy"][0] - tx, o["center_xy"][1] - ty) < 6
                 and abs(o["area"] - t.area) < 0.4 * t.area]
-        assert len(near) == 1, (t.name, t.center, t.area)
+        assert len(near) == 1, (t.name, t.center_xy, t.area)
     assert {"actions", "channel", "warnings"} <= set(msg["plan"])
     assert msg["tree"][0]["level"] == 0 and all(n["level"] >= 1 for n in msg["tree"][1:])
 

@@ -200,8 +200,8 @@ def _object_record(o: SceneObject, node: Mapping[str, Any], m: Motion | None) ->
         "depth_std": _clean(o.depth_std, 1),
         "area": o.area,
         "area_fraction": _clean(o.area_fraction, 5),
-        "center": [_clean(o.center[0]), _clean(o.center[1])],
-        "bbox": list(o.bbox),
+        "center_xy": [_clean(o.center_xy[0]), _clean(o.center_xy[1])],
+        "bbox_xy": list(o.bbox_xy),
         "centroid_mm": None if o.centroid_mm is None else [_clean(c, 1) for c in o.centroid_mm],
         "area_mm2": _clean(o.area_mm2, 0),
         "parent": node.get("parent"),
@@ -211,7 +211,7 @@ def _object_record(o: SceneObject, node: Mapping[str, Any], m: Motion | None) ->
                 "depth_label": p.depth_label,
                 "depth": _clean(p.depth, 1),
                 "area": p.area,
-                "center": [_clean(c) for c in p.center],
+                "center_xy": [_clean(c) for c in p.center_xy],
             }
             for p in o.parts
         ],

@@ -108,7 +108,7 @@ class Plan:
 
 
 def _direction(node: Node, size: tuple[int, int], k: Intrinsics | None) -> tuple[tuple[float, ...], float]:
-    x, y = node.center
+    x, y = node.center_xy
     if k is not None:
         ray = ((x - k.cx) / k.fx, (y - k.cy) / k.fy, 1.0)
         norm = math.sqrt(sum(c * c for c in ray))
@@ -121,7 +121,7 @@ def _direction(node: Node, size: tuple[int, int], k: Intrinsics | None) -> tuple
 
 
 def _in_path(node: Node, size: tuple[int, int], k: Intrinsics | None, cfg: ActConfig) -> bool:
-    x = node.center[0]
+    x = node.center_xy[0]
     if k is not None:
         # Lateral offset of the center (mm) against the strip the body sweeps, widened by the
         # object's own half width so that an object overlapping the strip counts.

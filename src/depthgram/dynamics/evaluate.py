@@ -169,7 +169,7 @@ def objects_from_labels(
             continue
         mean = sz[i] / area[i]
         std = float(np.sqrt(max(szz[i] / area[i] - mean * mean, 0.0)))
-        bbox = (sl[1].start, sl[0].start, sl[1].stop - 1, sl[0].stop - 1)
+        bbox = (sl[1].start, sl[0].start, sl[1].stop, sl[0].stop)
         kind = (kinds or {}).get(i, "object")
         center = (float(sx[i] / area[i]), float(sy[i] / area[i]))
         out.append(SceneObject(i, kind, 0, float(mean), std, int(area[i]), area[i] / (h * w), center, bbox))

@@ -98,7 +98,7 @@ def cost_kernel(
         r = center_frac * diagonal_px * (1.0 + growth * tm[i])
         zg = tz[i] * dz_max * (1.0 + tm[i])
         area_t = max(ta[i], 1.0)
-        bt_area = (tb[i, 2] - tb[i, 0] + 1.0) * (tb[i, 3] - tb[i, 1] + 1.0)
+        bt_area = (tb[i, 2] - tb[i, 0]) * (tb[i, 3] - tb[i, 1])
         for j in range(no):
             cost[i, j] = FORBIDDEN
             # Cheapest gates first: most pairs are far apart and need no log or sqrt.
@@ -114,10 +114,10 @@ def cost_kernel(
             da = abs(np.log(max(oa[j], 1.0) / area_t)) / log_ratio
             if not da <= 1.0:
                 continue
-            ix = min(tb[i, 2], ob[j, 2]) - max(tb[i, 0], ob[j, 0]) + 1.0
-            iy = min(tb[i, 3], ob[j, 3]) - max(tb[i, 1], ob[j, 1]) + 1.0
+            ix = min(tb[i, 2], ob[j, 2]) - max(tb[i, 0], ob[j, 0])
+            iy = min(tb[i, 3], ob[j, 3]) - max(tb[i, 1], ob[j, 1])
             inter = max(ix, 0.0) * max(iy, 0.0)
-            bo_area = (ob[j, 2] - ob[j, 0] + 1.0) * (ob[j, 3] - ob[j, 1] + 1.0)
+            bo_area = (ob[j, 2] - ob[j, 0]) * (ob[j, 3] - ob[j, 1])
             iou = inter / max(bt_area + bo_area - inter, 1.0)
             if iou < min_iou:
                 continue
@@ -149,8 +149,9 @@ def mark_behind(f: NDArray[np.float64]) -> None:
         for i in range(m):
             if i == j or not f[i, F_Z] < 0.95 * f[j, F_Z]:
                 continue
-            if (f[j, F_X0] <= f[i, F_X0 + 2] + 1 and f[i, F_X0] <= f[j, F_X0 + 2] + 1
-                    and f[j, F_X0 + 1] <= f[i, F_X0 + 3] + 1 and f[i, F_X0 + 1] <= f[j, F_X0 + 3] + 1):
+            # half-open boxes: x0 <= other x1 means overlapping or adjacent
+            if (f[j, F_X0] <= f[i, F_X0 + 2] and f[i, F_X0] <= f[j, F_X0 + 2]
+                    and f[j, F_X0 + 1] <= f[i, F_X0 + 3] and f[i, F_X0 + 1] <= f[j, F_X0 + 3]):
                 f[j, F_BEHIND] = 1.0
                 break
 
@@ -195,7 +196,7 @@ def _crossing_axes(f: NDArray[np.float64], j: int, b: float, width: float, heigh
     through it; one touching both (a wall, a floor) spans the view on that axis and cannot.
     """
     x0, y0, x1, y1 = f[j, F_X0], f[j, F_X0 + 1], f[j, F_X0 + 2], f[j, F_X0 + 3]
-    return (x0 <= b) != (x1 >= width - 1 - b), (y0 <= b) != (y1 >= height - 1 - b)
+    return (x0 <= b) != (x1 >= width - b), (y0 <= b) != (y1 >= height - b)
 
 
 @njit(cache=True)
@@ -271,8 +272,8 @@ def step(
             # front of it keeps its extent and stays visible. Sizes compared at the fitted
             # depth, so that approaching is not read as entering.
             scale = z_ref / s[i, ZFIT]
-            ew = (f[c, F_X0 + 2] - f[c, F_X0] + 1.0) / (s[i, X1] - s[i, X0] + 1.0) * scale - 1.0
-            eh = (f[c, F_X0 + 3] - f[c, F_X0 + 1] + 1.0) / (s[i, Y1] - s[i, Y0] + 1.0) * scale - 1.0
+            ew = (f[c, F_X0 + 2] - f[c, F_X0]) / (s[i, X1] - s[i, X0]) * scale - 1.0
+            eh = (f[c, F_X0 + 3] - f[c, F_X0 + 1]) / (s[i, Y1] - s[i, Y0]) * scale - 1.0
             ext = max(ew if horiz else -np.inf, eh if vert else -np.inf)
             ext_min = min(ew if horiz else np.inf, eh if vert else np.inf)
             # Hysteresis: an object keeps entering (leaving) while its size does not reverse,

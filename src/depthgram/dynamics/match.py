@@ -22,12 +22,12 @@ __all__ = ["FORBIDDEN", "assign", "bbox_iou", "cost_kernel", "cost_params", "mat
 
 
 def bbox_iou(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Intersection over union of every pair of inclusive pixel boxes.
+    """Intersection over union of every pair of half-open pixel boxes.
 
     Parameters
     ----------
     a : ndarray, shape (T, 4)
-        Boxes (x0, y0, x1, y1), inclusive pixel coordinates.
+        Boxes (x0, y0, x1, y1) in pixels, half-open (x1, y1 exclusive), as ``SceneObject.bbox_xy``.
     b : ndarray, shape (M, 4)
         Boxes likewise.
 
@@ -36,11 +36,11 @@ def bbox_iou(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.float
     ndarray of float, shape (T, M)
         IoU in 0..1.
     """
-    ix = np.minimum(a[:, None, 2], b[None, :, 2]) - np.maximum(a[:, None, 0], b[None, :, 0]) + 1
-    iy = np.minimum(a[:, None, 3], b[None, :, 3]) - np.maximum(a[:, None, 1], b[None, :, 1]) + 1
+    ix = np.minimum(a[:, None, 2], b[None, :, 2]) - np.maximum(a[:, None, 0], b[None, :, 0])
+    iy = np.minimum(a[:, None, 3], b[None, :, 3]) - np.maximum(a[:, None, 1], b[None, :, 1])
     inter = np.clip(ix, 0, None) * np.clip(iy, 0, None)
-    area_a = (a[:, 2] - a[:, 0] + 1) * (a[:, 3] - a[:, 1] + 1)
-    area_b = (b[:, 2] - b[:, 0] + 1) * (b[:, 3] - b[:, 1] + 1)
+    area_a = (a[:, 2] - a[:, 0]) * (a[:, 3] - a[:, 1])
+    area_b = (b[:, 2] - b[:, 0]) * (b[:, 3] - b[:, 1])
     union = area_a[:, None] + area_b[None, :] - inter
     return np.asarray(inter / np.maximum(union, 1.0), dtype=np.float64)
 
@@ -85,7 +85,7 @@ def match_cost(
     track_area : array_like, shape (T,)
         Last seen area (px).
     track_bbox : array_like, shape (T, 4)
-        Predicted bbox (px, inclusive).
+        Predicted bbox (px, half-open).
     track_label : array_like, shape (T,)
         Last depth label.
     track_missed : array_like, shape (T,)

@@ -134,7 +134,7 @@ def _features(objects: Sequence[SceneObject]) -> NDArray[np.float64]:
     the visible area changes. ``read`` is 1 where :func:`track_depth` read the nearest part of
     a compound, 0 where it read the mean depth.
     """
-    rows = [(*o.center, track_depth(o), o.area, o.depth_label, *o.bbox) for o in objects]
+    rows = [(*o.center_xy, track_depth(o), o.area, o.depth_label, *o.bbox_xy) for o in objects]
     flat = np.fromiter(itertools.chain.from_iterable(rows), np.float64, count=9 * len(rows))
     f = np.zeros((len(rows), NFEAT))
     f[:, :9] = flat.reshape(len(rows), 9)

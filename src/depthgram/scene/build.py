@@ -103,9 +103,9 @@ def support_depth_at(obj: SceneObject, row: float) -> float:
     row : float
         Image row (px).
     """
-    height = obj.bbox[3] - obj.bbox[1] + 1
+    height = obj.bbox_xy[3] - obj.bbox_xy[1]
     span = _SQRT12 * obj.depth_std
-    frac = float(np.clip((obj.center[1] - row) / height, -0.5, 0.5))
+    frac = float(np.clip((obj.center_xy[1] - row) / height, -0.5, 0.5))
     return obj.depth + span * frac
 
 
@@ -126,7 +126,7 @@ def _contact_fractions(
     if n == 0:
         return np.zeros((0, 0))
     ids = np.array([o.id for o in objects], np.int64)
-    boxes = np.array([o.bbox for o in objects], np.int64).reshape(n, 4)
+    boxes = np.array([o.bbox_xy for o in objects], np.int64).reshape(n, 4)
     todo = np.array([o.kind not in _SURFACES for o in objects], np.bool_)
     if need is not None:
         todo &= np.asarray(need, np.bool_)
@@ -160,9 +160,9 @@ def _contacts_below(
         oid = ids[i]
         x0, y0, x1, y1 = boxes[i, 0], boxes[i, 1], boxes[i, 2], boxes[i, 3]
         cols = 0
-        for x in range(x0, x1 + 1):
+        for x in range(x0, x1):
             bottom = -1
-            for y in range(y1, y0 - 1, -1):
+            for y in range(y1 - 1, y0 - 1, -1):
                 if labels[y, x] == oid:
                     bottom = y
                     break
@@ -249,7 +249,7 @@ def build_tree(
     for i, p in enumerate(parent.tolist()):
         kids.setdefault(int(p), []).append(i)
     for v in kids.values():
-        v.sort(key=lambda i: (objs[i].center[0], objs[i].id))
+        v.sort(key=lambda i: (objs[i].center_xy[0], objs[i].id))
 
     def node(i: int) -> Node:
         o = objs[i]
@@ -260,7 +260,7 @@ def build_tree(
             depth_label=o.depth_label,
             depth=float(o.depth),
             area=int(o.area),
-            center=(float(o.center[0]), float(o.center[1])),
+            center_xy=(float(o.center_xy[0]), float(o.center_xy[1])),
             v_radial=None if m is None else m.v_radial,
             ttc=None if m is None else m.ttc,
             status=None if m is None else m.status,
@@ -274,7 +274,7 @@ def build_tree(
         depth_label=ROOT_LABEL,
         depth=0.0,
         area=width * height,
-        center=((width - 1) / 2.0, (height - 1) / 2.0),
+        center_xy=((width - 1) / 2.0, (height - 1) / 2.0),
         children=tuple(node(c) for c in kids.get(0, [])),
     )
     rels = _relations(objs, parent, kids, cfg) if cfg.relations and n > 1 else ()
@@ -286,13 +286,14 @@ def _supports(
 ) -> NDArray[np.int64]:
     """Support (object id, 0 for Bkg) of each object, decided for all pairs at once."""
     n = len(objs)
-    bbox = np.array([o.bbox for o in objs], dtype=np.float64)
-    x0, y0, x1, y1 = bbox.T
-    cx = np.array([o.center[0] for o in objs])
+    bbox = np.array([o.bbox_xy for o in objs], dtype=np.float64)
+    x0, y0, x_end, y_end = bbox.T
+    last_x, last_y = x_end - 1, y_end - 1  # the box's last column and row
+    cx = np.array([o.center_xy[0] for o in objs])
     depth = np.array([o.depth for o in objs])
     std = np.array([o.depth_std for o in objs])
     area = np.array([o.area for o in objs], dtype=np.float64)
-    cy = np.array([o.center[1] for o in objs])
+    cy = np.array([o.center_xy[1] for o in objs])
     idv = np.array([o.id for o in objs], dtype=np.float64)
     kind = [o.kind for o in objs]
     is_floor = np.array([k == "floor" for k in kind])
@@ -301,18 +302,18 @@ def _supports(
     m = float(cfg.contact_px)
 
     # Rows i: the object; columns j: the candidate support.
-    foot = y1[:, None]
+    foot = last_y[:, None]
     ok = rests[:, None] & holds[None, :] & ~np.eye(n, dtype=bool)
-    ok &= (cx[:, None] >= x0[None, :] - m) & (cx[:, None] <= x1[None, :] + m)
-    ok &= (foot >= y0[None, :] - m) & (foot <= y1[None, :] + m)
+    ok &= (cx[:, None] >= x0[None, :] - m) & (cx[:, None] <= last_x[None, :] + m)
+    ok &= (foot >= y0[None, :] - m) & (foot <= last_y[None, :] + m)
     # A strict order on (floor, bottom row, area, -id) keeps the support relation a tree:
     # a support reaches at least as low in the image as what it holds, and is larger.
     rank = np.empty(n, dtype=np.int64)
-    rank[np.lexsort((-idv, area, y1, is_floor))] = np.arange(n)
+    rank[np.lexsort((-idv, area, y_end, is_floor))] = np.arange(n)
     greater = rank[None, :] > rank[:, None]
     ok &= greater
     # Support depth at the object's bottom row (linear ramp, see support_depth_at).
-    height = (y1 - y0 + 1)[None, :]
+    height = (y_end - y0)[None, :]
     frac = np.clip((cy[None, :] - foot) / height, -0.5, 0.5)
     z_at = depth[None, :] + _SQRT12 * std[None, :] * frac
     err = np.abs(depth[:, None] - z_at)
@@ -339,12 +340,12 @@ def _fall_to_floor(objs: Sequence[SceneObject], parent: NDArray[np.int64], reach
     if not floors:
         return
     floor = max(floors, key=lambda o: (o.area, -o.id))
-    fx0, fy0, fx1, _ = floor.bbox
+    fx0, fy0, fx1, _ = floor.bbox_xy
     for i, o in enumerate(objs):
         if parent[i] != 0 or o.kind in _SURFACES:
             continue
-        x0, _, x1, y1 = o.bbox
-        if y1 >= fy0 - reach_px and x0 <= fx1 and x1 >= fx0:
+        x0, _, x1, y1 = o.bbox_xy
+        if y1 - 1 >= fy0 - reach_px and x0 < fx1 and x1 > fx0:
             parent[i] = floor.id
 
 
@@ -352,11 +353,11 @@ def _relations(
     objs: Sequence[SceneObject], parent: NDArray[np.int64], kids: Mapping[int, list[int]], cfg: TreeConfig
 ) -> tuple[Relation, ...]:
     gap = cfg.relation_gap_mm
-    bbox = np.array([o.bbox for o in objs], dtype=np.float64)
+    bbox = np.array([o.bbox_xy for o in objs], dtype=np.float64)
     depth = np.array([o.depth for o in objs])
     x0, y0, x1, y1 = bbox.T
-    overlap = (x0[:, None] <= x1[None, :]) & (x0[None, :] <= x1[:, None])
-    overlap &= (y0[:, None] <= y1[None, :]) & (y0[None, :] <= y1[:, None])
+    overlap = (x0[:, None] < x1[None, :]) & (x0[None, :] < x1[:, None])
+    overlap &= (y0[:, None] < y1[None, :]) & (y0[None, :] < y1[:, None])
     siblings = parent[:, None] == parent[None, :]
     occ = overlap & siblings & (depth[:, None] + gap < depth[None, :])
     out = [Relation(objs[i].id, "occludes", objs[j].id) for i, j in zip(*np.nonzero(occ), strict=True)]
@@ -369,11 +370,11 @@ def _relations(
             if occl[i][j] or occl[j][i]:
                 continue
             a, b = objs[i].id, objs[j].id
-            if bx1[i] < bx0[j]:
+            if bx1[i] <= bx0[j]:
                 out.append(Relation(a, "left_of", b))
-            elif by1[i] < by0[j]:
+            elif by1[i] <= by0[j]:
                 out.append(Relation(a, "above", b))
-            elif by1[j] < by0[i]:
+            elif by1[j] <= by0[i]:
                 out.append(Relation(a, "below", b))
             elif z[i] + gap < z[j]:
                 out.append(Relation(a, "in_front_of", b))

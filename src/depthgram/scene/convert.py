@@ -18,7 +18,7 @@ def _node_dict(n: Node, parent: int | None) -> dict[str, Any]:
         "depth_label": n.depth_label,
         "depth": n.depth,
         "area": n.area,
-        "center": [n.center[0], n.center[1]],
+        "center_xy": [n.center_xy[0], n.center_xy[1]],
         "parent": parent,
         "children": [c.id for c in n.children],
         "parts": list(n.parts),
@@ -35,7 +35,7 @@ def tree_to_dict(tree: SceneTree) -> dict[str, Any]:
     -------
     dict
         ``nodes``: the root then every node depth-first, each with ``id``, ``kind``,
-        ``label``, ``depth`` (mm), ``area`` (px), ``center`` ([x, y] px), ``parent`` (None
+        ``depth_label``, ``depth`` (mm), ``area`` (px), ``center_xy`` ([x, y] px), ``parent`` (None
         for the root), ``children`` (ids, in order), ``parts`` (depth labels), ``v_radial``,
         ``ttc`` and ``status`` (None when unknown); ``relations``: ``[a, relation, b]`` lists.
     """
@@ -82,7 +82,7 @@ def tree_from_dict(data: Mapping[str, Any]) -> SceneTree:
                 depth_label=int(d["depth_label"]),
                 depth=float(d["depth"]),
                 area=int(d["area"]),
-                center=(float(d["center"][0]), float(d["center"][1])),
+                center_xy=(float(d["center_xy"][0]), float(d["center_xy"][1])),
                 v_radial=opt(d.get("v_radial")),
                 ttc=opt(d.get("ttc")),
                 status=None if d.get("status") is None else str(d["status"]),

@@ -75,7 +75,7 @@ def _num(x: float, precision: int) -> str:
 def _attrs(n: Node, precision: int, root: bool) -> str:
     parts = [
         f"A={int(n.area)}",
-        f"c=({_num(n.center[0], precision)},{_num(n.center[1], precision)})",
+        f"c=({_num(n.center_xy[0], precision)},{_num(n.center_xy[1], precision)})",
         f"z={_num(n.depth, precision)}",
     ]
     if root and n.depth_label != ROOT_LABEL:
@@ -157,7 +157,7 @@ def round_tree(tree: SceneTree, precision: int = 1) -> SceneTree:
             depth_label=n.depth_label,
             depth=float(_num(n.depth, precision)),
             area=int(n.area),
-            center=(float(_num(n.center[0], precision)), float(_num(n.center[1], precision))),
+            center_xy=(float(_num(n.center_xy[0], precision)), float(_num(n.center_xy[1], precision))),
             v_radial=r(n.v_radial),
             ttc=r(n.ttc),
             status=n.status,
@@ -238,7 +238,7 @@ class _Reader:
 
         return {
             "area": int(get("A", 0)),  # type: ignore[call-overload]
-            "center": get("c", (0.0, 0.0)),
+            "center_xy": get("c", (0.0, 0.0)),
             "depth": float(get("z", 0.0)),  # type: ignore[arg-type]
             "v_radial": opt("v"),
             "ttc": opt("ttc"),

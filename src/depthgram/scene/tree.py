@@ -56,7 +56,7 @@ class Node:
     depth_label: int
     depth: float
     area: int
-    center: tuple[float, float]
+    center_xy: tuple[float, float]
     v_radial: float | None = None
     ttc: float | None = None
     status: str | None = None

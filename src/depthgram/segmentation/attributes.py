@@ -206,15 +206,16 @@ def make_objects(
         stats.count, stats.sz, stats.szz, stats.sx, stats.sy, sxz, syz, *cam,
     ).tolist()  # fmt: skip
     if stats.boxes is not None:
-        x0, y0, x1, y1 = stats.boxes[1:].T.tolist()
+        # the kernels keep inclusive boxes (last column and row); objects carry half-open ones
+        x0, y0, x1, y1 = (stats.boxes[1:] + np.array([0, 0, 1, 1])).T.tolist()
         present = [row[0] > 0 for row in table]
     else:
         found = ndimage.find_objects(labels, max_label=n)
         present = [(row[0] > 0 and f is not None) for row, f in zip(table, found, strict=True)]
         x0 = [f[1].start if f is not None else 0 for f in found]
         y0 = [f[0].start if f is not None else 0 for f in found]
-        x1 = [f[1].stop - 1 if f is not None else 0 for f in found]
-        y1 = [f[0].stop - 1 if f is not None else 0 for f in found]
+        x1 = [f[1].stop if f is not None else 0 for f in found]
+        y1 = [f[0].stop if f is not None else 0 for f in found]
     id_l = ids[1:].tolist() if ids is not None else list(range(first_id, first_id + n))
     lab_l = depth_labels[1:].tolist() if depth_labels is not None else [0] * n
     out: list[SceneObject] = []
@@ -231,8 +232,8 @@ def make_objects(
                 depth_std=std,
                 area=int(c),
                 area_fraction=c / total,
-                center=(cx, cy),
-                bbox=(int(x0[j]), int(y0[j]), int(x1[j]), int(y1[j])),
+                center_xy=(cx, cy),
+                bbox_xy=(int(x0[j]), int(y0[j]), int(x1[j]), int(y1[j])),
                 centroid_mm=(gx, gy, mean) if metric else None,
                 area_mm2=amm if metric else None,
             )

@@ -300,13 +300,13 @@ def _slices(
     below = _below_camera(labels, next_id - 1, depth, cam, compounds)
     # only supports seen from above (floor, table tops) can have a front face below them
     horizontal_ids = np.array([o.id for c, o in compounds if c == HORIZONTAL and below[o.id] > 0], np.int32)
-    widths = np.array([0] + [o.bbox[2] - o.bbox[0] + 1 for o in objects], np.float64)
+    widths = np.array([0] + [o.bbox_xy[2] - o.bbox_xy[0] for o in objects], np.float64)
     fronts = front_faces(labels, depth, widths, horizontal_ids, jump_rel=cfg.jump_rel)
     # small vertical supports beside a facing object are that object's side (a box at an angle)
     side_ids = np.array(
         [o.id for c, o in compounds if c == VERTICAL and o.area < cfg.side_max_area * depth.size], np.int32
     )
-    heights = np.array([0] + [o.bbox[3] - o.bbox[1] + 1 for o in objects], np.float64)
+    heights = np.array([0] + [o.bbox_xy[3] - o.bbox_xy[1] for o in objects], np.float64)
     mean_depth = np.zeros(next_id)
     for o in (*objects, *(o for _, o in compounds)):
         mean_depth[o.id] = o.depth

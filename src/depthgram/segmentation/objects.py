@@ -6,6 +6,7 @@ sound, views) can take them without knowing how they were found.
 
 from __future__ import annotations
 
+import builtins
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -40,10 +41,12 @@ class SceneObject:
         Area in pixels (valid pixels only).
     area_fraction : float
         ``area`` as a fraction of the frame's pixel count.
-    center : tuple of float
+    center_xy : tuple of float
         Image center (x, y) in pixels: the mean column and row.
-    bbox : tuple of int
-        Bounding box (x0, y0, x1, y1), inclusive pixel coordinates.
+    bbox_xy : tuple of int
+        Bounding box (x0, y0, x1, y1) in pixels, half-open: columns ``x0 <= x < x1`` and rows
+        ``y0 <= y < y1``, so ``labels[y0:y1, x0:x1]`` is the object's box and ``x1 - x0`` its
+        width. :attr:`slice` gives the same box as a numpy index.
     centroid_mm : tuple of float or None
         3-D centroid (X, Y, Z) in mm in the camera frame, when intrinsics are known.
     area_mm2 : float or None
@@ -61,11 +64,20 @@ class SceneObject:
     depth_std: float
     area: int
     area_fraction: float
-    center: tuple[float, float]
-    bbox: tuple[int, int, int, int]
+    center_xy: tuple[float, float]
+    bbox_xy: tuple[int, int, int, int]
     centroid_mm: tuple[float, float, float] | None = None
     area_mm2: float | None = None
     parts: tuple[SceneObject, ...] = ()
+
+    @property
+    def slice(self) -> tuple[builtins.slice, builtins.slice]:
+        """The bounding box as a numpy index ``(rows, columns)``, like scikit-image's ``regionprops.slice``.
+
+        ``labels[o.slice] == o.id`` marks the object's pixels inside its box.
+        """
+        x0, y0, x1, y1 = self.bbox_xy
+        return (slice(y0, y1), slice(x0, x1))
 
 
 @dataclass(frozen=True, eq=False)

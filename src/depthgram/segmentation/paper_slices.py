@@ -271,14 +271,16 @@ def slice_runs(
     return SliceRuns(labels, depth, dl, slice_index, sign, group)
 
 
-def _kind(horizontal: bool, sign: int, bbox: tuple[int, int, int, int], shape: tuple[int, ...], aperture: int) -> str:
+def _kind(
+    horizontal: bool, sign: int, bbox_xy: tuple[int, int, int, int], shape: tuple[int, ...], aperture: int
+) -> str:
     """Floor: depth grows upward from the bottom slice; ceiling: downward from the top slice."""
     if not horizontal:
         return "wall"
     h = shape[0]
-    if sign < 0 and bbox[3] >= h - aperture:
+    if sign < 0 and bbox_xy[3] > h - aperture:  # its last row within the bottom slice
         return "floor"
-    if sign > 0 and bbox[1] < aperture:
+    if sign > 0 and bbox_xy[1] < aperture:
         return "ceiling"
     return "compound"
 
@@ -362,7 +364,7 @@ def paper_slices(
             g = o.id - next_id + 1
             ps = sorted(by_group[g], key=lambda p: p.depth)
             sign = int(runs.sign[np.flatnonzero(runs.group == g)[0]])
-            kind = _kind(horizontal, sign, o.bbox, depth_mm.shape, ap)
+            kind = _kind(horizontal, sign, o.bbox_xy, depth_mm.shape, ap)
             compounds.append(replace(o, kind=kind, depth_label=min(p.depth_label for p in ps), parts=tuple(ps)))
         on = gmap > 0
         labels[on] = gmap[on] + (next_id - 1)

@@ -83,13 +83,14 @@ def slice_parts(
     first_id : int
         Id of the first part (parts are not in the label map; ids only name them).
     """
-    x0, y0, x1, y1 = obj.bbox
-    extent = (y1 - y0 + 1) if horizontal else (x1 - x0 + 1)
+    x0, y0, x1, y1 = obj.bbox_xy
+    extent = (y1 - y0) if horizontal else (x1 - x0)
     step = int(aperture) if aperture >= 1 else max(1, math.ceil(aperture * extent))
     n_slices = (extent + step - 1) // step
-    sums, boxes = _part_sums(labels, depth_mm, obj.id, x0, y0, x1, y1, step, horizontal, n_slices)
+    # the kernel takes the box's last column and row (inclusive bounds)
+    sums, boxes = _part_sums(labels, depth_mm, obj.id, x0, y0, x1 - 1, y1 - 1, step, horizontal, n_slices)
     stats = Stats.from_sums(sums, boxes, metric=intrinsics is not None)
-    part_map = labels[y0 : y1 + 1, x0 : x1 + 1]  # only its size is read below
+    part_map = labels[obj.slice]  # only its size is read below
     shifted = None
     if intrinsics is not None:
         shifted = Intrinsics(intrinsics.fx, intrinsics.fy, intrinsics.cx - x0, intrinsics.cy - y0)
@@ -98,8 +99,8 @@ def slice_parts(
     fn = depth_label  # callable, typed loosely to keep this module free of Bands
     out = []
     for j, p in enumerate(parts):
-        cx, cy = p.center
-        bx0, by0, bx1, by1 = p.bbox
+        cx, cy = p.center_xy
+        bx0, by0, bx1, by1 = p.bbox_xy
         out.append(
             SceneObject(
                 id=first_id + j,
@@ -109,8 +110,8 @@ def slice_parts(
                 depth_std=p.depth_std,
                 area=p.area,
                 area_fraction=p.area / labels.size,
-                center=(cx + x0, cy + y0),
-                bbox=(bx0 + x0, by0 + y0, bx1 + x0, by1 + y0),
+                center_xy=(cx + x0, cy + y0),
+                bbox_xy=(bx0 + x0, by0 + y0, bx1 + x0, by1 + y0),
                 centroid_mm=p.centroid_mm,
                 area_mm2=p.area_mm2,
             )

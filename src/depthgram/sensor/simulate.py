@@ -42,7 +42,7 @@ class TruthObject:
         "object", "floor", "wall" or "ceiling" (a table top is an "object").
     area : int
         Visible pixels: those of the instance map with a valid measured depth.
-    center : tuple of float
+    center_xy : tuple of float
         (x, y) mean column and row of those pixels (px).
     depth : float
         Mean true depth along the optical axis of those pixels (mm).
@@ -63,7 +63,7 @@ class TruthObject:
     name: str
     kind: str
     area: int
-    center: tuple[float, float]
+    center_xy: tuple[float, float]
     depth: float
     v_radial: float
     parent: int | None
@@ -246,7 +246,7 @@ def _truth(spec: SceneSpec, instances: NDArray[np.int32], true_depth: NDArray[np
             name=b.name,
             kind=b.kind,
             area=a,
-            center=(float(sx[b.id] / a), float(sy[b.id] / a)),
+            center_xy=(float(sx[b.id] / a), float(sy[b.id] / a)),
             depth=float(sd[b.id] / a),
             v_radial=float(b.motion.velocity(t) @ forward),
             parent=b.parent,

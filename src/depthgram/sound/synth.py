@@ -82,15 +82,15 @@ def voices(tree: SceneTree, frame_size: tuple[int, int], mapping: SoundMapping) 
     surfaces = sorted((n for n in nodes if n.kind in OBLIQUE_KINDS and n.id not in hidden),
                       key=lambda n: (n.depth, n.id))[: mapping.max_glides]
     if mapping.scan == "left_to_right":
-        ranked = sorted(objs, key=lambda n: (n.center[0], n.id))
+        ranked = sorted(objs, key=lambda n: (n.center_xy[0], n.id))
     else:
         ranked = list(objs)  # already nearest first; "none" ignores the order
     rank = {n.id: i / max(len(ranked) - 1, 1) for i, n in enumerate(ranked)}
     out: list[Voice] = []
     for n in objs:
-        f = mapping.pitch(n.center[1], h)
+        f = mapping.pitch(n.center_xy[1], h)
         g = mapping.gain(n.depth)
-        pan = mapping.pan(n.center[0], w)
+        pan = mapping.pan(n.center_xy[0], w)
         harm, beep = mapping.weight(n.area / float(w * h))
         order = rank[n.id] if mapping.scan != "none" else 0.0
         rate = mapping.rate(n.depth, n.ttc)
@@ -101,13 +101,13 @@ def voices(tree: SceneTree, frame_size: tuple[int, int], mapping: SoundMapping) 
             near_n = min(parts, key=lambda p: p.depth)
             far_n = max(parts, key=lambda p: p.depth)
             d_near, d_far = near_n.depth, far_n.depth
-            x_near, x_far = near_n.center[0], far_n.center[0]
+            x_near, x_far = near_n.center_xy[0], far_n.center_xy[0]
         else:
             # Without its parts the extent is unknown: assume the surface runs from half to one
             # and a half times its mean depth, at its center column.
             d_near, d_far = 0.5 * n.depth, 1.5 * n.depth
-            x_near = x_far = n.center[0]
-        fc = mapping.pitch(n.center[1], h)
+            x_near = x_far = n.center_xy[0]
+        fc = mapping.pitch(n.center_xy[1], h)
         span = mapping.glide_octaves * (mapping.nearness(d_near) - mapping.nearness(d_far))
         k = 10.0 ** (mapping.glide_gain_db / 20.0)
         out.append(Voice(

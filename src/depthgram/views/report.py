@@ -103,7 +103,7 @@ class ReportWriter:
         pics.append(f"{stem}_tree.png")
         rows = "".join(
             f"<tr><td>{o['id']}</td><td>{o['kind']}</td><td>o_{o['depth_label']}</td><td>{o['depth']}</td>"
-            f"<td>{o['area']}</td><td>({o['center'][0]}, {o['center'][1]})</td><td>{o['parent']}</td>"
+            f"<td>{o['area']}</td><td>({o['center_xy'][0]}, {o['center_xy'][1]})</td><td>{o['parent']}</td>"
             f"<td>{o.get('v_radial')}</td><td>{o.get('ttc')}</td><td>{o.get('status', '')}</td></tr>"
             for o in result.to_record()["objects"]
         )

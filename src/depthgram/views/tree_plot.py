@@ -44,12 +44,13 @@ def tree_layout(tree: SceneTree) -> dict[int, tuple[float, float]]:
 
 def _text(n: Node) -> str:
     if n.kind == "Bkg":
-        return f"Bkg\nA={n.area}\nc=({n.center[0]:.0f},{n.center[1]:.0f})"
+        return f"Bkg\nA={n.area}\nc=({n.center_xy[0]:.0f},{n.center_xy[1]:.0f})"
     term = f"o_{n.depth_label}"
     if n.parts:
         run = n.parts == tuple(range(n.depth_label, n.depth_label + len(n.parts))) and len(n.parts) > 1
         term += f"..{n.parts[-1]}" if run else "(" + ",".join(map(str, n.parts)) + ")"
-    lines = [f"{n.kind}#{n.id}  {term}", f"A={n.area}  z={n.depth:.0f} mm", f"c=({n.center[0]:.1f},{n.center[1]:.1f})"]
+    cx, cy = n.center_xy
+    lines = [f"{n.kind}#{n.id}  {term}", f"A={n.area}  z={n.depth:.0f} mm", f"c=({cx:.1f},{cy:.1f})"]
     dyn = []
     if n.v_radial is not None:
         dyn.append(f"v={n.v_radial:.0f}")

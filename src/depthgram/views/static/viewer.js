@@ -95,13 +95,13 @@ function drawOverlay(msg) {
   ctx.textBaseline = "middle";
   for (const o of msg.record.objects) {
     if (warned.has(o.id)) {
-      const [x0, y0, x1, y1] = o.bbox;
+      const [x0, y0, x1, y1] = o.bbox_xy;  // half-open: x1, y1 exclusive
       ctx.strokeStyle = "#ff3030";
       ctx.lineWidth = 3;
-      ctx.strokeRect(x0 * s, y0 * s, (x1 - x0 + 1) * s, (y1 - y0 + 1) * s);
+      ctx.strokeRect(x0 * s, y0 * s, (x1 - x0) * s, (y1 - y0) * s);
     }
-    const x = (o.center[0] + 0.5) * s;
-    const y = (o.center[1] + 0.5) * s;
+    const x = (o.center_xy[0] + 0.5) * s;
+    const y = (o.center_xy[1] + 0.5) * s;
     const text = `#${o.id}`;
     const w = ctx.measureText(text).width + 6;
     ctx.fillStyle = "rgba(0, 0, 0, 0.65)";
