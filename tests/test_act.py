@@ -121,7 +121,7 @@ def test_small_near_object_is_grasped_far_one_is_not() -> None:
     ray = np.array([(88.0 - 87.5) / 100, (80.0 - 65.5) / 100, 1.0])
     assert by_id[1].direction == pytest.approx(tuple(ray / np.linalg.norm(ray)))
     assert by_id[1].distance_mm == pytest.approx(500.0 * np.linalg.norm(ray))
-    assert by_id[1].cost == pytest.approx(by_id[1].distance_mm / 1000)
+    assert by_id[1].cost_mm == pytest.approx(by_id[1].distance_mm)
 
 
 def test_walls_and_floor_are_never_grasped() -> None:
@@ -174,6 +174,8 @@ def test_plan_to_dict_is_json_ready() -> None:
     d = plan_to_dict(plan(tree_of(BOX), frame))
     back = json.loads(json.dumps(d))
     assert back["actions"][0]["action"] == "avoid"
+    # cost in the unit its key names, beside the distance (mm both)
+    assert back["actions"][0]["cost_mm"] == pytest.approx(back["actions"][0]["distance_mm"], abs=0.1)
     assert back["channel"]["columns"] == [91, 175]
     assert back["channel"]["width_mm"] == pytest.approx(680.0)
 

@@ -207,8 +207,29 @@ def test_gap_pixels_between_bands_are_background_only_on_request() -> None:
     drop = segment(z, method="threshold", min_area_px=1, smooth_bins=0.0, min_prominence=0.05, gap_pixels="background")
     assert not drop.labels[:, 28:30].any() and drop.labels[:, :28].all() and drop.labels[:, 30:].all()
     assert keep.labels[:, 28:30].all()
-    lower, upper = drop.extras["bands_mm"].T  # type: ignore[union-attr]
+    assert drop.bands_mm is not None
+    lower, upper = drop.bands_mm.T
     assert upper[0] < 1025 < lower[1]
+
+
+def test_segmentation_carries_typed_fields_per_method() -> None:
+    # Segmentation.extras was an untyped dict; its entries are now fields.
+    z, _ = floor_scene()
+    for method in ("threshold", "slices", "paper"):
+        seg = segment(z, method=method, intrinsics=CAM)
+        assert seg.bands_mm is not None and seg.bands_mm.ndim == 2 and seg.bands_mm.shape[1] == 2
+        lower, upper = seg.bands_mm.T
+        assert (lower <= upper).all() and (upper[:-1] <= lower[1:]).all()  # nearest first, disjoint
+        for o in seg.objects:
+            if o.kind == "object":  # a facing object lies in the band its depth label names
+                assert lower[o.depth_label] <= o.depth <= upper[o.depth_label], (method, o)
+    slices = segment(z, method="slices", intrinsics=CAM)
+    assert slices.classes is not None and slices.classes.shape == z.shape
+    assert set(np.unique(slices.classes).tolist()) <= {0, 1, 2} and (slices.classes == 1).any()  # the floor
+    paper = segment(z, method="paper", intrinsics=CAM)
+    assert paper.aperture_px is not None and set(paper.aperture_px) == {"rows", "columns"}
+    region = segment(z, method="region", intrinsics=CAM)
+    assert region.bands_mm is None and region.classes is None and region.aperture_px is None
 
 
 def test_depth_dependent_bins_widen_with_depth() -> None:

@@ -112,3 +112,28 @@ def test_errors_say_what_is_wrong(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setitem(sys.modules, "pyrealsense2", None)  # not installed
     with pytest.raises(InputError, match="pip install"):
         list(open_source("realsense:"))
+
+
+def test_read_gives_the_source_so_a_pipeline_never_reads_a_camera_ahead(monkeypatch: pytest.MonkeyPatch) -> None:
+    # read() used to be a bare generator: Pipeline.run could not see that the camera is live
+    # and read it from the prefetch thread, frames ahead of the one being processed.
+    import threading
+
+    from depthgram import Pipeline, read
+    from depthgram.sources import Source
+
+    rs = _fake_rs([np.full((24, 32), 1500 + 100 * k, np.uint16) for k in range(3)])
+    readers: list[str] = []
+    wait = rs.pipeline.wait_for_frames
+
+    def wait_for_frames(self: object, timeout_ms: int) -> object:
+        readers.append(threading.current_thread().name)
+        return wait(self, timeout_ms)
+
+    monkeypatch.setattr(rs.pipeline, "wait_for_frames", wait_for_frames)
+    monkeypatch.setitem(sys.modules, "pyrealsense2", rs)
+    src = read("realsense:?size=32x24&frames=3")
+    assert isinstance(src, Source) and src.live
+    results = list(Pipeline().run(src, read_ahead=2))
+    assert len(results) == 3
+    assert readers == [threading.current_thread().name] * 3

@@ -43,9 +43,10 @@ class Action:
         its center (x right, y down).
     distance_mm : float
         Euclidean distance to the object's center (mm) with intrinsics; its mean depth without.
-    cost : float
-        Effort of the action: the travel along the action vector (m). Ranking uses the depth
-        label first (the paper's cost) and this to break ties.
+    cost_mm : float
+        Effort of the action: the travel along the action vector (mm, the same unit as
+        ``distance_mm``). Ranking uses the depth label first (the paper's cost) and this to
+        break ties.
     depth_label : int
         Depth label of the object (0 nearest).
     kind : str
@@ -58,7 +59,7 @@ class Action:
     action: str
     direction: tuple[float, ...]
     distance_mm: float
-    cost: float
+    cost_mm: float
     depth_label: int
     kind: str
     reason: str
@@ -210,10 +211,10 @@ def plan(
             continue
         direction, dist = _direction(node, size, k)
         action, reason = _decide(node, size, k, cfg, dist)
-        actions.append(Action(node.id, action, direction, dist, dist / 1000.0, node.depth_label, node.kind, reason))
+        actions.append(Action(node.id, action, direction, dist, dist, node.depth_label, node.kind, reason))
         if node.ttc is not None and 0 <= node.ttc < cfg.ttc_warning_s:
             warnings.append(TtcWarning(node.id, float(node.ttc), float(node.depth), node.v_radial))
-    actions.sort(key=lambda a: (ACTIONS.index(a.action), a.depth_label, a.cost, a.object_id))
+    actions.sort(key=lambda a: (ACTIONS.index(a.action), a.depth_label, a.cost_mm, a.object_id))
     warnings.sort(key=lambda w: w.ttc)
     channel = clearance_channel(frame, cfg) if frame is not None else None
     return Plan(tuple(actions), channel, tuple(warnings), frame is not None)
@@ -235,7 +236,7 @@ def plan_to_dict(p: Plan) -> dict[str, Any]:
                 "depth_label": a.depth_label,
                 "direction": [round(c, 4) for c in a.direction],
                 "distance_mm": _r(a.distance_mm, 1),
-                "cost": _r(a.cost, 4),
+                "cost_mm": _r(a.cost_mm, 1),
                 "reason": a.reason,
             }
             for a in p.actions

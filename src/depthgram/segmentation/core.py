@@ -88,8 +88,8 @@ def segment(
     -------
     Segmentation
         ``labels`` (int32, 0 = background, invalid or too small), ``objects`` in id order,
-        ``histogram`` (global histogram, peaks and trailing cuts), ``method``; ``extras`` holds
-        ``bands_mm`` (K x 2 band limits, mm) and for ``slices`` the orientation ``classes``.
+        ``histogram`` (global histogram, peaks and trailing cuts), ``method``, ``bands_mm``
+        (K x 2 band limits, mm) and for ``slices`` the orientation ``classes``.
 
     Raises
     ------
@@ -132,7 +132,7 @@ def segment(
         return region_grow(depth, valid=ok, intrinsics=intrinsics, config=cfg)
     if not ok.any():
         empty = Histogram(np.zeros(1), np.zeros(0, np.int64), np.zeros(0), np.zeros(0))
-        return Segmentation(np.zeros(depth.shape, np.int32), (), empty, cfg.method, {"bands_mm": np.zeros((0, 2))})
+        return Segmentation(np.zeros(depth.shape, np.int32), (), empty, cfg.method, bands_mm=np.zeros((0, 2)))
     if cfg.method == "threshold":
         return _threshold(depth, ok, intrinsics, cfg)
     if cfg.method == "paper":
@@ -242,15 +242,11 @@ def _surface_objects(
     return labels, objects, bands, sums, boxes
 
 
-def _extras(bands: Bands) -> dict[str, object]:
-    return {"bands_mm": bands.limits_mm()}
-
-
 def _threshold(
     depth: NDArray[np.float32], ok: NDArray[np.bool_], intrinsics: Intrinsics | None, cfg: SegmentConfig
 ) -> Segmentation:
     labels, objects, bands, _, _ = _facing_objects(depth, ok, None, intrinsics, cfg)
-    return Segmentation(labels, tuple(objects), bands.histogram, "threshold", _extras(bands))
+    return Segmentation(labels, tuple(objects), bands.histogram, "threshold", bands_mm=bands.limits_mm())
 
 
 def _slices(
@@ -368,9 +364,9 @@ def _slices(
                 area_mm2=whole.area_mm2 if keep_metric else None,
             )
         )
-    extras = _extras(bands)
-    extras["classes"] = classes
-    return Segmentation(labels, tuple(objects), bands.histogram, cfg.method, extras)
+    return Segmentation(
+        labels, tuple(objects), bands.histogram, cfg.method, bands_mm=bands.limits_mm(), classes=classes
+    )
 
 
 def _below_camera(

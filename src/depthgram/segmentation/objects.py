@@ -7,7 +7,7 @@ sound, views) can take them without knowing how they were found.
 from __future__ import annotations
 
 import builtins
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
@@ -115,14 +115,25 @@ class Segmentation:
     histogram : Histogram or None
         The global histogram used, for plots.
     method : str
-        Which method produced it (``threshold``, ``slices``, ``region``).
+        Which method produced it (``threshold``, ``slices``, ``paper``, ``region``, ...).
+    bands_mm : ndarray of float, shape (K, 2), or None
+        Leading and trailing cut (mm) of each depth band, nearest first; ``depth_label`` ``k``
+        spans ``bands_mm[k]``. None for methods without bands (``region``).
+    classes : ndarray of int8, shape (H, W), or None
+        Orientation class per pixel for the slicing methods that estimate it: 0 facing the
+        sensor, 1 horizontal support (floor, table top), 2 vertical (wall); None otherwise.
+    aperture_px : dict of str to int, or None
+        Slice thickness (px) used by the ``paper`` method per direction (``"rows"``,
+        ``"columns"``); None for the other methods.
     """
 
     labels: NDArray[np.int32]
     objects: tuple[SceneObject, ...]
     histogram: Histogram | None = None
     method: str = "threshold"
-    extras: dict[str, object] = field(default_factory=dict)
+    bands_mm: NDArray[np.float64] | None = None
+    classes: NDArray[np.int8] | None = None
+    aperture_px: dict[str, int] | None = None
 
     def by_id(self) -> dict[int, SceneObject]:
         """Objects keyed by id."""

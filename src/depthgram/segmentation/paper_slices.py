@@ -311,8 +311,8 @@ def paper_slices(
     Segmentation
         Facing objects first (kind ``object``, from the global histogram), then compound
         objects (``floor``, ``ceiling``, ``wall``, ``compound``) whose ``parts`` are their slice
-        segments (kind ``part``, successive depth labels). ``extras``: ``bands_mm`` and
-        ``aperture_px`` (rows, columns).
+        segments (kind ``part``, successive depth labels). ``bands_mm`` and
+        ``aperture_px`` (rows, columns) are set.
     """
     h, w = depth_mm.shape
     band, state, bands = band_image(depth_mm, valid, config)
@@ -380,9 +380,7 @@ def paper_slices(
         part_id += len(renamed)
         out.append(replace(c, id=new, parts=renamed))
     labels = relabel(labels, lut)
-    extras: dict[str, object] = {
-        "bands_mm": bands.limits_mm(),
-        "aperture_px": apertures,
-    }
-    return Segmentation(labels, tuple(out), bands.histogram, "paper", extras)
+    return Segmentation(
+        labels, tuple(out), bands.histogram, "paper", bands_mm=bands.limits_mm(), aperture_px=apertures
+    )
 

@@ -6,14 +6,14 @@ import dataclasses
 import glob
 import os
 import re
-from collections.abc import Iterator, Sequence
+from collections.abc import Sequence
 from pathlib import Path
 from urllib.parse import parse_qs
 
 import numpy as np
 
 from depthgram.errors import InputError
-from depthgram.frame import Frame, Intrinsics
+from depthgram.frame import Intrinsics
 from depthgram.sources.bag import BAG_SUFFIXES, BagSource
 from depthgram.sources.base import Source
 from depthgram.sources.config import SourceConfig
@@ -170,9 +170,13 @@ def _files(paths: list[Path], cfg: SourceConfig, name: str, kind: str, folder: P
     )
 
 
-def read(spec: str | os.PathLike[str], **options: object) -> Iterator[Frame]:
-    """Yield the frames of any source one at a time (see :func:`open_source` for ``options``).
+def read(spec: str | os.PathLike[str], **options: object) -> Source:
+    """The frames of any source, one at a time (see :func:`open_source` for ``options``).
 
-    Memory stays at about one frame however long the recording.
+    Returns the :class:`Source` itself, not a bare generator: iterating it reads frame after
+    frame (memory stays at about one frame however long the recording), and consumers see
+    what it is. :meth:`depthgram.Pipeline.run` reads a source whose ``live`` is true (a
+    camera) on the caller's thread instead of ahead, since a queued frame would be stale.
+    Bad specs raise :class:`~depthgram.errors.InputError` here rather than at the first frame.
     """
-    yield from open_source(spec, **options)  # type: ignore[arg-type]
+    return open_source(spec, **options)  # type: ignore[arg-type]
