@@ -193,19 +193,22 @@ def _surface_objects(
     three resolutions wide, so that a structured-light camera's depth steps (which grow with the
     square of depth) never make a comb of one-bin peaks.
     """
-    hist_mask = ok & include
-    sample = depth[::4, ::4][hist_mask[::4, ::4]]
+    facing = ok & include
+    # the histogram only names depth labels here: every 2nd row and column give the same bands
+    # at a quarter of the cost
+    d2 = np.ascontiguousarray(depth[::2, ::2])
+    m2 = np.ascontiguousarray(facing[::2, ::2])
+    sample = d2[::2, ::2][m2[::2, ::2]]
     far = float(np.percentile(sample, 95)) if sample.size else cfg.ref_depth_mm
     bin_far = max(cfg.bin_mm * far / cfg.ref_depth_mm, 3.0 * float(sensor.resolution(far)))
     bin_cfg = cfg.with_overrides(depth_dependent_bins=True, ref_depth_mm=max(far, 1.0), bin_mm=min(bin_far, 10_000.0))
-    _, edges, counts = bin_index(depth, hist_mask, bin_cfg, zero_outside=False)
+    _, edges, counts = bin_index(d2, m2, bin_cfg, zero_outside=False)
     bands = depth_bands(counts, edges, bin_cfg)
     r = crease_scale_px(depth.shape[1])
     creases = concave_creases(depth, ok, sensor, scale_px=r, min_angle_deg=cfg.crease_deg, focal_px=cam.fx)
     t0, t2 = sensor.tolerance(0.0, cfg.join_resolutions)
     slope = math.tan(math.radians(cfg.max_slope_deg)) / cam.fx
     state = np.where(ok, np.int8(BLOCK), np.int8(HOLE))
-    facing = ok & include
     state[facing & ~creases] = ACTIVE
     labels, n = label_surfaces(depth, state, tol_0=t0, tol_2=t2, slope_per_px=slope, bridge_px=cfg.fill_holes_px)
     min_px = cfg.min_pixels(depth.size)

@@ -402,7 +402,7 @@ def merge_openings(
     h, w = labels.shape
     objs = boxes
     parent = np.arange(n + 1)
-    kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * ring_px + 1, 2 * ring_px + 1))
+    kernel = cv2.getStructuringElement(cv2.MORPH_RECT, (2 * ring_px + 1, 2 * ring_px + 1))
     width = (objs[:, 2] - objs[:, 0] + 1) * z_mean / focal_px
     for r in range(1, n + 1):
         x0, y0, x1, y1 = objs[r]
