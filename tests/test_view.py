@@ -25,6 +25,7 @@ from depthgram.pipeline import Config, Pipeline
 from depthgram.sensor import simulate
 from depthgram.sources import open_source
 from depthgram.views.server import Player, ViewerConfig, create_app, recording_name, tree_lines
+from depthgram.views.wire import unpack_frame
 
 SPEC = "sim:table?frames=4"
 WS = "ws://127.0.0.1:8765"  # full URL: the test client's WebSocket otherwise says Host: testserver
@@ -41,10 +42,19 @@ def _client(app: Any) -> TestClient:
     return TestClient(app, base_url="http://127.0.0.1:8765")
 
 
+def _recv(ws: Any) -> dict[str, Any]:
+    """Next message: JSON text, or a binary frame whose arrays come as ``_depth`` and ``_labels``."""
+    m = ws.receive()
+    if m.get("bytes") is not None:
+        header, depth, labels = unpack_frame(m["bytes"])
+        return {**header, "_depth": depth, "_labels": labels}
+    return dict(json.loads(m["text"]))
+
+
 def _frame(ws: Any, *, ack: bool = True, end: bool = False) -> dict[str, Any]:
     """Next frame message (or end of recording when ``end``), acknowledged like the page does."""
     while True:
-        msg = json.loads(ws.receive_text())
+        msg = _recv(ws)
         if end and msg["type"] == "end":
             return msg
         # fail loudly rather than wait forever for a frame that will not come
@@ -69,7 +79,7 @@ def test_recording_name_and_tree_lines() -> None:
     assert [(n["id"], n["level"]) for n in tree_lines(tree)] == [(0, 0), (1, 1), (3, 2), (2, 1)]
 
 
-@pytest.mark.parametrize("kwargs", [{"speed": 0}, {"speed": 17}, {"fps": -1}, {"image_format": "gif"},
+@pytest.mark.parametrize("kwargs", [{"speed": 0}, {"speed": 17}, {"fps": -1}, {"seek_history": -1},
                                     {"samplerate": 10}, {"min_width_px": 0}])
 def test_viewer_config_refuses_absurd_values(kwargs: dict[str, Any]) -> None:
     with pytest.raises(InputError):
@@ -111,7 +121,7 @@ def test_stream_delivers_the_table_scene_with_its_true_objects() -> None:
     reference = Pipeline().process(sim.frame)
     with _client(create_app(_sim_player(playing=False))) as client:
         with client.websocket_connect(WS + "/ws/sim-table") as ws:
-            hello = json.loads(ws.receive_text())
+            hello = _recv(ws)
             assert hello["type"] == "hello" and hello["frames"] == 4 and hello["fps"] == pytest.approx(30.0)
             assert {"slices", "threshold", "region"} <= set(hello["methods"])
             assert client.post("/api/recordings/sim-table/step").json()["index"] == 0
@@ -119,9 +129,13 @@ def test_stream_delivers_the_table_scene_with_its_true_objects() -> None:
     assert msg["index"] == 0 and msg["size"] == [176, 132] and msg["scale"] == 2
     assert msg["objects"] == len(reference.segmentation.objects) == len(msg["record"]["objects"])
     assert msg["record"]["sentence"] == reference.sentence
-    assert msg["image"].startswith("data:image/png;base64,")
-    png = base64.b64decode(msg["image"].split(",", 1)[1])
-    assert png[:8] == b"\x89PNG\r\n\x1a\n"
+    # The page gets the depth (uint16 mm, 0 where invalid) and the label image as they are.
+    expect_depth = np.where(sim.frame.valid, np.rint(sim.frame.depth), 0)
+    assert np.array_equal(msg["_depth"], expect_depth)
+    assert np.array_equal(msg["_labels"], reference.segmentation.labels)
+    lo, hi = msg["depth_range_mm"]
+    assert lo == pytest.approx(np.percentile(sim.frame.depth[sim.frame.valid], 1), rel=0.02)
+    assert hi == pytest.approx(np.percentile(sim.frame.depth[sim.frame.valid], 99), rel=0.02)
     # Every compact true object (cup, box, ball, bottle) is on the page: one object whose
     # center is within 6 px of the truth and whose area is within 40 % of it.
     objects = msg["record"]["objects"]
@@ -139,7 +153,7 @@ def test_stream_delivers_the_table_scene_with_its_true_objects() -> None:
 def test_play_pause_step_round_trip() -> None:
     with _client(create_app(_sim_player(playing=True, loop=True))) as client:
         with client.websocket_connect(WS + "/ws/sim-table") as ws:
-            json.loads(ws.receive_text())
+            _recv(ws)
             first = _frame(ws)
             second = _frame(ws)
             assert second["index"] == (first["index"] + 1) % 4 or second["dropped"] > first["dropped"]
@@ -167,7 +181,7 @@ def test_parameter_change_takes_effect_on_the_next_frame() -> None:
     assert expected.sentence != unchanged.sentence  # else this test could not tell
     with _client(create_app(_sim_player(playing=False))) as client:
         with client.websocket_connect(WS + "/ws/sim-table") as ws:
-            json.loads(ws.receive_text())
+            _recv(ws)
             client.post("/api/recordings/sim-table/step")
             before = _frame(ws)
             r = client.put("/api/recordings/sim-table/params",
@@ -184,7 +198,7 @@ def test_parameter_change_takes_effect_on_the_next_frame() -> None:
 def test_a_page_that_is_behind_gets_the_newest_frame_and_the_count_of_missed_ones() -> None:
     with _client(create_app(_sim_player(playing=False))) as client:
         with client.websocket_connect(WS + "/ws/sim-table") as ws:
-            json.loads(ws.receive_text())
+            _recv(ws)
             client.post("/api/recordings/sim-table/step")
             first = _frame(ws, ack=False)  # the page is still drawing frame 0 ...
             for _ in range(2):  # ... while frames 1 and 2 are ready
@@ -209,7 +223,7 @@ def test_server_skips_frames_when_behind_and_counts_every_one() -> None:
     seen = []
     with _client(create_app(player)) as client:
         with client.websocket_connect(WS + "/ws/cheap") as ws:
-            json.loads(ws.receive_text())
+            _recv(ws)
             while (msg := _frame(ws, end=True))["type"] == "frame":
                 seen.append(msg)
             state = client.get("/api/recordings/cheap").json()
@@ -248,12 +262,12 @@ def test_a_pause_while_behind_ends_on_the_newest_frame_read_and_a_step_shows_the
         await asyncio.sleep(0)  # the pause is asked for while the frame is being read
         release.set()
         await asyncio.wait_for(pause, 20)
-        k, shown = player.index, page.slot["index"] if page.slot else None
+        k, shown = player.index, page.slot[0]["index"] if page.slot else None
         await asyncio.wait_for(player.step(), 20)
         state = player.state()
         await player.stop()
         assert k is not None and shown is not None and page.slot is not None
-        return k, shown, page.slot["index"], state
+        return k, shown, page.slot[0]["index"], state
 
     k, shown, stepped, state = asyncio.run(run())
     assert shown == k  # the page ends on the frame the pause reports ...
@@ -265,9 +279,9 @@ def test_sound_is_sent_to_pages_that_turn_it_on_and_lasts_as_long_as_the_frames(
     pytest.importorskip("depthgram.sound", reason="the sound stage is not installed")
     with _client(create_app(_sim_player(playing=False, loop=False, samplerate=8000))) as client:
         with client.websocket_connect(WS + "/ws/sim-table") as ws:
-            json.loads(ws.receive_text())
+            _recv(ws)
             ws.send_text(json.dumps({"type": "sound", "on": True}))
-            assert json.loads(ws.receive_text()) == {"type": "sound", "on": True, "available": True}
+            assert _recv(ws) == {"type": "sound", "on": True, "available": True}
             client.post("/api/recordings/sim-table/play")
             msgs = []
             while (msg := _frame(ws, end=True))["type"] == "frame":
@@ -295,9 +309,9 @@ def test_a_broken_frame_pauses_playback_and_tells_the_page_which_frame() -> None
     player = Player(broken, "broken", Config(), ViewerConfig(fps=30.0, loop=False, min_width_px=40), frames=3)
     with _client(create_app(player)) as client:
         with client.websocket_connect(WS + "/ws/broken") as ws:
-            json.loads(ws.receive_text())
+            _recv(ws)
             shown = []
-            while (msg := json.loads(ws.receive_text()))["type"] == "frame":
+            while (msg := _recv(ws))["type"] == "frame":
                 shown.append(msg["index"])
                 ws.send_text(json.dumps({"type": "ack"}))
             ws.send_text("not json")  # ignored, the connection stays open
@@ -351,7 +365,7 @@ def test_real_recording_streams_at_its_own_size_with_the_pipeline_objects(shared
                     frames=len(src), fps=src.fps)
     with _client(create_app(player)) as client:
         with client.websocket_connect(WS + "/ws/7scenes_redkitchen_seq") as ws:
-            hello = json.loads(ws.receive_text())
+            hello = _recv(ws)
             shown = []
             for _ in range(2):
                 client.post("/api/recordings/7scenes_redkitchen_seq/step")

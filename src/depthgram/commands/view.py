@@ -20,12 +20,38 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     add_config_arguments(p)
     g = p.add_argument_group("viewer")
     g.add_argument("--host", default="127.0.0.1",
-                   help="address to listen on (default 127.0.0.1: this machine only; the viewer has no login)")
+                   help="address to listen on (default 127.0.0.1: this machine only). Any other address "
+                        "needs --allow-host or an access token (printed in the address, made up when not given)")
+    g.add_argument("--allow-host", action="append", default=[], metavar="NAME",
+                   help="a host name (or address) pages reach this server by, beyond loopback; repeatable")
+    g.add_argument("--token", default=None,
+                   help="access token required of every request (the page keeps it in a cookie once opened "
+                        "with ?token=...); default: made up when --host is not loopback and no --allow-host")
     g.add_argument("--port", type=int, default=8765, help="TCP port (0 picks a free one)")
     g.add_argument("--no-browser", action="store_true", help="do not open a browser window")
     g.add_argument("--speed", type=float, default=1.0, help="initial playback speed factor, in (0, 16]")
     g.add_argument("--no-loop", action="store_true", help="pause at the end instead of starting over")
-    g.add_argument("--jpeg", action="store_true", help="send frames as JPEG instead of PNG (smaller, softer)")
+    g.add_argument("--compress", action="store_true",
+                   help="compress each frame's depth and labels (about 3 x smaller, for slow links)")
+    g.add_argument("--jpeg", action="store_true", help=argparse.SUPPRESS)  # deprecated: --compress
+
+
+def access(host: str, allow_host: list[str], token: str | None) -> tuple[tuple[str, ...] | None, str | None]:
+    """Host names to accept (None: any) and the access token (None: none) for ``--host``.
+
+    On loopback only this machine can connect, and checking the ``Host`` header against the
+    loopback names is enough against other web sites (DNS rebinding). On any other address the
+    whole network can send any ``Host``: the names users reach the server by must be given, or
+    every request must carry a token (made up here when none is given).
+    """
+    import secrets
+
+    from depthgram.views.guard import LOOPBACK_HOSTS
+
+    if host in _LOOPBACK or allow_host:
+        names = LOOPBACK_HOSTS + tuple(h.strip().lower().strip("[]") for h in allow_host)
+        return names, token
+    return None, token or secrets.token_urlsafe(18)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -37,27 +63,28 @@ def run(args: argparse.Namespace) -> int:
 
     from depthgram.commands._common import load_config, open_input, source_len
     from depthgram.errors import InputError
-    from depthgram.views.server import LOOPBACK_HOSTS, Player, ViewerConfig, create_app, recording_name
+    from depthgram.views.guard import MAX_BODY_BYTES
+    from depthgram.views.server import Player, ViewerConfig, create_app, recording_name
 
     if not 0 <= args.port <= 65535:
         raise InputError(f"--port must be in 0..65535, got {args.port}")
     src = open_input(args)
     cfg = load_config(args)
-    viewer = ViewerConfig(fps=args.fps, speed=args.speed, loop=not args.no_loop,
-                          image_format="jpeg" if args.jpeg else "png")
+    if args.jpeg:
+        print("depthgram view: --jpeg is deprecated (frames are no longer pictures): use --compress",
+              file=sys.stderr)
+    viewer = ViewerConfig(fps=args.fps, speed=args.speed, loop=not args.no_loop, compress=args.compress or args.jpeg)
     player = Player(lambda: iter(src), recording_name(args.input), cfg, viewer,
-                    frames=source_len(src), fps=getattr(src, "fps", None))
-    if args.host not in _LOOPBACK:
-        print(f"depthgram view: warning: listening on {args.host}: anyone who can reach this address can "
-              "watch the recording and change the playback (there is no login)", file=sys.stderr)
-    if args.host in _LOOPBACK:
-        hosts: tuple[str, ...] | None = LOOPBACK_HOSTS
-    elif args.host in ("0.0.0.0", "::", ""):
-        hosts = None  # every address of the machine: any name may reach it
-    else:
-        hosts = (*LOOPBACK_HOSTS, args.host)
-    server = uvicorn.Server(uvicorn.Config(create_app(player, allowed_hosts=hosts), host=args.host, port=args.port,
-                                           log_level="warning"))
+                    frames=source_len(src), fps=getattr(src, "fps", None), seekable=not getattr(src, "live", False))
+    hosts, token = access(args.host, args.allow_host, args.token)
+    if token is not None and args.token is None:
+        print(f"depthgram view: listening on {args.host}: pages need the access token in the address "
+              "printed below (or name the host with --allow-host)", file=sys.stderr)
+    server = uvicorn.Server(uvicorn.Config(create_app(player, allowed_hosts=hosts, token=token), host=args.host,
+                                           port=args.port, log_level="warning", ws_max_size=MAX_BODY_BYTES,
+                                           # frames are raw arrays: deflating ~1 MB each on the
+                                           # event loop cost ~100 ms a frame on 7-Scenes
+                                           ws_per_message_deflate=False))
 
     def announce() -> None:
         # The port is known only once the socket is bound (--port 0).
@@ -67,7 +94,7 @@ def run(args: argparse.Namespace) -> int:
             threading.Event().wait(0.05)
         port = server.servers[0].sockets[0].getsockname()[1] if server.servers else args.port
         host = f"[{args.host}]" if ":" in args.host else args.host
-        url = f"http://{host}:{port}/"
+        url = f"http://{host}:{port}/" + (f"?token={token}" if token else "")
         print(f"depthgram view: playing {args.input} at {url} (Ctrl-C stops)", file=sys.stderr)
         if not args.no_browser:
             webbrowser.open(url)

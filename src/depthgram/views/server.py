@@ -38,17 +38,18 @@ from __future__ import annotations
 import asyncio
 import base64
 import contextlib
+import gc
 import json
 import math
 import re
+import statistics
 import time
+from collections import deque
 from collections.abc import AsyncIterator, Callable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
-from urllib.parse import urlsplit
 
-import cv2
 import numpy as np
 from fastapi import FastAPI, Request, WebSocket, WebSocketDisconnect
 from fastapi.exceptions import RequestValidationError
@@ -59,6 +60,18 @@ from depthgram.errors import InputError
 from depthgram.frame import Frame
 from depthgram.pipeline import Config, Pipeline, SceneResult
 from depthgram.segmentation import METHODS
+from depthgram.sources.prefetch import prefetch
+from depthgram.views.guard import (
+    LOOPBACK_HOSTS,
+    MAX_BODY_BYTES,
+    TOKEN_COOKIE,
+    BodyTooLarge,
+    Guard,
+    JSONBodyError,
+    parse_json,
+    same_origin,
+)
+from depthgram.views.wire import colour_table, depth_range_mm, pack_body, pack_frame
 
 __all__ = ["LOOPBACK_HOSTS", "STATIC_DIR", "Player", "ViewerConfig", "create_app", "recording_name", "tree_lines"]
 
@@ -66,6 +79,7 @@ __all__ = ["LOOPBACK_HOSTS", "STATIC_DIR", "Player", "ViewerConfig", "create_app
 STATIC_DIR = Path(__file__).with_name("static")
 
 _MAX_SPEED = 16.0
+_COLOURS = colour_table()
 
 
 @dataclass(frozen=True)
@@ -82,23 +96,32 @@ class ViewerConfig:
     loop : bool
         Start again (forgetting all tracks) at the end of the recording; otherwise pause there.
     min_width_px : int
-        The frame picture is up-scaled by a whole factor to at least this width (px), so that
-        object outlines stay one screen pixel thin on a 176 x 132 frame.
-    image_format : str
-        ``png`` (lossless outlines) or ``jpeg`` (about 4 x smaller, for slow links).
+        The page draws the frame up-scaled by a whole factor to at least this width (px), so
+        that object outlines stay one screen pixel thin on a 176 x 132 frame.
+    compress : bool
+        Compress each frame's depth and labels with zlib (level 1): about 3 x smaller, for slow
+        links, at a few milliseconds per frame; off on loopback, where it only costs time.
     samplerate : int
         Audio sample rate (samples/s) of the sonification sent to pages that turn sound on.
     playing : bool
         Start playing as soon as a page connects.
+    seek_history : int
+        Frames processed unseen before the target of a seek, so that its tracks have their
+        motion (range flow needs a few frames).
+    read_ahead : int
+        Frames decoded ahead in a thread beside the pipeline, as ``depthgram run --read-ahead``
+        (0 reads on the player's own turn; a live source is never read ahead).
     """
 
     fps: float | None = None
     speed: float = 1.0
     loop: bool = True
     min_width_px: int = 352
-    image_format: str = "png"
+    compress: bool = False
     samplerate: int = 22050
     playing: bool = True
+    seek_history: int = 8
+    read_ahead: int = 2
 
     def __post_init__(self) -> None:
         if self.fps is not None and not (math.isfinite(self.fps) and 0 < self.fps <= 1000):
@@ -106,8 +129,10 @@ class ViewerConfig:
         _check_speed(self.speed)
         if not 1 <= self.min_width_px <= 8192:
             raise InputError(f"viewer: min_width_px must be in [1, 8192] px, got {self.min_width_px}")
-        if self.image_format not in ("png", "jpeg"):
-            raise InputError(f"viewer: image_format must be 'png' or 'jpeg', got {self.image_format!r}")
+        if not 0 <= self.read_ahead <= 64:
+            raise InputError(f"viewer: read_ahead must be in [0, 64] frames, got {self.read_ahead}")
+        if not 0 <= self.seek_history <= 1000:
+            raise InputError(f"viewer: seek_history must be in [0, 1000] frames, got {self.seek_history}")
         if not 4000 <= self.samplerate <= 96000:
             raise InputError(f"viewer: samplerate must be in [4000, 96000] samples/s, got {self.samplerate}")
 
@@ -143,20 +168,6 @@ def tree_lines(tree_dict: dict[str, Any]) -> list[dict[str, Any]]:
     return out
 
 
-def _encode_image(rgb: np.ndarray, fmt: str) -> str:
-    bgr = cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR)
-    if fmt == "jpeg":
-        ok, buf = cv2.imencode(".jpg", bgr, [cv2.IMWRITE_JPEG_QUALITY, 90])
-        mime = "image/jpeg"
-    else:
-        # Level 1: a third of the default's time for a few percent more bytes on loopback.
-        ok, buf = cv2.imencode(".png", bgr, [cv2.IMWRITE_PNG_COMPRESSION, 1])
-        mime = "image/png"
-    if not ok:  # pragma: no cover - OpenCV fails only on empty images
-        raise RuntimeError("could not encode the frame picture")
-    return f"data:{mime};base64," + base64.b64encode(buf.tobytes()).decode("ascii")
-
-
 def _pcm16_b64(audio: np.ndarray) -> str:
     """Interleaved stereo float32 (n, 2) in [-1, 1] as little-endian PCM16, base64."""
     pcm = np.clip(np.rint(np.asarray(audio, np.float32) * 32767.0), -32768, 32767).astype("<i2")
@@ -167,7 +178,7 @@ class _Client:
     """One open page: its newest undelivered payload, what it missed, whether it wants sound."""
 
     def __init__(self) -> None:
-        self.slot: dict[str, Any] | None = None
+        self.slot: tuple[dict[str, Any], bytes] | None = None  # a frame's header and body
         self.audio: list[str] = []
         self.ready = asyncio.Event()  # set when the page may receive the next frame
         self.ready.set()
@@ -176,7 +187,7 @@ class _Client:
         self.sound = False
         self.notices: list[dict[str, Any]] = []  # sent after the newest frame, never dropped
 
-    def offer(self, payload: dict[str, Any], audio: str | None) -> None:
+    def offer(self, payload: tuple[dict[str, Any], bytes], audio: str | None) -> None:
         if self.slot is not None:
             self.dropped += 1  # the page is behind: the older frame is never sent
         self.slot = payload
@@ -207,6 +218,8 @@ class Player:
         Number of frames, when known.
     fps : float or None
         The source's own rate (frames/s), used when ``viewer.fps`` is None.
+    seekable : bool
+        Whether :meth:`seek` may re-open the recording (False for a live camera).
     """
 
     def __init__(
@@ -218,8 +231,10 @@ class Player:
         *,
         frames: int | None = None,
         fps: float | None = None,
+        seekable: bool = True,
     ) -> None:
         self.open_frames = open_frames
+        self.seekable = seekable
         self.name = name
         self.viewer = viewer or ViewerConfig()
         self.config = config or Config()
@@ -239,10 +254,26 @@ class Player:
         self._wake = asyncio.Event()
         self._idle = asyncio.Event()
         self._steps: list[asyncio.Future[None]] = []
+        self._seek: tuple[int, asyncio.Future[None]] | None = None
         self._read_s = 0.0  # running mean time to read one frame (s)
         self._sonifier: Any = None
         self._sound_error: str | None = None
         self._task: asyncio.Task[None] | None = None
+        self._frozen = False
+        self._stage_s: dict[str, deque[float]] = {}  # recent time per stage of a frame (s)
+
+    def stage_ms(self) -> dict[str, float]:
+        """Median time (ms) of each stage over the recent frames.
+
+        ``read`` (one frame), ``loop-read`` (reading and skipping, as the loop waited for it),
+        ``pipeline``, ``encode``, ``record``, ``loop-render`` (as waited for) and ``send`` (one page).
+        """
+        return {k: statistics.median(v) * 1e3 for k, v in self._stage_s.items() if v}
+
+    def _timed(self, stage: str, t0: float) -> float:
+        t1 = time.perf_counter()
+        self._stage_s.setdefault(stage, deque(maxlen=600)).append(t1 - t0)
+        return t1
 
     # -- controls -----------------------------------------------------------------------
 
@@ -252,6 +283,7 @@ class Player:
         return {
             "name": self.name,
             "frames": self.frames,
+            "seekable": self.seekable,
             "fps": self.fps,
             "speed": self.speed,
             "playing": self.playing,
@@ -301,6 +333,30 @@ class Player:
         self._wake.set()
         await fut
 
+    async def seek(self, index: Any) -> None:
+        """Pause and show frame ``index`` (0 = the recording's first); return once it is pushed.
+
+        A source cannot be rewound, so the recording is re-read from its start: the frames
+        before ``index`` are decoded and dropped, except the last ``viewer.seek_history``, which
+        go through the pipeline unseen so that tracks and their motion are as they were when
+        played (an object seen only earlier than that starts a new track). A seek to frame k
+        therefore costs k reads and ``seek_history`` pipeline frames; a step after it shows k + 1.
+        """
+        if not self.seekable:
+            raise InputError(f"{self.name}: a live source cannot be rewound")
+        if isinstance(index, bool) or not isinstance(index, int) or index < 0:
+            raise InputError(f"seek: index must be a whole frame number >= 0, got {index!r}")
+        if self.frames is not None and index >= self.frames:
+            raise InputError(f"seek: {self.name} has frames 0..{self.frames - 1}, got {index}")
+        self.playing = False
+        self.error = None
+        if self._seek is not None and not self._seek[1].done():
+            self._seek[1].set_result(None)  # superseded by this one (a dragged timeline)
+        fut: asyncio.Future[None] = asyncio.get_running_loop().create_future()
+        self._seek = (index, fut)
+        self._wake.set()
+        await fut
+
     def set_speed(self, value: Any) -> None:
         """Speed factor in (0, 16]; raises InputError otherwise."""
         self.speed = _check_speed(value)
@@ -335,20 +391,34 @@ class Player:
             with contextlib.suppress(asyncio.CancelledError):
                 await self._task
             self._task = None
+        with contextlib.suppress(ValueError):  # a read still running in its thread ends on its own
+            self._close()
+
+    def _reopen(self) -> None:
+        """Start reading the recording from its first frame, decoded ahead in a thread as ``run`` does."""
+        self._close()
+        self._iter = prefetch(self.open_frames(), ahead=self.viewer.read_ahead)
+
+    def _close(self) -> None:
+        it, self._iter = self._iter, None
+        close = getattr(it, "close", None)
+        if close is not None:
+            close()  # stops the reading thread
 
     def _next_frame(self) -> Frame | None:
         """Next frame, starting over at the end when looping; None at the end otherwise."""
         t0 = time.perf_counter()
         if self._iter is None:
-            self._iter = iter(self.open_frames())
+            self._reopen()
+            assert self._iter is not None
         frame = next(self._iter, None)
         if frame is None:
             if not self.viewer.loop:
                 return None
-            self._iter = iter(self.open_frames())
+            self._reopen()
             self.pipeline.reset()
             frame = next(self._iter, None)
-        dt = time.perf_counter() - t0
+        dt = self._timed("read", t0) - t0
         self._read_s = dt if self._read_s == 0 else 0.9 * self._read_s + 0.1 * dt
         return frame
 
@@ -373,6 +443,16 @@ class Player:
         fresh = True  # the next frame is the first since playback (re)started
         tail = None  # the newest frame skipped since the last one pushed
         while True:
+            if self._seek is not None:
+                target, fut = self._seek
+                self._seek = None
+                try:
+                    await self._show_seek(target)
+                finally:
+                    if not fut.done():
+                        fut.set_result(None)
+                due, fresh, advanced, tail = loop_clock(), True, 0, None
+                continue
             want = bool(self._steps) or (self.playing and bool(self.clients))
             if not want and tail is None:
                 self._idle.set()
@@ -390,16 +470,19 @@ class Player:
             self._idle.clear()
             if self.ended:
                 self.ended = False
-                self._iter = None
+                self._close()
                 tail = None
                 self.pipeline.reset()
             frame = None
             if want:
                 try:
-                    frame = await asyncio.to_thread(self._next_frame)
+                    t_r = time.perf_counter()
+                    frame, tail, due, skipped = await asyncio.to_thread(self._read_due, due, period, tail)
+                    self._timed("loop-read", t_r)
                 except Exception as exc:  # a broken file mid-recording: say so, keep serving
                     self._fail(f"{self.name}: reading the frame after {self.index}: {exc}")
                     continue
+                advanced += skipped
             stepping = bool(self._steps)  # a step may have been asked for during the read
             # Paused (before or during the read): the frame in hand is shown rather than kept
             # or dropped, so the page ends on the newest frame read and a step shows the very
@@ -421,21 +504,15 @@ class Player:
                 continue
             if not last:
                 advanced += 1
-            now = loop_clock()
-            if not last and not stepping and not settling and now - due > period and self._read_s < period:
-                # Behind the recording: skipping catches up only because reading is cheaper
-                # than a period; otherwise (a slow source) playback slows down instead.
-                self.dropped += 1
-                due += period
-                tail = frame
-                continue
             if self.config is not self.pipeline.config:
                 self.pipeline.config = self.config  # tracks survive a parameter change
             # Sound only while playing: a step or a pause has no duration to fill.
             sound = not stepping and not settling and any(c.sound for c in self.clients)
             try:
+                t_r = time.perf_counter()
                 payload, audio = await asyncio.to_thread(self._render, frame, advanced / (self.fps * self.speed),
                                                          sound)
+                self._timed("loop-render", t_r)
             except Exception as exc:
                 self._fail(f"{frame.name or self.name}: frame {frame.index}: {exc}")
                 continue
@@ -450,6 +527,11 @@ class Player:
                 # The clock starts once the first frame is out: start-up costs (imports, compiled
                 # kernels) are not a backlog to skip through.
                 due, fresh = now + period, False
+                if not self._frozen:
+                    # As `depthgram run` does: what is loaded by now lives as long as the server,
+                    # and full collections then no longer walk it mid-playback (a stall of tens of ms).
+                    gc.freeze()
+                    self._frozen = True
             elif self._read_s >= period:
                 # Skipping cannot help a source slower than real time: play slower, no backlog.
                 due = max(due + period, now - period)
@@ -457,6 +539,72 @@ class Player:
                 due += period
             if stepping:
                 self._finish_steps(1)
+
+    def _behind(self, due: float, period: float) -> bool:
+        """Skip the frame in hand? Only while playing, behind the recording, and when skipping
+        catches up, i.e. reading is cheaper than a period; otherwise (a slow source) playback
+        slows down instead."""
+        return (self.playing and not self._steps and time.monotonic() - due > period
+                and self._read_s < period)
+
+    def _read_due(self, due: float, period: float,
+                  tail: Frame | None) -> tuple[Frame | None, Frame | None, float, int]:
+        """Read the next frame to show, skipping (and counting) those whose time has passed.
+
+        Runs in a worker thread, so that a run of skipped frames costs one hand-over between
+        threads rather than two per frame: on a loaded machine each hand-over waits for a time
+        slice, and that waiting, not the reading, was what made the viewer fall behind.
+
+        Returns the frame to show (None at the end, or when playback paused just after a skip),
+        the newest skipped frame, the updated due time (s, monotonic) and the number skipped.
+        """
+        skipped = 0
+        while True:
+            frame = self._next_frame()
+            if frame is None or not self._behind(due, period):
+                return frame, tail, due, skipped
+            self.dropped += 1
+            due += period
+            tail = frame
+            skipped += 1
+            if not self.playing:  # paused just after a skip: the newest frame read is shown
+                return None, tail, due, skipped
+
+    async def _show_seek(self, target: int) -> None:
+        try:
+            frame = await asyncio.to_thread(self._rewind, target)
+        except Exception as exc:
+            self._fail(f"{self.name}: re-reading up to frame {target}: {exc}")
+            return
+        if frame is None:
+            self._fail(f"{self.name}: the recording ended before frame {target}")
+            return
+        self.ended = False
+        try:
+            (payload, body), _ = await asyncio.to_thread(self._render, frame, 0.0, False)
+        except Exception as exc:
+            self._fail(f"{frame.name or self.name}: frame {frame.index}: {exc}")
+            return
+        self.index = frame.index
+        self.processed += 1
+        for c in self.clients:
+            c.offer((payload, body), None)
+
+    def _rewind(self, target: int) -> Frame | None:
+        """Re-open the recording and return its frame ``target``, the pipeline primed with the frames before."""
+        self._reopen()
+        assert self._iter is not None
+        self.pipeline.reset()
+        if self.config is not self.pipeline.config:
+            self.pipeline.config = self.config
+        first_seen = target - self.viewer.seek_history
+        for i in range(target):
+            frame = next(self._iter, None)
+            if frame is None:
+                return None
+            if i >= first_seen:
+                self.pipeline.process(frame)
+        return next(self._iter, None)
 
     def _fail(self, message: str) -> None:
         """Pause and tell every page why; the server stays up for another try."""
@@ -473,18 +621,22 @@ class Player:
             if not fut.done():
                 fut.set_result(None)
 
-    def _render(self, frame: Frame, duration_s: float, with_sound: bool) -> tuple[dict[str, Any], str | None]:
+    def _render(self, frame: Frame, duration_s: float,
+                with_sound: bool) -> tuple[tuple[dict[str, Any], bytes], str | None]:
         """Process one frame and build what the pages get (runs in a worker thread)."""
         from depthgram.act import plan_to_dict
         from depthgram.scene import tree_to_dict
-        from depthgram.views.pictures import overlay_image
-
+        t = time.perf_counter()
         result: SceneResult = self.pipeline.process(frame)
+        t = self._timed("pipeline", t)
         self.latency_ms = round(result.latency_s * 1e3, 2)
         w = frame.size[0]
         scale = max(1, math.ceil(self.viewer.min_width_px / w))
-        image = _encode_image(overlay_image(frame, result.segmentation, scale=scale), self.viewer.image_format)
+        lo, hi = depth_range_mm(frame.depth, frame.valid)
+        body, labels_dtype = pack_body(frame.depth, frame.valid, result.segmentation.labels, self.viewer.compress)
+        t = self._timed("encode", t)
         record = result.to_record()
+        k = frame.intrinsics
         payload = {
             "type": "frame",
             "index": frame.index,
@@ -492,7 +644,10 @@ class Player:
             "time_s": frame.time_s,
             "size": list(frame.size),
             "scale": scale,
-            "image": image,
+            "depth_range_mm": [round(lo, 1), round(hi, 1)],
+            "labels_dtype": labels_dtype,
+            "compressed": self.viewer.compress,
+            "intrinsics": None if k is None else {"fx": k.fx, "fy": k.fy, "cx": k.cx, "cy": k.cy},
             "record": record,
             "objects": len(record["objects"]),
             "tree": tree_lines(tree_to_dict(result.tree)),
@@ -503,10 +658,11 @@ class Player:
             "playing": self.playing,
             "speed": self.speed,
         }
+        self._timed("record", t)
         audio = None
         if with_sound:
             audio = self._sonify(result, duration_s)
-        return payload, audio
+        return (payload, body), audio
 
     def _sonify(self, result: SceneResult, duration_s: float) -> str | None:
         if self._sound_error is not None:
@@ -525,52 +681,8 @@ def _json_error(status: int, message: str) -> JSONResponse:
     return JSONResponse({"error": message}, status_code=status)
 
 
-#: Host names that reach this machine only; the default set of allowed ``Host`` headers.
-LOOPBACK_HOSTS = ("127.0.0.1", "localhost", "::1")
-
-
-def _host_name(host_header: str) -> str:
-    """``Host`` header without its port: ``[::1]:8765`` -> ``::1``, ``localhost:8765`` -> ``localhost``."""
-    h = host_header.strip().lower()
-    if h.startswith("["):
-        return h[1:].partition("]")[0]
-    return h.rpartition(":")[0] if h.count(":") == 1 else h
-
-
-def _same_origin(headers: Any) -> bool:
-    """True when a request carries no ``Origin`` (not from a web page) or comes from this server's own page.
-
-    Browsers let any web site open a WebSocket to 127.0.0.1 or send a simple POST there; the
-    Origin they attach is the only way to tell our page from someone else's.
-    """
-    origin = headers.get("origin")
-    if origin is None:
-        return True
-    return urlsplit(origin).netloc.lower() == str(headers.get("host", "")).lower()
-
-
-class _AllowedHosts:
-    """Refuse requests whose ``Host`` is not one of ours (DNS rebinding: a foreign name that
-    resolves to 127.0.0.1 would otherwise reach the viewer with the browser's blessing)."""
-
-    def __init__(self, app: Any, hosts: Sequence[str]) -> None:
-        self.app = app
-        self.hosts = {h.lower().strip("[]") for h in hosts}
-
-    async def __call__(self, scope: Any, receive: Any, send: Any) -> None:
-        if scope["type"] in ("http", "websocket"):
-            host = dict(scope["headers"]).get(b"host", b"").decode("latin-1")
-            if _host_name(host) not in self.hosts:
-                if scope["type"] == "websocket":
-                    await send({"type": "websocket.close", "code": 4400, "reason": "host not allowed"})
-                    return
-                response = _json_error(400, f"host {host!r} is not served here; use {sorted(self.hosts)[0]}")
-                await response(scope, receive, send)
-                return
-        await self.app(scope, receive, send)
-
-
-def create_app(player: Player, *, allowed_hosts: Sequence[str] | None = LOOPBACK_HOSTS) -> FastAPI:
+def create_app(player: Player, *, allowed_hosts: Sequence[str] | None = LOOPBACK_HOSTS,
+               token: str | None = None, max_body: int = MAX_BODY_BYTES) -> FastAPI:
     """The FastAPI application serving one :class:`Player`.
 
     The player's loop starts with the app (its lifespan) and stops with it.
@@ -583,6 +695,11 @@ def create_app(player: Player, *, allowed_hosts: Sequence[str] | None = LOOPBACK
         Host names accepted in the ``Host`` header (any port); None accepts any (behind a
         proxy, or in tests). Requests from another site's page (a foreign ``Origin``) are
         refused either way.
+    token : str or None
+        Access token every request must carry instead (see :mod:`depthgram.views.guard`);
+        the page opened as ``/?token=...`` keeps it in a cookie.
+    max_body : int
+        Largest request body (bytes).
     """
     # A whitelist taken once: a request names a file, it is never joined to a path.
     static_files = {p.name: p for p in STATIC_DIR.iterdir() if p.is_file()} if STATIC_DIR.is_dir() else {}
@@ -597,11 +714,11 @@ def create_app(player: Player, *, allowed_hosts: Sequence[str] | None = LOOPBACK
             await player.stop()
 
     app = FastAPI(title="depthgram view", lifespan=lifespan, docs_url=None, redoc_url=None, openapi_url=None)
-    if allowed_hosts is not None:
-        app.add_middleware(_AllowedHosts, hosts=tuple(allowed_hosts))
+    app.add_middleware(Guard, hosts=None if allowed_hosts is None else tuple(allowed_hosts), token=token,
+                       max_body=max_body)
 
     def ours(request: Request) -> None:
-        if not _same_origin(request.headers):
+        if not same_origin(request.headers, request.url.scheme):
             raise StarletteHTTPException(403, f"requests from {request.headers.get('origin')} are not allowed")
 
     @app.exception_handler(StarletteHTTPException)
@@ -618,16 +735,22 @@ def create_app(player: Player, *, allowed_hosts: Sequence[str] | None = LOOPBACK
 
     async def body(request: Request) -> Any:
         try:
-            return await request.json()
-        except (json.JSONDecodeError, UnicodeDecodeError):
-            raise StarletteHTTPException(400, "request body must be JSON") from None
+            return parse_json(await request.body())
+        except BodyTooLarge:
+            raise StarletteHTTPException(413, f"request body over {max_body} bytes") from None
+        except JSONBodyError as exc:
+            raise StarletteHTTPException(400, str(exc)) from None
 
     @app.get("/", response_class=HTMLResponse)
-    async def index() -> Any:
+    async def index(request: Request) -> Any:
         page = static_files.get("index.html")
         if page is None:
             return _json_error(500, "the viewer's page is missing from the installation")
-        return FileResponse(page, media_type="text/html")
+        response = FileResponse(page, media_type="text/html")
+        if token is not None and request.query_params.get("token") == token:
+            # The page's own later requests (files, API, WebSocket) carry it for this origin only.
+            response.set_cookie(TOKEN_COOKIE, token, httponly=True, samesite="strict")
+        return response
 
     @app.get("/static/{name}")
     async def static(name: str) -> Any:
@@ -655,8 +778,14 @@ def create_app(player: Player, *, allowed_hosts: Sequence[str] | None = LOOPBACK
             await player.pause()
         elif action == "step":
             await player.step()
+        elif action == "seek":
+            data = await body(request)
+            try:
+                await player.seek(data.get("index") if isinstance(data, dict) else data)
+            except InputError as exc:
+                return _json_error(422, str(exc))
         else:
-            return _json_error(404, f"unknown action {action!r}; expected play, pause or step")
+            return _json_error(404, f"unknown action {action!r}; expected play, pause, step or seek")
         return player.state()
 
     @app.put("/api/recordings/{name}/speed")
@@ -682,7 +811,7 @@ def create_app(player: Player, *, allowed_hosts: Sequence[str] | None = LOOPBACK
 
     @app.websocket("/ws/{name}")
     async def stream(ws: WebSocket, name: str) -> None:
-        if not _same_origin(ws.headers):
+        if not same_origin(ws.headers, ws.url.scheme):
             await ws.close(code=4403, reason="connections from other sites' pages are not allowed")
             return
         if name != player.name:
@@ -690,14 +819,17 @@ def create_app(player: Player, *, allowed_hosts: Sequence[str] | None = LOOPBACK
             return
         await ws.accept()
         client = player.connect()
-        await ws.send_text(json.dumps({"type": "hello", **player.state()}))
+        await ws.send_text(json.dumps({"type": "hello", **player.state(), "colours": _COLOURS}))
 
         async def receive() -> None:
             while True:
+                text = await ws.receive_text()
+                if len(text) > max_body:
+                    continue  # not from our page (it sends a few dozen bytes); nothing to answer
                 try:
-                    msg = json.loads(await ws.receive_text())
-                except json.JSONDecodeError:
-                    continue  # not from our page; nothing to answer
+                    msg = parse_json(text)
+                except JSONBodyError:
+                    continue
                 kind = msg.get("type") if isinstance(msg, dict) else None
                 if kind == "ack":
                     client.ready.set()
@@ -711,14 +843,16 @@ def create_app(player: Player, *, allowed_hosts: Sequence[str] | None = LOOPBACK
             while not reader.done():
                 client.wake.clear()
                 if client.slot is not None and client.ready.is_set():
-                    payload, client.slot = client.slot, None
+                    (header, body), client.slot = client.slot, None
                     audio, client.audio = client.audio, []
                     client.ready.clear()
-                    msg = {**payload, "dropped": client.dropped + payload["server_dropped"],
+                    msg = {**header, "dropped": client.dropped + header["server_dropped"],
                            "page_dropped": client.dropped}
                     if audio:
                         msg["audio"] = {"samplerate": player.viewer.samplerate, "channels": 2, "chunks": audio}
-                    await ws.send_text(json.dumps(msg))
+                    t0 = time.perf_counter()
+                    await ws.send_bytes(pack_frame(msg, body))
+                    player._timed("send", t0)
                     continue
                 if client.notices and client.slot is None:
                     await ws.send_text(json.dumps(client.notices.pop(0)))
