@@ -332,6 +332,15 @@ def test_a_broken_frame_pauses_playback_and_tells_the_page_which_frame() -> None
     ("put", "/api/recordings/sim-table/speed", {"value": 0}, 422, "speed"),
     ("put", "/api/recordings/sim-table/speed", {"value": "fast"}, 422, "speed"),
     ("put", "/api/recordings/sim-table/speed", b"{not json", 400, "JSON"),
+    # issue 18.8: nesting past the parser's recursion limit is the sender's error, not a 500
+    ("put", "/api/recordings/sim-table/params", b"[" * 30000 + b"]" * 30000, 400, "nested too deeply"),
+    ("put", "/api/recordings/sim-table/speed", b'{"value": ' + b"[" * 30000 + b"]" * 30000 + b"}", 400,
+     "nested too deeply"),
+    # ... and bodies far larger than any control needs are refused before they are read
+    ("put", "/api/recordings/sim-table/params", b" " * 70000 + b"{}", 413, "over 65536 bytes"),
+    ("post", "/api/recordings/sim-table/seek", {"index": 4}, 422, "frames 0..3"),
+    ("post", "/api/recordings/sim-table/seek", {"index": -1}, 422, "index"),
+    ("post", "/api/recordings/sim-table/seek", {"index": 1.5}, 422, "index"),
 ])
 def test_bad_requests_get_a_clear_json_error(method: str, path: str, body: Any, status: int, needle: str) -> None:
     with _client(create_app(_sim_player(playing=False))) as client:
@@ -406,3 +415,108 @@ def test_other_sites_and_other_host_names_are_refused() -> None:
             assert client.get("/api/recordings").status_code == 200
     with TestClient(create_app(_sim_player(playing=False), allowed_hosts=None)) as client:
         assert client.get("/api/recordings").status_code == 200
+
+
+def test_a_body_sent_without_a_length_is_cut_off_at_the_limit() -> None:
+    def chunks() -> Iterator[bytes]:
+        yield b"["
+        for _ in range(100):
+            yield b" " * 1000  # 100 kB in all, past the 64 kB limit
+        yield b"]"
+
+    with _client(create_app(_sim_player(playing=False))) as client:
+        r = client.put("/api/recordings/sim-table/params", content=chunks())
+        assert r.status_code == 413 and "over 65536 bytes" in r.json()["error"]
+        # a page's message larger than any it sends is ignored; the connection stays open
+        with client.websocket_connect(WS + "/ws/sim-table") as ws:
+            _recv(ws)  # hello
+            ws.send_text("[" * 30000 + "]" * 30000)
+            ws.send_text(json.dumps({"type": "sound", "on": True}))
+            assert _recv(ws)["type"] == "sound"
+
+
+def test_the_origin_check_compares_the_scheme_too() -> None:
+    with _client(create_app(_sim_player(playing=False))) as client:
+        for origin in ("https://127.0.0.1:8765", "ws://127.0.0.1:8765", "http://127.0.0.1:8766",
+                       "http://127.0.0.1"):
+            r = client.post("/api/recordings/sim-table/play", headers={"Origin": origin})
+            assert r.status_code == 403, origin
+            with pytest.raises(WebSocketDisconnect) as info, \
+                    client.websocket_connect(WS + "/ws/sim-table", headers={"Origin": origin}) as ws:
+                ws.receive_text()
+            assert info.value.code == 4403
+        assert client.get("/api/recordings/sim-table").json()["playing"] is False
+        assert client.post("/api/recordings/sim-table/pause",
+                           headers={"Origin": "http://127.0.0.1:8765"}).status_code == 200
+    # default ports: an origin without a port is port 80 for http
+    with TestClient(create_app(_sim_player(playing=False)), base_url="http://localhost") as client:
+        assert client.post("/api/recordings/sim-table/pause", headers={"Origin": "http://localhost"}).status_code == 200
+        assert client.post("/api/recordings/sim-table/pause",
+                           headers={"Origin": "https://localhost"}).status_code == 403
+
+
+def test_beyond_loopback_every_request_needs_the_token_whatever_its_host() -> None:
+    app = create_app(_sim_player(playing=False), allowed_hosts=None, token="s3cret-token")
+    with TestClient(app, base_url="http://rebound.example:8765") as client:
+        r = client.get("/api/recordings")
+        assert r.status_code == 401 and "access token" in r.json()["error"]
+        assert client.get("/").status_code == 401
+        assert client.get("/api/recordings", headers={"Authorization": "Bearer wrong"}).status_code == 401
+        with pytest.raises(WebSocketDisconnect) as info, \
+                client.websocket_connect("ws://rebound.example:8765/ws/sim-table") as ws:
+            ws.receive_text()
+        assert info.value.code == 4401
+        # the address printed at start: the page gets the token as a cookie for its own origin
+        page = client.get("/?token=s3cret-token")
+        assert page.status_code == 200 and "depthgram view" in page.text
+        cookie = page.headers["set-cookie"]
+        assert "depthgram_token=s3cret-token" in cookie and "HttpOnly" in cookie and "SameSite=strict" in cookie
+        assert client.get("/api/recordings").status_code == 200  # the client keeps the cookie
+        assert client.get("/static/viewer.js").status_code == 200
+        with client.websocket_connect("ws://rebound.example:8765/ws/sim-table") as ws:
+            assert _recv(ws)["type"] == "hello"
+    with TestClient(app, base_url="http://box.lan:8765") as client:
+        r = client.get("/api/recordings", headers={"Authorization": "Bearer s3cret-token"})
+        assert r.status_code == 200
+
+
+def test_view_asks_for_host_names_or_a_token_beyond_loopback() -> None:
+    from depthgram.commands.view import access
+
+    assert access("127.0.0.1", [], None) == (("127.0.0.1", "localhost", "::1"), None)
+    hosts, token = access("0.0.0.0", [], None)
+    assert hosts is None and token is not None and len(token) >= 20
+    assert access("0.0.0.0", [], None)[1] != token  # made up afresh each time
+    assert access("0.0.0.0", [], "mine") == (None, "mine")
+    hosts, token = access("192.168.1.20", ["Box.lan", "[fe80::1]"], None)
+    assert hosts == ("127.0.0.1", "localhost", "::1", "box.lan", "fe80::1") and token is None
+
+
+def test_seek_shows_the_frame_as_it_was_played_and_a_step_the_next() -> None:
+    # Frame 2 after a seek is what playing frames 0, 1, 2 in order gives (tracks included),
+    # because the frames before it go through the pipeline unseen (seek_history >= 2).
+    reference = Pipeline()
+    sentences = [reference.process(f).sentence for f in open_source(SPEC)]
+    with _client(create_app(_sim_player(playing=False))) as client:
+        with client.websocket_connect(WS + "/ws/sim-table") as ws:
+            _recv(ws)
+            assert client.post("/api/recordings/sim-table/step").json()["index"] == 0
+            assert _frame(ws)["index"] == 0
+            state = client.post("/api/recordings/sim-table/seek", json={"index": 2}).json()
+            assert state["index"] == 2 and state["playing"] is False
+            msg = _frame(ws)
+            assert msg["index"] == 2 and msg["record"]["sentence"] == sentences[2]
+            assert client.post("/api/recordings/sim-table/step").json()["index"] == 3
+            assert _frame(ws)["record"]["sentence"] == sentences[3]
+            # step back: the frame before, again as it was played
+            assert client.post("/api/recordings/sim-table/seek", json={"index": 1}).json()["index"] == 1
+            assert _frame(ws)["record"]["sentence"] == sentences[1]
+
+
+def test_a_live_source_cannot_be_rewound() -> None:
+    src = open_source(SPEC)
+    player = Player(lambda: iter(src), "cam", Config(), ViewerConfig(playing=False), seekable=False)
+    with _client(create_app(player)) as client:
+        r = client.post("/api/recordings/cam/seek", json={"index": 0})
+        assert r.status_code == 422 and "cannot be rewound" in r.json()["error"]
+        assert client.get("/api/recordings/cam").json()["seekable"] is False
