@@ -338,3 +338,19 @@ def test_histogram_smoothing_gives_scipys_numbers(sigma: float) -> None:
         padded = _smooth_padded(counts, _gaussian_weights(sigma))
         np.testing.assert_array_equal(padded[1:-1], gaussian_filter1d(counts.astype(np.float64), sigma))
         assert padded[0] == 0.0 and padded[-1] == 0.0
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_sensor_order_statistics_equal_numpy(seed: int) -> None:
+    # the estimator's median and 20th percentile replace np.median / np.percentile for speed:
+    # on quantised values (many ties, as a sensor's differences are) and on odd and even sizes
+    # they must give numpy's numbers exactly
+    from depthgram.segmentation.sensor import _median, _percentile20
+
+    rng = np.random.default_rng(seed)
+    for n in (20, 21, 22, 37, 400, 1001):
+        a = np.round(rng.gamma(2.0, 3.0, n) * (4 if seed % 2 else 1)) / (4 if seed % 2 else 1)
+        b = rng.normal(0, 5.0, n)
+        for x in (a, b, np.abs(b - np.median(b))):
+            assert _median(x) == np.median(x)
+            assert _percentile20(x) == np.percentile(x, 20)
