@@ -47,3 +47,19 @@ def test_dask_cluster_gives_the_serial_result(tmp_path: Path) -> None:
     for a, b in zip(serial, remote, strict=True):
         sa, sb = _read_all(tmp_path / "serial", a.name), _read_all(tmp_path / "dask", b.name)
         assert sa == sb
+
+
+def test_batch_refuses_ids_a_16_bit_label_map_cannot_hold(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    # batch wrote labels.astype(uint16) without describe's check: id 65536 became 0 silently.
+    from depthgram.dynamics import tracker
+
+    init = tracker.Tracker.__init__
+
+    def late_ids(self: tracker.Tracker, *args: object, **kwargs: object) -> None:
+        init(self, *args, **kwargs)  # type: ignore[arg-type]
+        self._next_id = 65534  # a long recording: ids 65534, 65535, 65536, ...
+
+    monkeypatch.setattr(tracker.Tracker, "__init__", late_ids)
+    (r,) = run_batch(["sim:table?frames=2"], tmp_path / "out", workers=1)
+    assert r.status == "failed"
+    assert r.error is not None and "above 65535" in r.error and "sim:table?frames=2 frame 0" in r.error

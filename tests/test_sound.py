@@ -221,3 +221,25 @@ def test_write_wav_is_16_bit_pcm_and_rejects_bad_audio(tmp_path: Path) -> None:
         write_wav(tmp_path / "y.wav", np.array([0.0, np.nan]), SR)
     with pytest.raises(InputError, match="does not exist"):
         write_wav(tmp_path / "no" / "y.wav", np.zeros(4), SR)
+
+
+def test_sonifier_takes_the_frame_size_from_the_tree_not_the_simulator() -> None:
+    # Sonifier's frame_size defaulted to the simulator's 176 x 132: a 640 x 480 scene was
+    # panned and pitched as if its objects sat 3.6 times further right and down.
+    from depthgram.scene import build_tree, parse_sentence, to_sentence
+    from depthgram.segmentation import SceneObject
+
+    cup = SceneObject(1, "object", 0, 900.0, 5.0, 400, 400 / (640 * 480), (160.0, 120.0), (150, 110, 170, 130))
+    tree = build_tree([cup], (640, 480))
+    assert tree.frame_size == (640, 480)
+    assert parse_sentence(to_sentence(tree)).frame_size == (640, 480)  # the sentence carries it
+    m = SoundMapping()
+    implicit = Sonifier(m, SR).push(tree, 0.3)
+    np.testing.assert_array_equal(implicit, Sonifier(m, SR, (640, 480)).push(tree, 0.3))
+    assert not np.array_equal(implicit, Sonifier(m, SR, (W, H)).push(tree, 0.3))
+    left, right = np.abs(implicit).sum(axis=0)
+    assert left > right  # x = 160 of 640 is left of centre
+    np.testing.assert_array_equal(render_scene(tree), render_scene(tree, (640, 480)))
+    # a hand-made root that does not carry the size: ask for it rather than guess
+    with pytest.raises(InputError, match="frame_size"):
+        Sonifier(m, SR).push(tree_of(obj(40.0, 60.0, 900.0)), 0.1)

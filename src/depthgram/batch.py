@@ -59,9 +59,7 @@ def process_recording(
 
     Runs in a worker process or on a Dask worker, so it takes and returns plain data.
     """
-    import cv2
-
-    from depthgram.commands.describe import label_file_name
+    from depthgram.commands.describe import label_file_name, write_label_map
     from depthgram.pipeline import Config, Pipeline
     from depthgram.sources import open_source
 
@@ -77,7 +75,8 @@ def process_recording(
         for result in pipe.run(src):
             fh.write(json.dumps(result.to_record()) + "\n")
             name = label_file_name(result.frame.name, result.frame.index)
-            cv2.imwrite(str(labels_dir / name), result.segmentation.labels.astype("uint16"))
+            # the check describe makes: track ids above 65535 would wrap in a 16-bit PNG
+            write_label_map(labels_dir / name, result.segmentation.labels, f"{spec} frame {result.frame.index}")
             frames += 1
             objects += len(result.segmentation.objects)
     os.replace(tmp, out / "scenes.jsonl")

@@ -6,8 +6,13 @@ import argparse
 import json
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from depthgram.commands._common import add_pipeline_arguments, pipeline_results
+
+if TYPE_CHECKING:
+    import numpy as np
+    from numpy.typing import NDArray
 
 NAME = "describe"
 HELP = "describe every frame: objects, tree, sentence, motion (JSON lines or text)"
@@ -28,11 +33,27 @@ def label_file_name(frame_name: str, index: int) -> str:
     return f"{stem or f'{index:06d}'}.png"
 
 
-def run(args: argparse.Namespace) -> int:
+def write_label_map(path: Path, labels: NDArray[np.integer], frame_name: str) -> None:
+    """Write ``labels`` (object or track id per pixel) as a 16-bit PNG.
+
+    Raises
+    ------
+    InputError
+        When an id does not fit in 16 bits (track ids grow over a long recording and would
+        wrap silently), or the file cannot be written.
+    """
     import cv2
 
     from depthgram.errors import InputError
 
+    top = int(labels.max(initial=0))
+    if top > 65535:
+        raise InputError(f"{frame_name}: object id {top} is above 65535; cannot write a 16-bit PNG label map ({path})")
+    if not cv2.imwrite(str(path), labels.astype("uint16")):
+        raise InputError(f"{path}: could not write the label map")
+
+
+def run(args: argparse.Namespace) -> int:
     labels_dir = Path(args.labels_dir) if args.labels_dir else None
     if labels_dir is not None:
         labels_dir.mkdir(parents=True, exist_ok=True)
@@ -45,12 +66,8 @@ def run(args: argparse.Namespace) -> int:
             else:
                 out.write(json.dumps(result.to_record()) + "\n")
             if labels_dir is not None:
-                labels = result.segmentation.labels
-                if labels.max(initial=0) > 65535:
-                    raise InputError(f"{result.frame.name}: more than 65535 object ids; cannot write 16-bit PNG")
                 path = labels_dir / label_file_name(result.frame.name, result.frame.index)
-                if not cv2.imwrite(str(path), labels.astype("uint16")):
-                    raise InputError(f"{path}: could not write the label map")
+                write_label_map(path, result.segmentation.labels, result.frame.name or f"frame {result.frame.index}")
     finally:
         if out is not sys.stdout:
             out.close()

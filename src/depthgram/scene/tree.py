@@ -6,6 +6,7 @@ label and mean depth, and for sequences v_radial and time to collision.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 __all__ = ["Motion", "Node", "Relation", "SceneTree"]
@@ -83,6 +84,23 @@ class SceneTree:
 
     root: Node
     relations: tuple[Relation, ...] = ()
+
+    @property
+    def frame_size(self) -> tuple[int, int] | None:
+        """(width, height) in px of the frame the tree describes, read back from the root.
+
+        :func:`depthgram.scene.build_tree` gives the root the frame's pixel count as area and
+        the middle pixel ``((W - 1) / 2, (H - 1) / 2)`` as center, and the sentence keeps both,
+        so the size survives a round trip through text. None when the root does not follow
+        that convention (a hand-made tree).
+        """
+        cx, cy = self.root.center_xy
+        if not (math.isfinite(cx) and math.isfinite(cy)):
+            return None
+        w, h = round(2 * cx + 1), round(2 * cy + 1)
+        if w <= 0 or h <= 0 or w * h != self.root.area or abs(2 * cx + 1 - w) > 1e-6 or abs(2 * cy + 1 - h) > 1e-6:
+            return None
+        return (w, h)
 
     def nodes(self) -> list[Node]:
         """All nodes but the root, depth-first in child order."""

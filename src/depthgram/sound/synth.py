@@ -169,25 +169,28 @@ class Sonifier:
         The cue mapping (default preset when None).
     samplerate : int
         Samples per second (Hz).
-    frame_size : tuple of int
-        (width, height) of the frames (px).
+    frame_size : tuple of int, optional
+        (width, height) of the frames (px). When omitted, each tree's own frame size is used
+        (:attr:`SceneTree.frame_size`, carried by the root of a built or parsed tree).
 
     Examples
     --------
-    >>> s = Sonifier(SoundMapping(), 22050, (176, 132))
+    >>> s = Sonifier(SoundMapping(), 22050, (640, 480))
     >>> audio = s.push(tree, 1 / 30)  # doctest: +SKIP
     """
 
     def __init__(self, mapping: SoundMapping | None = None, samplerate: int = 22050,
-                 frame_size: tuple[int, int] = (176, 132)) -> None:
+                 frame_size: tuple[int, int] | None = None) -> None:
         if not isinstance(samplerate, (int, np.integer)) or not 4000 <= samplerate <= 192000:
             raise InputError(f"samplerate must be an integer in 4000..192000 Hz, got {samplerate!r}")
-        w, h = frame_size
-        if w <= 0 or h <= 0:
-            raise InputError(f"frame_size must be positive (width, height), got {frame_size}")
+        if frame_size is not None:
+            w, h = frame_size
+            if w <= 0 or h <= 0:
+                raise InputError(f"frame_size must be positive (width, height), got {frame_size}")
+            frame_size = (int(w), int(h))
         self.mapping = mapping or SoundMapping()
         self.samplerate = int(samplerate)
-        self.frame_size = (int(w), int(h))
+        self.frame_size = frame_size
         self._states: dict[tuple[str, int], _State] = {}
         self._seconds = 0.0
         self._samples = 0
@@ -221,8 +224,19 @@ class Sonifier:
         if n <= 0:
             return np.zeros((0, 2), np.float32)
         self._samples = total
-        targets = {v.key: v for v in voices(tree, self.frame_size, self.mapping)}
+        targets = {v.key: v for v in voices(tree, self._size_of(tree), self.mapping)}
         return self._render(targets, n).astype(np.float32)
+
+    def _size_of(self, tree: SceneTree) -> tuple[int, int]:
+        if self.frame_size is not None:
+            return self.frame_size
+        size = tree.frame_size
+        if size is None:
+            raise InputError(
+                "Sonifier: the tree's root does not carry the frame size (area W*H, center the middle "
+                "pixel); give frame_size=(width, height)"
+            )
+        return size
 
     def _render(self, targets: dict[tuple[str, int], Voice], n: int) -> NDArray[np.float64]:
         sr = self.samplerate
@@ -279,7 +293,7 @@ class Sonifier:
 
 def render_scene(
     tree: SceneTree,
-    frame_size: tuple[int, int],
+    frame_size: tuple[int, int] | None = None,
     *,
     mapping: SoundMapping | None = None,
     duration_s: float = 0.5,
@@ -293,8 +307,8 @@ def render_scene(
     Parameters
     ----------
     tree : SceneTree
-    frame_size : tuple of int
-        (width, height) of the frame (px).
+    frame_size : tuple of int, optional
+        (width, height) of the frame (px); the tree's own (:attr:`SceneTree.frame_size`) when omitted.
     mapping : SoundMapping, optional
     duration_s : float
         Length of the sound (s).

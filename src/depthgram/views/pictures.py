@@ -1,7 +1,8 @@
 """Pictures a person would rather look at than read: depth with object outlines, histograms, tracks.
 
-All functions draw with matplotlib's Agg backend into a file (PNG or SVG by suffix) and close
-their figure, so they are safe in batch runs and threads.
+All functions draw on their own :class:`matplotlib.figure.Figure` with an Agg canvas into a file
+(PNG or SVG by suffix). pyplot is never used: the user's backend stays as it was, no figure is
+registered in pyplot's global list, so they are safe in notebooks, batch runs and threads.
 """
 
 from __future__ import annotations
@@ -10,19 +11,23 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-import matplotlib
-
-matplotlib.use("Agg")
-
 import cv2
-import matplotlib.pyplot as plt
 import numpy as np
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
 from numpy.typing import NDArray
 
 from depthgram.frame import Frame
 from depthgram.segmentation.objects import Histogram, Segmentation
 
 __all__ = ["draw_histogram", "draw_overlay", "draw_tracks", "label_anchor", "overlay_image"]
+
+
+def _figure(size_in: tuple[float, float], dpi: int = 100) -> Figure:
+    """A figure of ``size_in`` (inches) drawn by Agg, outside pyplot."""
+    fig = Figure(figsize=size_in, dpi=dpi)
+    FigureCanvasAgg(fig)
+    return fig
 
 
 def overlay_image(frame: Frame, seg: Segmentation, *, scale: int = 0) -> NDArray[np.uint8]:
@@ -92,7 +97,8 @@ def draw_overlay(
     """Depth in colour with object outlines, ids and attributes (depth, area, v_radial)."""
     img = overlay_image(frame, seg)
     s = img.shape[1] / frame.depth.shape[1]
-    fig, ax = plt.subplots(figsize=(img.shape[1] / 100, img.shape[0] / 100 + 0.4), dpi=100)
+    fig = _figure((img.shape[1] / 100, img.shape[0] / 100 + 0.4))
+    ax = fig.subplots()
     ax.imshow(img)
     for o in seg.objects:
         x, y = label_anchor(seg.labels, o.id)
@@ -109,12 +115,12 @@ def draw_overlay(
     ax.set_title(title or frame.name or f"frame {frame.index}", fontsize=9)
     fig.tight_layout(pad=0.2)
     fig.savefig(path)
-    plt.close(fig)
 
 
 def draw_histogram(hist: Histogram, path: str | Path, *, title: str = "global depth histogram") -> None:
     """The depth histogram with its peaks and thresholds marked (the paper's Figs. 3 and 5)."""
-    fig, ax = plt.subplots(figsize=(7, 3.2), dpi=100)
+    fig = _figure((7, 3.2))
+    ax = fig.subplots()
     centers = 0.5 * (hist.edges[:-1] + hist.edges[1:])
     width = float(np.median(np.diff(hist.edges))) if hist.edges.size > 1 else 1.0
     ax.bar(centers, hist.counts, width=width, color="#5577aa", linewidth=0)
@@ -129,7 +135,6 @@ def draw_histogram(hist: Histogram, path: str | Path, *, title: str = "global de
     ax.set_title(f"{title}: peaks (red), thresholds (green, dashed)", fontsize=9)
     fig.tight_layout()
     fig.savefig(path)
-    plt.close(fig)
 
 
 def draw_tracks(
@@ -142,7 +147,8 @@ def draw_tracks(
     v_unit: str = "mm/s",
 ) -> None:
     """Per-track mean depth and radial velocity over time (one line per track id)."""
-    fig, (a1, a2) = plt.subplots(2, 1, figsize=(7, 5), dpi=100, sharex=True)
+    fig = _figure((7, 5))
+    a1, a2 = fig.subplots(2, 1, sharex=True)
     t = np.asarray(times, float)
     for tid in sorted(depth):
         d = np.array([np.nan if x is None else x for x in depth[tid]], float)
@@ -158,4 +164,3 @@ def draw_tracks(
     a1.set_title("tracks: depth and radial velocity (positive = receding)", fontsize=9)
     fig.tight_layout()
     fig.savefig(path)
-    plt.close(fig)

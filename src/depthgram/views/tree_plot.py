@@ -2,7 +2,8 @@
 
 Nodes are boxes with their attributes (kind, id, depth-label terminal, area, center, depth,
 and v_radial / ttc / status when known); solid edges are the vertical links (support),
-dashed arcs the horizontal relations between siblings. Drawn with matplotlib's Agg backend.
+dashed arcs the horizontal relations between siblings. Drawn on a matplotlib Figure with an Agg
+canvas: pyplot and the user's backend are left untouched.
 """
 
 from __future__ import annotations
@@ -88,17 +89,18 @@ def draw_tree(tree: SceneTree, path: str | Path) -> None:
     if not out.parent.is_dir():
         raise InputError(f"{out}: folder {out.parent} does not exist")
 
-    import matplotlib
-
-    matplotlib.use("Agg")
-    from matplotlib import pyplot as plt
+    # a Figure with its own Agg canvas, not pyplot: the user's backend is left alone
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
     from matplotlib.patches import FancyArrowPatch
 
     pos = tree_layout(tree)
     nodes = [tree.root, *tree.nodes()]
     width = max(x for x, _ in pos.values()) + 1.0
     levels = -min(y for _, y in pos.values()) + 1.0
-    fig, ax = plt.subplots(figsize=(max(4.0, 2.3 * width), max(2.5, 1.6 * levels)))
+    fig = Figure(figsize=(max(4.0, 2.3 * width), max(2.5, 1.6 * levels)))
+    FigureCanvasAgg(fig)
+    ax = fig.subplots()
     ax.set_xlim(-0.6, width - 0.4)
     ax.set_ylim(-levels + 0.45, 0.55)
     ax.axis("off")
@@ -125,4 +127,3 @@ def draw_tree(tree: SceneTree, path: str | Path) -> None:
     ax.set_title("Scene parse tree (solid: supports, dashed: relations)", fontsize=9)
     fig.tight_layout()
     fig.savefig(out, format=out.suffix.lower()[1:], dpi=110)
-    plt.close(fig)
