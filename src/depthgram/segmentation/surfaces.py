@@ -193,7 +193,7 @@ _NO_BOXES = np.zeros((1, 4), np.int32)
 @njit(cache=True, inline="always")
 def _continuous(za: np.float32, zb: np.float32, gap: int, t0: float, t2: float, sl: float) -> bool:
     zm = min(za, zb)
-    return abs(za - zb) <= t0 + t2 * zm * zm + gap * sl * zm
+    return bool(abs(za - zb) <= t0 + t2 * zm * zm + gap * sl * zm)
 
 
 @njit(cache=True)
