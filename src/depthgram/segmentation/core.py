@@ -347,7 +347,7 @@ def _slices(
             depth,
             whole,
             horizontal=cls == HORIZONTAL,
-            aperture=cfg.slice_aperture,
+            step_of=cfg.slice_step,
             depth_label=bands.depth_label,
             intrinsics=intrinsics,
             first_id=part_id,
