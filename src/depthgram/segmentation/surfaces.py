@@ -24,7 +24,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-from depthgram.segmentation.label import ACTIVE, BLOCK
+from depthgram.segmentation.label import ACTIVE, BLOCK, _find, _union  # the labellers share one union-find
 from depthgram.segmentation.sensor import SensorModel
 
 __all__ = ["concave_creases", "crease_scale_px", "label_surfaces", "merge_openings", "reattach"]
@@ -185,25 +185,12 @@ def label_surfaces(
 
 
 @njit(cache=True, inline="always")
-def _root(parent: NDArray[np.int32], i: int) -> int:
-    while parent[i] != i:
-        parent[i] = parent[parent[i]]
-        i = parent[i]
-    return i
-
-
-@njit(cache=True, inline="always")
 def _join(
     parent: NDArray[np.int32], a: int, b: int, za: float, zb: float, gap: int, t0: float, t2: float, sl: float
 ) -> None:
     zm = min(za, zb)
     if abs(za - zb) <= t0 + t2 * zm * zm + gap * sl * zm:
-        ra = _root(parent, a)
-        rb = _root(parent, b)
-        if ra < rb:
-            parent[rb] = ra
-        elif rb < ra:
-            parent[ra] = rb
+        _union(parent, a, b)
 
 
 @njit(cache=True)
@@ -243,7 +230,7 @@ def _label_surfaces(
     for y in range(h):
         for x in range(w):
             if state[y, x] == ACTIVE:
-                r = _root(parent, y * w + x)
+                r = _find(parent, y * w + x)
                 if ids[r] == 0:
                     k += 1
                     ids[r] = k
