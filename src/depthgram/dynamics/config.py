@@ -137,7 +137,9 @@ class TrackerConfig:
         _check(self.center_tau_s > 0, "center_tau_s", self.center_tau_s, "> 0 s")
         _check(self.area_tau_s > 0, "area_tau_s", self.area_tau_s, "> 0 s")
         f = self.fps
-        ok = f is None or (isinstance(f, int | float) and not isinstance(f, bool) and math.isfinite(f) and 0 < f <= 100_000)
+        ok = f is None or (
+            isinstance(f, int | float) and not isinstance(f, bool) and math.isfinite(f) and 0 < f <= 100_000
+        )
         _check(ok, "fps", f, "None or a frame rate in (0, 100000] frames/s")
         _check(self.max_area_ratio > 1, "max_area_ratio", self.max_area_ratio, "> 1")
         j = self.max_depth_jump_rate
