@@ -8,7 +8,7 @@ import sys
 from pathlib import Path
 
 NAME = "bench"
-HELP = "run the benchmarks (speed per stage and resolution, Table 1 accuracy, tracking, sound)"
+HELP = "run the benchmarks (speed per stage and resolution, Table 1 accuracy, tracking, sound, real accuracy)"
 
 #: Benchmark name -> script in benchmarks/ (each defines main(argv) -> int).
 SUITES = {
@@ -18,6 +18,7 @@ SUITES = {
     "scene": "bench_scene.py",
     "tracking": "bench_tracking.py",
     "sound": "bench_sound.py",
+    "real": "real.py",
 }
 
 
