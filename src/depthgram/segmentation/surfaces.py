@@ -518,18 +518,19 @@ def merge_openings(
     parent = np.arange(n + 1)
     kernel = cv2.getStructuringElement(cv2.MORPH_RECT, (2 * ring_px + 1, 2 * ring_px + 1))
     width = (objs[:, 2] - objs[:, 0] + 1) * z_mean / focal_px
-    for r in range(1, n + 1):
+    # cheap tests first, for every pair (R, A) at once: some nearer A that holds R's columns, R
+    # no deeper behind it than it is wide (the ring below costs a dilation of R's box). As one
+    # n x n test instead of a dozen numpy calls per surface: 0.5 ms of 0.6 at 176 x 132.
+    margin_all = 0.15 * (objs[:, 2] - objs[:, 0] + 1)
+    zr_col = z_mean[:, None]
+    maybe = (z_mean[None, :] < zr_col) & (zr_col - z_mean[None, :] <= width[None, :])
+    maybe &= (objs[None, :, 0] - margin_all[None, :] <= objs[:, 0, None])
+    maybe &= objs[:, 2, None] <= objs[None, :, 2] + margin_all[None, :]
+    maybe[:, 0] = False
+    np.fill_diagonal(maybe, False)
+    todo = np.flatnonzero(maybe.any(axis=1) & (objs[:, 2] >= 0))
+    for r in todo[todo > 0].tolist():
         x0, y0, x1, y1 = objs[r]
-        if x1 < 0:
-            continue
-        # cheap tests first: some nearer A that holds R's columns, R no deeper behind it than it
-        # is wide (the ring below costs a dilation of R's box)
-        margin_all = 0.15 * (objs[:, 2] - objs[:, 0] + 1)
-        maybe = (z_mean < z_mean[r]) & (z_mean[r] - z_mean <= width)
-        maybe &= (objs[:, 0] - margin_all <= x0) & (x1 <= objs[:, 2] + margin_all)
-        maybe[[0, r]] = False
-        if not maybe.any():
-            continue
         ys = slice(max(0, y0 - ring_px), min(h, y1 + ring_px + 1))
         xs = slice(max(0, x0 - ring_px), min(w, x1 + ring_px + 1))
         lab = labels[ys, xs]
