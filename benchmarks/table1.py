@@ -42,7 +42,7 @@ METHODS: tuple[tuple[str, dict[str, Any]], ...] = (
 #: The paper's own slicing (``method="paper"``) at several apertures (fraction of the frame
 #: height / width) and directions: "several directions and slice aperture sizes must be tried".
 PAPER_READINGS: tuple[tuple[str, dict[str, Any]], ...] = tuple(
-    (f"paper slicing ({100 * ap:g}%, {d})", {"method": "paper", "paper_aperture": ap, "slice_directions": d})
+    (f"paper slicing ({100 * ap:g}%, {d})", {"method": "paper", "paper_aperture_fraction": ap, "slice_directions": d})
     for ap in (0.05, 0.10, 0.20)
     for d in ("horizontal", "vertical", "both")
 )
@@ -57,8 +57,8 @@ READINGS: tuple[tuple[str, dict[str, Any]], ...] = (
     ("slices, depth-dependent bins", {"depth_dependent_bins": True}),
     ("slices, horizontal slices only", {"slice_directions": "horizontal"}),
     ("slices, vertical slices only", {"slice_directions": "vertical"}),
-    ("slices, aperture 5% of the object", {"slice_aperture": 0.05}),
-    ("slices, aperture 20% of the object", {"slice_aperture": 0.20}),
+    ("slices, aperture 5% of the object", {"slice_aperture_fraction": 0.05}),
+    ("slices, aperture 20% of the object", {"slice_aperture_fraction": 0.20}),
 )
 #: Scene name -> frame index used (crossing: both movers in view at t = 1 s).
 SCENES = {"table": 0, "corridor": 0, "crossing": 30}

@@ -295,7 +295,14 @@ def test_slice_parts_match_per_slice_numpy_sums() -> None:
     )
     for horizontal in (True, False):
         parts = slice_parts(
-            labels, depth, obj, horizontal=horizontal, aperture=4, depth_label=lambda z: 0, intrinsics=None, first_id=1
+            labels,
+            depth,
+            obj,
+            horizontal=horizontal,
+            step_of=lambda extent: 4,
+            depth_label=lambda z: 0,
+            intrinsics=None,
+            first_id=1,
         )
         coord = ys - obj.bbox_xy[1] if horizontal else xs - obj.bbox_xy[0]
         want = []

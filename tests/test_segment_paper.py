@@ -15,7 +15,7 @@ from numpy.typing import NDArray
 from depthgram.errors import InputError
 from depthgram.frame import Intrinsics
 from depthgram.segmentation import SegmentConfig, evaluate, segment
-from depthgram.segmentation.paper_slices import aperture_px, slice_segments
+from depthgram.segmentation.paper_slices import slice_segments
 
 H, W = 120, 160
 CAM = Intrinsics(150.0, 150.0, 80.0, 60.0)
@@ -52,18 +52,28 @@ def _iou(a: NDArray[np.bool_], b: NDArray[np.bool_]) -> float:
 
 
 def test_aperture_in_pixels_or_as_a_fraction_of_the_frame() -> None:
-    assert aperture_px(0.03, 132) == 4  # round(3.96)
-    assert aperture_px(0.10, 176) == 18  # round(17.6)
-    assert aperture_px(8, 132) == 8
-    assert aperture_px(0.001, 10) == 1  # never thinner than a pixel
-    assert aperture_px(500, 132) == 132  # never thicker than the frame
+    assert SegmentConfig(paper_aperture_fraction=0.03).paper_step(132) == 4  # round(3.96)
+    assert SegmentConfig(paper_aperture_fraction=0.10).paper_step(176) == 18  # round(17.6)
+    assert SegmentConfig(paper_aperture_px=8).paper_step(132) == 8
+    assert SegmentConfig(paper_aperture_fraction=0.001).paper_step(10) == 1  # never thinner than a pixel
+    assert SegmentConfig(paper_aperture_px=500).paper_step(132) == 132  # never thicker than the frame
+    with pytest.warns(DeprecationWarning, match="paper_aperture_px"):
+        assert SegmentConfig(paper_aperture=8).paper_step(132) == 8  # the old spelling, one release
+    with pytest.warns(DeprecationWarning):
+        assert SegmentConfig(slice_aperture=0.2).slice_step(50) == 10
 
 
 def test_config_refuses_absurd_paper_options() -> None:
-    for bad in ({"paper_min_slices": 1}, {"paper_aperture": 0.0}, {"paper_prominence": 1.5}, {"method": "papr"}):
+    bad_options = (
+        {"paper_min_slices": 1},
+        {"paper_aperture_fraction": 0.0},
+        {"paper_prominence": 1.5},
+        {"method": "papr"},
+    )
+    for bad in bad_options:
         with pytest.raises(InputError):
             SegmentConfig(**bad)  # type: ignore[arg-type]
-    assert SegmentConfig(method="paper").paper_aperture == 0.03
+    assert SegmentConfig(method="paper").paper_aperture_fraction == 0.03
 
 
 def test_slice_segments_never_cross_a_slice_border() -> None:

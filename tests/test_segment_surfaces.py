@@ -133,3 +133,24 @@ def test_named_sensor_profiles_are_settings() -> None:
 
     with pytest.raises(InputError, match="sensor"):
         segment(depth, sensor="kinect-v9")
+
+
+def test_a_table_top_with_the_room_seen_beneath_it_is_not_the_floor() -> None:
+    # the same kind on every camera: the floor is the lowest horizontal support with nothing
+    # seen beneath it. Here no floor is found (only a wall far behind, which runs below the
+    # table's plane); the table top, the only horizontal support, was called floor before.
+    wall = Body(1, "wall", "wall", (Plane((0, 0, 4200), (0, 0, 1)),))
+    top = Body(2, "table", "object", (Box((-700.0, 716.0, 1100.0), (700.0, 720.0, 2600.0)),))
+    cup = Body(3, "cup", "object", (Cylinder((0.0, 720.0, 1700.0), 45.0, 110.0),), parent=2)
+    depth, truth, cam = _render((wall, top, cup), _camera(pitch=30.0, height=1500.0))
+    seg = segment(depth, valid=depth > 0, intrinsics=cam)
+    table = seg.objects[_best(seg.labels, truth, 2)[0] - 1]
+    assert table.kind == "compound", table.kind
+
+
+@pytest.mark.parametrize("depth_mm", [300.0, 3e4, 1e7, 1e9])
+def test_the_default_takes_any_positive_depth_without_an_internal_error(depth_mm: float) -> None:
+    z = np.full((30, 40), depth_mm, np.float32)
+    z[10:20, 10:20] = depth_mm * 0.5
+    seg = segment(z, min_area_px=20)
+    assert sorted(o.area for o in seg.objects) == [100, 1100]

@@ -14,4 +14,4 @@ class InputError(DepthgramError, ValueError):
 
 
 class MissingExtraError(DepthgramError, ImportError):
-    """An optional part is not installed; the message names the ``pip install 'depthgram[EXTRA]'``."""
+    """An optional dependency is not installed; the message names the extra that installs it."""

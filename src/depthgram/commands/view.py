@@ -5,7 +5,6 @@ from __future__ import annotations
 import argparse
 import socket
 import sys
-from typing import Any
 
 from depthgram.commands._common import add_config_arguments, add_source_arguments
 
@@ -40,8 +39,12 @@ def run(args: argparse.Namespace) -> int:
 
     if not 0 <= args.port <= 65535:
         raise InputError(f"--port must be in 0..65535, got {args.port}")
-    uvicorn = require_view_extra()
-    from depthgram.views.server import LOOPBACK_HOSTS, Player, ViewerConfig, create_app, recording_name
+    from depthgram._optional import needs_extra
+
+    with needs_extra("view", "the browser viewer"):
+        import uvicorn
+
+        from depthgram.views.server import LOOPBACK_HOSTS, Player, ViewerConfig, create_app, recording_name
 
     sock = bind_port(args.host, args.port)
     src = open_input(args)
@@ -78,25 +81,6 @@ def run(args: argparse.Namespace) -> int:
     threading.Thread(target=announce, daemon=True).start()
     asyncio.run(server.serve(sockets=[sock]))
     return 0
-
-
-def require_view_extra() -> Any:
-    """The uvicorn module, or a :class:`MissingExtraError` saying which extra to install.
-
-    ``pip install depthgram`` leaves the viewer's web server out (``depthgram[view]``); without
-    it the viewer died with a ModuleNotFoundError traceback.
-    """
-    from depthgram.errors import MissingExtraError
-
-    try:
-        import fastapi  # noqa: F401  (the server's framework: checked here so that the error names it)
-        import uvicorn
-    except ImportError as exc:
-        raise MissingExtraError(
-            f"the viewer needs {exc.name or 'its web server'}, which a plain install leaves out: "
-            "pip install 'depthgram[view]'"
-        ) from None
-    return uvicorn
 
 
 def bind_port(host: str, port: int) -> socket.socket:

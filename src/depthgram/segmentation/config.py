@@ -25,7 +25,8 @@ _RANGES = (
     ("bin_mm", 0.01, 10_000.0),
     ("ref_depth_mm", 1.0, 1e6),
     ("min_area_fraction", 0.0, 1.0),
-    ("slice_aperture", 1e-6, 1e6),
+    ("slice_aperture_fraction", 1e-6, 1.0),
+    ("paper_aperture_fraction", 1e-3, 1.0),
     ("region_tol_mm", 1e-6, 1e5),
     ("oblique_deg", 1.0, 60.0),
     ("jump_rel", 1e-4, 10.0),
@@ -91,9 +92,14 @@ class SegmentConfig:
     fill_holes_px : int
         Largest run of invalid pixels (px, along a row or column) bridged when labelling, so
         that an object seen through a sieve of dropouts stays one object. 0 disables.
-    slice_aperture : float
-        Slice height or width for oblique surfaces: pixels when >= 1, fraction of the frame
-        dimension when < 1 (the paper's rule of thumb: about 10 % of the object dimension).
+    slice_aperture_fraction : float
+        Slice height or width of a compound's ``part`` objects, as a share of the compound's
+        extent across the slices (the paper's rule of thumb: about 10 % of the object
+        dimension).
+    slice_aperture_px : int
+        The same in pixels; when > 0 it replaces the fraction.
+    slice_aperture : float or None
+        Deprecated (one release): pixels when >= 1, a fraction when < 1.
     slice_directions : str
         ``both``, ``horizontal`` (floor, ceiling, table tops) or ``vertical`` (walls).
     oblique_deg : float
@@ -119,12 +125,16 @@ class SegmentConfig:
         ``paper`` method: ``min_prominence`` of each slice's histogram (fraction of the slice's
         valid pixels, 0..1). A slice holds a few hundred pixels, so the global floor would let
         sensor noise make peaks.
-    paper_aperture : float
-        ``paper`` method: slice thickness, pixels when >= 1, else a fraction of the image height
-        (horizontal slices) or width (vertical slices). The paper asks for about 10 % of the
+    paper_aperture_fraction : float
+        ``paper`` method: slice thickness as a share of the image height (horizontal slices) or
+        width (vertical slices). The paper asks for about 10 % of the
         expected object dimension; walls and floors span about 30 % of the frame, hence 0.03.
         On the simulator (176 x 132) 0.03 finds the corridor walls at IoU 0.81 / 0.82, 0.10
         not at all (``benchmarks/table1.py --paper``).
+    paper_aperture_px : int
+        The same in pixels; when > 0 it replaces the fraction.
+    paper_aperture : float or None
+        Deprecated (one release): pixels when >= 1, a fraction when < 1.
     support_planes : bool
         ``slices`` method: also find the dominant oblique planes with a robust fit of
         ``1/Z = a u + b v + c`` (:func:`depthgram.segmentation.planes.find_planes`), so that a table
@@ -185,7 +195,9 @@ class SegmentConfig:
     min_area_px: int = 1
     min_area: float | None = None
     fill_holes_px: int = 2
-    slice_aperture: float = 0.10
+    slice_aperture_fraction: float = 0.10
+    slice_aperture_px: int = 0
+    slice_aperture: float | None = None
     slice_directions: str = "both"
     oblique_deg: float = 35.0
     min_spread: float = 0.05
@@ -195,7 +207,9 @@ class SegmentConfig:
     region_relative: bool = True
     paper_min_slices: int = 3
     paper_prominence: float = 0.02
-    paper_aperture: float = 0.03
+    paper_aperture_fraction: float = 0.03
+    paper_aperture_px: int = 0
+    paper_aperture: float | None = None
     support_planes: bool = True
     plane_min_area: float = 0.08
     plane_min_spread: float = 0.15
@@ -254,8 +268,21 @@ class SegmentConfig:
             raise bad("paper_min_slices", self.paper_min_slices, "an integer number of slices in [2, 1000]")
         if not 0.0 <= self.paper_prominence < 1.0:
             raise bad("paper_prominence", self.paper_prominence, "a fraction of a slice's valid pixels in [0, 1)")
-        if not (math.isfinite(self.paper_aperture) and 1e-3 <= self.paper_aperture <= 1e5):
-            raise bad("paper_aperture", self.paper_aperture, "pixels (>= 1) or a fraction of the frame in [0.001, 1)")
+        for old, new in (("slice_aperture", "slice_aperture"), ("paper_aperture", "paper_aperture")):
+            v = getattr(self, old)
+            if v is None:
+                continue
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and 1e-3 <= v <= 1e5):
+                raise bad(old, v, "pixels (>= 1) or a fraction in [0.001, 1)")
+            warnings.warn(
+                f"segment config: {old} is deprecated; use {new}_px (pixels) or {new}_fraction",
+                DeprecationWarning,
+                stacklevel=4,
+            )
+        for name in ("slice_aperture_px", "paper_aperture_px"):
+            v = getattr(self, name)
+            if not (isinstance(v, int) and 0 <= v <= 100_000):
+                raise bad(name, v, "an integer number of pixels >= 0 (0: use the fraction)")
 
         if not (isinstance(self.max_planes, int) and 0 <= self.max_planes <= 20):
             raise bad("max_planes", self.max_planes, "an integer number of planes in [0, 20]")
@@ -271,6 +298,15 @@ class SegmentConfig:
         except TypeError:  # an unhashable value: the checks name it
             return _replaced.__wrapped__(self, items)
 
+    def slice_step(self, extent_px: int) -> int:
+        """Thickness (px) of the slices of a compound ``extent_px`` pixels across them."""
+        return _step(self.slice_aperture, self.slice_aperture_px, self.slice_aperture_fraction, extent_px, math.ceil)
+
+    def paper_step(self, length_px: int) -> int:
+        """Thickness (px) of the ``paper`` method's slices across an image side of ``length_px``."""
+        step = _step(self.paper_aperture, self.paper_aperture_px, self.paper_aperture_fraction, length_px, round)
+        return min(step, max(1, length_px))
+
     def min_pixels(self, n_pixels: int) -> int:
         """Smallest object kept (px) in a frame of ``n_pixels`` pixels (at least 1)."""
         if self.min_area is not None:
@@ -278,6 +314,14 @@ class SegmentConfig:
                 return math.ceil(self.min_area)
             return max(1, math.ceil(self.min_area * n_pixels))
         return max(1, self.min_area_px, math.ceil(self.min_area_fraction * n_pixels))
+
+
+def _step(old: float | None, px: int, fraction: float, length: int, rounding: Any) -> int:
+    if old is not None:  # the deprecated two-meaning spelling
+        px, fraction = (round(old), 0.0) if old >= 1 else (0, old)
+    if px > 0:
+        return px
+    return max(1, int(rounding(fraction * length)))
 
 
 @lru_cache(maxsize=64)

@@ -212,7 +212,9 @@ def _surface_objects(
     sample = d2[::2, ::2][m2[::2, ::2]]
     far = float(np.percentile(sample, 95)) if sample.size else cfg.ref_depth_mm
     bin_far = max(cfg.bin_mm * far / cfg.ref_depth_mm, 3.0 * float(sensor.resolution(far)))
-    bin_cfg = cfg.with_overrides(depth_dependent_bins=True, ref_depth_mm=max(far, 1.0), bin_mm=min(bin_far, 10_000.0))
+    # within the config's own bounds, so that a frame of absurd depths is binned, not refused here
+    ref = min(max(far, 1.0), 1e6)
+    bin_cfg = cfg.with_overrides(depth_dependent_bins=True, ref_depth_mm=ref, bin_mm=min(max(bin_far, 0.01), 10_000.0))
     _, edges, counts = bin_index(d2, m2, bin_cfg, zero_outside=False)
     bands = depth_bands(counts, edges, bin_cfg)
     r = crease_scale_px(depth.shape[1])
@@ -307,7 +309,7 @@ def _slices(
     total_boxes = np.concatenate(all_boxes)
     sup_stats = _stats_rows(total, total_boxes, np.r_[0, first_support:next_id])
     compounds = [(cls_of[o.id], o) for o in make_objects(labels, sup_stats, intrinsics=cam, first_id=first_support)]
-    below = _below_camera(labels, next_id - 1, depth, cam, compounds)
+    below, beneath = _below_camera(labels, next_id - 1, depth, cam, compounds)
     # only supports seen from above (floor, table tops) can have a front face below them
     horizontal_ids = np.array([o.id for c, o in compounds if c == HORIZONTAL and below[o.id] > 0], np.int32)
     widths = np.array([0] + [o.bbox_xy[2] - o.bbox_xy[0] for o in objects], np.float64)
@@ -337,7 +339,11 @@ def _slices(
     renum[old] = np.arange(1, len(old) + 1, dtype=np.int32)
     labels = relabel(labels, renum[fold] if fronts else renum)
     objects = [replace(o, id=remap[o.id]) for o in objects]
-    floor_ids = {o.id for c, o in compounds if c == HORIZONTAL and below[o.id] > 0}
+    # the floor is the lowest horizontal support with nothing seen beneath it: a table top
+    # with the room's floor past its edge is a support of its own kind on every camera
+    floor_ids = {
+        o.id for c, o in compounds if c == HORIZONTAL and below[o.id] > 0 and beneath.get(o.id, 0.0) < _BENEATH_SHARE
+    }
     lowest = max(
         (o for c, o in compounds if o.id in floor_ids and o.id not in with_front),
         key=lambda o: below[o.id],
@@ -358,7 +364,7 @@ def _slices(
             depth,
             whole,
             horizontal=cls == HORIZONTAL,
-            aperture=cfg.slice_aperture,
+            step_of=cfg.slice_step,
             depth_label=bands.depth_label,
             intrinsics=intrinsics,
             first_id=part_id,
@@ -380,14 +386,21 @@ def _slices(
     )
 
 
+#: A horizontal support with more than this share of the frame's readings lying beneath its
+#: plane (by more than :data:`_BENEATH_MM`) is raised (a table top), not the floor.
+_BENEATH_SHARE = 0.01
+_BENEATH_MM = 150.0
+
+
 def _below_camera(
     labels: NDArray[np.int32],
     n: int,
     depth: NDArray[np.float32],
     cam: Intrinsics,
     compounds: list[tuple[int, SceneObject]],
-) -> dict[int, float]:
-    """How far (mm) each horizontal support lies below the camera; negative above it (a ceiling).
+) -> tuple[dict[int, float], dict[int, float]]:
+    """How far (mm) each horizontal support lies below the camera (negative above it: a
+    ceiling), and the share of the frame's readings seen beneath its plane.
 
     The centroid's Y says it for a level camera only: a camera pitched down at a table sees the
     table's centroid above its optical axis. The support's fitted plane says it for any pitch:
@@ -395,8 +408,9 @@ def _below_camera(
     the plane's offset is the camera's height over it. Walls keep their centroid's Y.
     """
     out = {o.id: (o.centroid_mm[1] if o.centroid_mm else 0.0) for _, o in compounds}
+    beneath: dict[int, float] = {}
     if not any(c == HORIZONTAL for c, _ in compounds):
-        return out
+        return out, beneath
     # the planes of the horizontal supports only: the others' sums and solves were thrown away
     # (each row's sums and solve are those of plane_fits on the whole map)
     ids = np.array([o.id for c, o in compounds if c == HORIZONTAL], np.intp)
@@ -406,7 +420,16 @@ def _below_camera(
     normal, off, _ = planes_from_sums(sums[np.r_[0, ids]])
     for j, i in enumerate(ids, start=1):
         out[int(i)] = float(off[j]) if normal[j, 1] < 0 else -float(off[j])
-    return out
+    # every 4th pixel in 3-D: enough to tell whether anything lies beneath a plane
+    z = depth[::4, ::4]
+    v, u = np.nonzero(z > 0)
+    zz = z[v, u].astype(np.float64)
+    pts = np.stack(((u * 4 - cam.cx) / cam.fx * zz, (v * 4 - cam.cy) / cam.fy * zz, zz))
+    for j, i in enumerate(ids, start=1):
+        # n . P + d is the signed distance from the plane, positive on the camera's side
+        dist = normal[j] @ pts + off[j]
+        beneath[int(i)] = float(np.mean(dist < -_BENEATH_MM)) if zz.size else 0.0
+    return out, beneath
 
 
 def _add_support_planes(

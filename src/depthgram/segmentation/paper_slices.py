@@ -47,21 +47,7 @@ from depthgram.segmentation.label import ACTIVE, BLOCK, HOLE, label_keyed, relab
 from depthgram.segmentation.objects import SceneObject, Segmentation
 from depthgram.segmentation.threshold import band_image, threshold_labels
 
-__all__ = ["SliceRuns", "aperture_px", "paper_slices", "slice_runs", "slice_segments"]
-
-
-def aperture_px(aperture: float, length: int) -> int:
-    """Slice aperture in pixels.
-
-    Parameters
-    ----------
-    aperture : float
-        Pixels when >= 1, else a fraction of ``length``.
-    length : int
-        Image height (horizontal slices) or width (vertical slices), px.
-    """
-    a = round(aperture) if aperture >= 1 else round(aperture * length)
-    return int(min(max(a, 1), length))
+__all__ = ["SliceRuns", "paper_slices", "slice_runs", "slice_segments"]
 
 
 def slice_segments(
@@ -322,7 +308,7 @@ def paper_slices(
     found: list[tuple[bool, int, SliceRuns, NDArray[np.int32]]] = []
     apertures: dict[str, int] = {}
     for horizontal in directions:
-        ap = aperture_px(config.paper_aperture, h if horizontal else w)
+        ap = config.paper_step(h if horizontal else w)
         apertures["rows" if horizontal else "columns"] = ap
         runs = slice_runs(depth_mm, valid, bands, config, horizontal=horizontal, aperture=ap)
         if runs.n_groups == 0:

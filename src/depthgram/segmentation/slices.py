@@ -14,6 +14,7 @@ touches it at the same depth.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import numpy as np
 from numba import njit
@@ -63,7 +64,7 @@ def slice_parts(
     obj: SceneObject,
     *,
     horizontal: bool,
-    aperture: float,
+    step_of: Callable[[int], int],
     depth_label: object,
     intrinsics: Intrinsics | None,
     first_id: int,
@@ -76,8 +77,9 @@ def slice_parts(
         Label map holding ``obj.id``.
     horizontal : bool
         Horizontal slices (rows; floor, ceiling, table tops) or vertical slices (columns; walls).
-    aperture : float
-        Slice thickness: px when >= 1, else fraction of the object's extent across the slices.
+    step_of : callable
+        Slice thickness (px) from the object's extent across the slices (px), e.g.
+        :meth:`depthgram.segmentation.SegmentConfig.slice_step`.
     depth_label : callable
         Depth (mm) -> global depth label.
     first_id : int
@@ -85,7 +87,7 @@ def slice_parts(
     """
     x0, y0, x1, y1 = obj.bbox_xy
     extent = (y1 - y0) if horizontal else (x1 - x0)
-    step = int(aperture) if aperture >= 1 else max(1, math.ceil(aperture * extent))
+    step = step_of(extent)
     n_slices = (extent + step - 1) // step
     # the kernel takes the box's last column and row (inclusive bounds)
     sums, boxes = _part_sums(labels, depth_mm, obj.id, x0, y0, x1 - 1, y1 - 1, step, horizontal, n_slices)

@@ -62,7 +62,8 @@ def likely_options(raw: NDArray[np.generic], frame: Frame, cfg: SourceConfig) ->
         return out
     is_int = np.issubdtype(raw.dtype, np.integer)
     if cfg.encoding in ("auto", "raw") and raw.dtype == np.uint16:
-        nonzero = raw[raw > 0]
+        samples: NDArray[np.uint16] = np.asarray(raw, dtype=np.uint16)
+        nonzero = samples[samples > 0]
         # SUN's shift moves the top 3 bits of mm (0 below 8.2 m) to the bottom: nearly all samples are
         # multiples of 8; a raw Kinect disparity has 11 bits, byte-swapped or not
         sun_like = nonzero.size > 0 and float(np.mean((nonzero & 7) == 0)) > 0.9
