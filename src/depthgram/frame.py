@@ -120,7 +120,7 @@ class Frame:
         return 1.0 - float(np.count_nonzero(self.valid)) / self.valid.size
 
 
-def implausible_depth(depth_mm: NDArray[np.floating], valid: NDArray[np.bool_]) -> str | None:
+def implausible_depth(depth_mm: NDArray[np.floating], valid: NDArray[np.bool_]) -> tuple[str, bool] | None:
     """Why the depths cannot come from a depth camera in these units, or None when they can.
 
     Parameters
@@ -132,9 +132,10 @@ def implausible_depth(depth_mm: NDArray[np.floating], valid: NDArray[np.bool_]) 
 
     Returns
     -------
-    str or None
-        ``"median 12075 mm is beyond 8 m"`` and the like, from a strided sample of the valid
-        pixels; None when the median lies in :data:`PLAUSIBLE_MEDIAN_MM` or nothing is valid.
+    (str, bool) or None
+        The reason (``"the median depth 12075 mm is beyond 8 m ..."``, from a strided sample of
+        the valid pixels) and whether the depths are too far (else too near); None when the
+        median lies in :data:`PLAUSIBLE_MEDIAN_MM` or nothing is valid.
     """
     step = max(1, int(np.sqrt(depth_mm.size / _SAMPLE_PX)))
     d = depth_mm[::step, ::step][valid[::step, ::step]]
@@ -143,9 +144,9 @@ def implausible_depth(depth_mm: NDArray[np.floating], valid: NDArray[np.bool_]) 
     med = float(np.median(d))
     lo, hi = PLAUSIBLE_MEDIAN_MM
     if med > hi:
-        return f"the median depth {med:.0f} mm is beyond {hi / 1000:.0f} m, farther than depth cameras read"
+        return f"the median depth {med:.0f} mm is beyond {hi / 1000:.0f} m, farther than depth cameras read", True
     if med < lo:
-        return f"the median depth {med:.1f} mm is under {lo:.0f} mm, nearer than depth cameras read"
+        return f"the median depth {med:.1f} mm is under {lo:.0f} mm, nearer than depth cameras read", False
     return None
 
 
@@ -155,8 +156,8 @@ def warn_units(where: str, reason: str, hints: Sequence[str]) -> None:
     Python shows a given warning once per place, so a sequence read in the wrong units warns
     once, not once per frame, when the message names the source rather than the frame.
     """
-    fix = "; ".join(hints) if hints else "check the units in the recording's documentation (--scale MM_PER_UNIT)"
-    warnings.warn(f"{where}: {reason}: the units are likely wrong; try {fix}", UnitsWarning, stacklevel=3)
+    fix = ("try " + "; or ".join(hints)) if hints else "check the units in the recording's documentation (--scale)"
+    warnings.warn(f"{where}: {reason}: the units are likely wrong; {fix}", UnitsWarning, stacklevel=3)
 
 
 def _float_metres(arr: NDArray[np.generic]) -> bool:
@@ -184,10 +185,15 @@ def check_array_units(arr: ArrayLike, where: str, valid: NDArray[np.bool_] | Non
                    ["scale_mm=1000 (--scale 1000), or multiply by 1000 before passing"])
         return
     ok = np.isfinite(a) & (a > 0) if valid is None else valid
-    reason = implausible_depth(a, ok)
-    if reason:
-        warn_units(where, reason, ["scale_mm=MM_PER_UNIT (--scale 0.2 for TUM's 5000 units per metre, "
-                                   "--scale 0.1 for 0.1 mm units)"])
+    found = implausible_depth(a, ok)
+    if found:
+        warn_units(where, found[0], _scale_hints(found[1]))
+
+
+def _scale_hints(too_far: bool) -> list[str]:
+    if too_far:
+        return ["scale_mm=MM_PER_UNIT (--scale 0.2 for TUM's 5000 units per metre, --scale 0.1 for 0.1 mm units)"]
+    return ["scale_mm=1000 (--scale 1000) if the depths are metres"]
 
 
 def make_frame(
@@ -267,9 +273,9 @@ def make_frame(
             warn_units(where, f"float depths all under {FLOAT_METRES_BELOW:.0f} look like metres, read here as mm",
                        ["scale_mm=1000 (--scale 1000)"])
         else:
-            reason = implausible_depth(depth, valid)
-            if reason:
-                warn_units(where, reason, ["scale_mm=MM_PER_UNIT (--scale 0.2 for TUM's 5000 units per metre)"])
+            found = implausible_depth(depth, valid)
+            if found:
+                warn_units(where, found[0], _scale_hints(found[1]))
     return Frame(depth=depth, valid=valid, index=index, time_s=time_s, intrinsics=intrinsics, name=name)
 
 

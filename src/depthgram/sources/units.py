@@ -36,7 +36,7 @@ def _plausible(mm: float | None) -> bool:
     return mm is not None and lo <= mm <= hi
 
 
-def likely_options(raw: NDArray[np.generic], frame: Frame, cfg: SourceConfig) -> list[str]:
+def likely_options(raw: NDArray[np.generic], frame: Frame, cfg: SourceConfig, *, too_far: bool = True) -> list[str]:
     """Reading options under which ``raw`` gives a plausible median depth, as flags to print.
 
     Parameters
@@ -47,6 +47,9 @@ def likely_options(raw: NDArray[np.generic], frame: Frame, cfg: SourceConfig) ->
         The frame as read with ``cfg`` (its median was implausible).
     cfg : SourceConfig
         The options it was read with.
+    too_far : bool
+        The median was beyond the plausible range (else under it): only then are the encodings
+        tried (both turn large raw codes into ordinary distances).
 
     Returns
     -------
@@ -61,7 +64,7 @@ def likely_options(raw: NDArray[np.generic], frame: Frame, cfg: SourceConfig) ->
     if med is None:
         return out
     is_int = np.issubdtype(raw.dtype, np.integer)
-    if cfg.encoding in ("auto", "raw") and raw.dtype == np.uint16:
+    if too_far and cfg.encoding in ("auto", "raw") and raw.dtype == np.uint16:
         samples: NDArray[np.uint16] = np.asarray(raw, dtype=np.uint16)
         nonzero = samples[samples > 0]
         # SUN's shift moves the top 3 bits of mm (0 below 8.2 m) to the bottom: nearly all samples are
@@ -88,6 +91,6 @@ def check_first_frame(raw: NDArray[np.generic], frame: Frame, cfg: SourceConfig,
     Called by :func:`depthgram.sources.decode.to_frame` on a source's first frame only: a
     recording read in the wrong units warns once, naming the likely option.
     """
-    reason = implausible_depth(frame.depth, frame.valid)
-    if reason:
-        warn_units(where, reason, likely_options(raw, frame, cfg))
+    found = implausible_depth(frame.depth, frame.valid)
+    if found:
+        warn_units(where, found[0], likely_options(raw, frame, cfg, too_far=found[1]))
