@@ -146,3 +146,11 @@ def test_a_table_top_with_the_room_seen_beneath_it_is_not_the_floor() -> None:
     seg = segment(depth, valid=depth > 0, intrinsics=cam)
     table = seg.objects[_best(seg.labels, truth, 2)[0] - 1]
     assert table.kind == "compound", table.kind
+
+
+@pytest.mark.parametrize("depth_mm", [300.0, 3e4, 1e7, 1e9])
+def test_the_default_takes_any_positive_depth_without_an_internal_error(depth_mm: float) -> None:
+    z = np.full((30, 40), depth_mm, np.float32)
+    z[10:20, 10:20] = depth_mm * 0.5
+    seg = segment(z, min_area_px=20)
+    assert sorted(o.area for o in seg.objects) == [100, 1100]

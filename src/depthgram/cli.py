@@ -43,6 +43,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     except DepthgramError as exc:
         print(f"depthgram {args.command}: error: {exc}", file=sys.stderr)
         return 2
+    except ModuleNotFoundError as exc:
+        from depthgram._optional import extra_for
+
+        missing = extra_for(exc)
+        if missing is None:
+            raise
+        print(f"depthgram {args.command}: error: {missing}", file=sys.stderr)
+        return 2
     except OSError as exc:  # an output that cannot be written: the message says which and why
         print(f"depthgram {args.command}: error: {exc}", file=sys.stderr)
         return 1

@@ -33,11 +33,14 @@ def run(args: argparse.Namespace) -> int:
     import threading
     import webbrowser
 
-    import uvicorn
+    from depthgram._optional import needs_extra
 
+    with needs_extra("view", "the browser viewer"):
+        import uvicorn
+
+        from depthgram.views.server import LOOPBACK_HOSTS, Player, ViewerConfig, create_app, recording_name
     from depthgram.commands._common import load_config, open_input, source_len
     from depthgram.errors import InputError
-    from depthgram.views.server import LOOPBACK_HOSTS, Player, ViewerConfig, create_app, recording_name
 
     if not 0 <= args.port <= 65535:
         raise InputError(f"--port must be in 0..65535, got {args.port}")

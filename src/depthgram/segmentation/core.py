@@ -201,7 +201,9 @@ def _surface_objects(
     sample = d2[::2, ::2][m2[::2, ::2]]
     far = float(np.percentile(sample, 95)) if sample.size else cfg.ref_depth_mm
     bin_far = max(cfg.bin_mm * far / cfg.ref_depth_mm, 3.0 * float(sensor.resolution(far)))
-    bin_cfg = cfg.with_overrides(depth_dependent_bins=True, ref_depth_mm=max(far, 1.0), bin_mm=min(bin_far, 10_000.0))
+    # within the config's own bounds, so that a frame of absurd depths is binned, not refused here
+    ref = min(max(far, 1.0), 1e6)
+    bin_cfg = cfg.with_overrides(depth_dependent_bins=True, ref_depth_mm=ref, bin_mm=min(max(bin_far, 0.01), 10_000.0))
     _, edges, counts = bin_index(d2, m2, bin_cfg, zero_outside=False)
     bands = depth_bands(counts, edges, bin_cfg)
     r = crease_scale_px(depth.shape[1])

@@ -24,7 +24,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-from depthgram.segmentation.label import ACTIVE, BLOCK
+from depthgram.segmentation.label import ACTIVE, BLOCK, _resolve, _union
 from depthgram.segmentation.sensor import SensorModel
 
 __all__ = ["concave_creases", "crease_scale_px", "label_surfaces", "merge_openings", "reattach"]
@@ -173,7 +173,7 @@ def label_surfaces(
         1..n in raster order of each component's first pixel; 0 elsewhere.
     n : int
     """
-    labels = _label_surfaces(
+    lab, parent, nxt = _label_surfaces(
         np.ascontiguousarray(depth_mm, np.float32),
         np.ascontiguousarray(state, np.int8),
         float(tol_0),
@@ -181,74 +181,69 @@ def label_surfaces(
         float(slope_per_px),
         int(bridge_px),
     )
-    return labels, int(labels.max(initial=0))
+    labels, n, _, _ = _resolve(lab, parent, nxt, _NO_SUMS, _NO_BOXES, 0, False)
+    return labels, int(n)
+
+
+#: Stand-ins for the statistics :func:`depthgram.segmentation.label._resolve` does not read here.
+_NO_SUMS = np.zeros((1, 8), np.float64)
+_NO_BOXES = np.zeros((1, 4), np.int32)
 
 
 @njit(cache=True, inline="always")
-def _root(parent: NDArray[np.int32], i: int) -> int:
-    while parent[i] != i:
-        parent[i] = parent[parent[i]]
-        i = parent[i]
-    return i
-
-
-@njit(cache=True, inline="always")
-def _join(
-    parent: NDArray[np.int32], a: int, b: int, za: float, zb: float, gap: int, t0: float, t2: float, sl: float
-) -> None:
+def _continuous(za: np.float32, zb: np.float32, gap: int, t0: float, t2: float, sl: float) -> bool:
     zm = min(za, zb)
-    if abs(za - zb) <= t0 + t2 * zm * zm + gap * sl * zm:
-        ra = _root(parent, a)
-        rb = _root(parent, b)
-        if ra < rb:
-            parent[rb] = ra
-        elif rb < ra:
-            parent[ra] = rb
+    return bool(abs(za - zb) <= t0 + t2 * zm * zm + gap * sl * zm)
 
 
 @njit(cache=True)
 def _label_surfaces(
     depth: NDArray[np.float32], state: NDArray[np.int8], t0: float, t2: float, sl: float, bridge: int
-) -> NDArray[np.int32]:
+) -> tuple[NDArray[np.int32], NDArray[np.int32], int]:
     # Hand-written: no library labels components under a depth-difference rule with hole
-    # bridging (scipy and OpenCV label binary images); a union-find over row and column
-    # neighbours, each pair tested once.
+    # bridging (scipy and OpenCV label binary images). The first pass of a two-pass labeller:
+    # a pixel continuing its left neighbour (the last active pixel of the row, across at most
+    # `bridge` holes) takes its provisional label, one continuing the pixel above (the last
+    # active one of the column) joins that label; only two different labels cost a union.
+    # The components are those of a union-find over every continuous row and column pair (the
+    # version before: a root search for both pixels of every pair), numbered by _resolve in
+    # raster order of their first pixel as before.
     h, w = depth.shape
-    n = h * w
-    parent = np.arange(n, dtype=np.int32)
+    lab = np.zeros((h, w), np.int32)
+    parent = np.empty(h * w + 1, np.int32)  # reserved only: pages of unused labels stay untouched
+    lastrow = np.full(w, -1, np.int64)
+    nxt = 1
     for y in range(h):
         last = -1
         for x in range(w):
             s = state[y, x]
             if s == ACTIVE:
-                if last >= 0 and x - last - 1 <= bridge:
-                    _join(parent, y * w + last, y * w + x, depth[y, last], depth[y, x], x - last, t0, t2, sl)
-                last = x
-            elif s == BLOCK:
-                last = -1
-    lastrow = np.full(w, -1, np.int64)
-    for y in range(h):
-        for x in range(w):
-            s = state[y, x]
-            if s == ACTIVE:
+                z = depth[y, x]
+                left = 0
+                if last >= 0 and x - last - 1 <= bridge and _continuous(depth[y, last], z, x - last, t0, t2, sl):
+                    left = lab[y, last]
+                up = 0
                 ly = lastrow[x]
-                if ly >= 0 and y - ly - 1 <= bridge:
-                    _join(parent, ly * w + x, y * w + x, depth[ly, x], depth[y, x], y - ly, t0, t2, sl)
+                if ly >= 0 and y - ly - 1 <= bridge and _continuous(depth[ly, x], z, y - ly, t0, t2, sl):
+                    up = lab[ly, x]
+                if left == 0 and up == 0:
+                    parent[nxt] = nxt
+                    here = nxt
+                    nxt += 1
+                elif up == 0 or up == left:
+                    here = left
+                elif left == 0:
+                    here = up
+                else:
+                    here = left
+                    _union(parent, left, up)
+                lab[y, x] = here
+                last = x
                 lastrow[x] = y
             elif s == BLOCK:
+                last = -1
                 lastrow[x] = -1
-    labels = np.zeros((h, w), np.int32)
-    ids = np.zeros(n, np.int32)
-    k = 0
-    for y in range(h):
-        for x in range(w):
-            if state[y, x] == ACTIVE:
-                r = _root(parent, y * w + x)
-                if ids[r] == 0:
-                    k += 1
-                    ids[r] = k
-                labels[y, x] = ids[r]
-    return labels
+    return lab, parent, nxt
 
 
 def reattach(

@@ -13,12 +13,15 @@ from typing import Any
 
 import cv2
 import numpy as np
-from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.figure import Figure
 from numpy.typing import NDArray
 
+from depthgram._optional import needs_extra
 from depthgram.frame import Frame
 from depthgram.segmentation.objects import Histogram, Segmentation
+
+with needs_extra("report", "drawing pictures"):
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
 
 __all__ = ["draw_histogram", "draw_overlay", "draw_tracks", "label_anchor", "overlay_image"]
 
