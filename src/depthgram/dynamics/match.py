@@ -108,7 +108,7 @@ def match_cost(
 
     nt = np.asarray(track_depth).size
     no = np.asarray(obj_depth).size
-    return cost_kernel(  # type: ignore[no-any-return]
+    return cost_kernel(
         f(track_center, (nt, 2)), f(track_depth, (nt,)), f(track_area, (nt,)), f(track_bbox, (nt, 4)),
         f(track_label, (nt,)), f(track_missed, (nt,)),
         f(obj_center, (no, 2)), f(obj_depth, (no,)), f(obj_area, (no,)), f(obj_bbox, (no, 4)),

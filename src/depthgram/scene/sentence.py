@@ -13,6 +13,7 @@ import math
 from collections.abc import Iterable
 from functools import lru_cache
 from importlib import resources
+from typing import Any
 
 from lark import Lark, Token, Tree
 from lark.exceptions import UnexpectedCharacters, UnexpectedEOF, UnexpectedInput, UnexpectedToken
@@ -192,7 +193,7 @@ class _Reader:
         col = tok.column if tok is not None and tok.column is not None else len(self.text) + 1
         return SentenceError(what, text=self.text, line=self.line, column=int(col), source=self.source)
 
-    def attrs(self, t: Tree | None, *, root: bool) -> dict[str, tuple[object, Token]]:
+    def attrs(self, t: Tree[Token] | None, *, root: bool) -> dict[str, tuple[object, Token]]:
         out: dict[str, tuple[object, Token]] = {}
         if t is None:
             return out
@@ -224,7 +225,7 @@ class _Reader:
             out[key] = (value, key_tok)
         return out
 
-    def node_attrs(self, at: dict[str, tuple[object, Token]], where: Token, *, required: bool) -> dict:
+    def node_attrs(self, at: dict[str, tuple[object, Token]], where: Token, *, required: bool) -> dict[str, Any]:
         if required:
             missing = [k for k in ("A", "c", "z") if k not in at]
             if missing:
@@ -245,7 +246,7 @@ class _Reader:
             "status": at["s"][0] if "s" in at else None,
         }
 
-    def p_object(self, t: Tree, parent: int) -> Node:
+    def p_object(self, t: Tree[Token], parent: int) -> Node:
         kind_tok, id_tok, term, *rest = t.children
         assert isinstance(kind_tok, Token) and isinstance(id_tok, Token) and isinstance(term, Tree)
         if str(kind_tok) == ROOT_KIND:
@@ -270,10 +271,11 @@ class _Reader:
         attrs_t = next((c for c in rest if isinstance(c, Tree) and c.data == "attrs"), None)
         kids_t = next((c for c in rest if isinstance(c, Tree) and c.data == "children"), None)
         values = self.node_attrs(self.attrs(attrs_t, root=False), kind_tok, required=True)
-        kids = tuple(self.p_object(c, nid) for c in kids_t.children) if kids_t is not None else ()
+        kid_trees = [c for c in kids_t.children if isinstance(c, Tree)] if kids_t is not None else []
+        kids = tuple(self.p_object(c, nid) for c in kid_trees)
         return Node(id=nid, kind=str(kind_tok), depth_label=label, parts=parts, children=kids, **values)
 
-    def relations(self, t: Tree | None) -> tuple[Relation, ...]:
+    def relations(self, t: Tree[Token] | None) -> tuple[Relation, ...]:
         if t is None:
             return ()
         out = []
@@ -290,7 +292,7 @@ class _Reader:
             out.append(Relation(int(a_tok), str(rel_tok), int(b_tok)))
         return tuple(out)
 
-    def sentence(self, t: Tree) -> SceneTree:
+    def sentence(self, t: Tree[Token]) -> SceneTree:
         (bkg,) = t.children
         assert isinstance(bkg, Tree)
         bkg_tok = bkg.children[0]

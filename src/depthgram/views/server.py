@@ -546,7 +546,7 @@ def _same_origin(headers: Any) -> bool:
     origin = headers.get("origin")
     if origin is None:
         return True
-    return urlsplit(origin).netloc.lower() == str(headers.get("host", "")).lower()
+    return bool(urlsplit(origin).netloc.lower() == str(headers.get("host", "")).lower())
 
 
 class _AllowedHosts:
