@@ -79,14 +79,20 @@ def test_receding_object_has_no_ttc() -> None:
     assert m.v_radial == pytest.approx(500.0) and m.ttc is None
 
 
-def test_per_frame_units_without_timestamps() -> None:
-    tr = Tracker()
-    objs = approaching(-300.0, 1500.0, 6, noise=0.0)  # 10 mm per frame
+def test_frames_without_timestamps_take_the_configured_rate_or_warn() -> None:
+    objs = approaching(-300.0, 1500.0, 6, noise=0.0)  # 10 mm per frame at 30 frames/s
+    tr = Tracker(TrackerConfig(fps=15.0))  # the same frames at 15 frames/s: 150 mm/s
     for o in objs:
         m = tr.update([o], None, (W, H)).motions[3]
-    assert m.per_frame
-    assert m.v_radial == pytest.approx(-10.0)
-    assert m.ttc == pytest.approx(objs[-1].depth / 10.0)  # frames
+    assert m.v_radial == pytest.approx(-150.0)
+    assert m.ttc == pytest.approx(objs[-1].depth / 150.0)  # s
+    tr = Tracker()
+    with pytest.warns(UserWarning, match="--fps") as record:
+        for o in objs:
+            m = tr.update([o], None, (W, H)).motions[3]
+    assert len(record) == 1  # once, not every frame
+    assert m.v_radial == pytest.approx(-300.0)  # the nominal 30 frames/s
+    assert m.ttc == pytest.approx(objs[-1].depth / 300.0)
 
 
 def test_still_object_noise_does_not_explode() -> None:
@@ -287,7 +293,7 @@ def test_depth_jump_restarts_the_queue_instead_of_reading_speed() -> None:
     assert m.track_id == 1
     assert vs[5] is None  # one valid entry after the restart
     assert all(v == pytest.approx(0.0, abs=1e-9) for v in vs[6:])
-    off = Tracker(TrackerConfig(max_depth_jump=float("inf")))
+    off = Tracker(TrackerConfig(max_depth_jump_rate=float("inf")))
     for k in range(7):
         z = 2000.0 if k < 5 else 2300.0
         m = off.update([box(1, 320, 240, 80, 80, z)], k / FPS, (W, H)).motions[1]
