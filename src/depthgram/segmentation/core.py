@@ -45,7 +45,7 @@ from depthgram.segmentation.surfaces import (
     merge_openings,
     reattach,
 )
-from depthgram.segmentation.validate import check_depth
+from depthgram.segmentation.validate import check_depth_far
 
 __all__ = ["segment"]
 
@@ -127,7 +127,18 @@ def segment(
         overrides["sensor"] = sensor
         sensor = None
     cfg = (config or _DEFAULTS).with_overrides(**overrides)
-    depth, ok = check_depth(depth_mm, valid)
+    depth, ok, n_far = check_depth_far(depth_mm, valid, cfg.far_mm)
+    seg = _segment(depth, ok, intrinsics, cfg, sensor)
+    return replace(seg, beyond_far_px=n_far) if n_far else seg
+
+
+def _segment(
+    depth: NDArray[np.float32],
+    ok: NDArray[np.bool_],
+    intrinsics: Intrinsics | None,
+    cfg: SegmentConfig,
+    sensor: SensorModel | None,
+) -> Segmentation:
     if cfg.method == "region":
         return region_grow(depth, valid=ok, intrinsics=intrinsics, config=cfg)
     if not ok.any():
