@@ -464,8 +464,15 @@ def _add_support_planes(
         # the pixels it left facing (a table top seen at a slant), which also keeps it cheap
         search=classes == FACING,
     )
+    # a support runs away from the camera: its normal leans at least 90 - oblique_deg degrees off
+    # the optical axis toward the image's vertical (floor, table) or horizontal (wall) axis. A
+    # wall facing a camera that looks slightly down has a normal mostly along the axis, with
+    # more y than x in what remains: without this test it became a 2 m "floor" (Azure Kinect)
+    lean = math.sin(math.radians(cfg.oblique_deg))
     for plane in planes:
         n = plane_normal(plane.coef, cam)
+        if max(abs(n[0]), abs(n[1])) < lean:
+            continue
         classes[plane.inliers] = HORIZONTAL if abs(n[1]) >= abs(n[0]) else VERTICAL
 
 
