@@ -34,7 +34,7 @@ SIZES = ((176, 132), (640, 480), (1280, 720))
 SHARED = Path(__file__).resolve().parents[1].parent / "shared" / "data"
 REAL = ("nvlabs_ucn_demo_tabletop", "7scenes_redkitchen_seq", "azure_kinect_tof_mug_single")
 TARGET_FPS = {(176, 132): 2000.0, (640, 480): 300.0, (1280, 720): 100.0}
-METHODS = ("threshold", "slices", "region")
+METHODS = ("threshold", "slices", "surfaces", "region")
 
 
 @dataclass(frozen=True)
@@ -188,6 +188,76 @@ def threshold_stages(size: tuple[int, int], seed: int = 0) -> dict[str, float]:
     }
 
 
+#: Steps of the default method timed by :func:`surfaces_stages` (functions looked up in core).
+STAGES = (
+    "check_depth", "_orientation", "_add_support_planes", "_support_class", "frame_sensor",
+    "_surface_objects", "bin_index", "depth_bands", "concave_creases", "label_surfaces", "reattach",
+    "relabel", "label_stats_fused", "merge_openings", "make_objects", "add_labels", "_below_camera",
+    "front_faces", "side_faces", "slice_parts",
+)  # fmt: skip
+
+
+def surfaces_stages(size: tuple[int, int], runs: int = 20, frame: Any = None) -> tuple[float, dict[str, float], float]:
+    """Where the default method's time goes: (whole call ms, ms per step, ms inside numba kernels).
+
+    CPU time of this thread (``time.thread_time``), not wall time: on a shared machine a
+    descheduled thread does not count, so the steps add up the same whatever the load. Each
+    step's figure is its median over ``runs`` calls; steps nest (``_surface_objects`` holds
+    ``label_surfaces`` and the others listed after it up to ``make_objects``). The time inside
+    compiled kernels is that of every numba function called from Python in the segmentation
+    package; the rest of the call is numpy, OpenCV and the Python around them.
+    """
+    from numba.core.registry import CPUDispatcher
+
+    import depthgram.segmentation as pkg
+    import depthgram.segmentation.core as core
+    from depthgram.sensor import simulate
+
+    f = frame or next(iter(simulate("table", 1, size=size, seed=0))).frame
+    times: dict[str, list[float]] = {}
+    acc: dict[str, float] = {}
+    saved: list[tuple[Any, str, Any]] = []
+
+    def wrap(mod: Any, name: str, key: str) -> None:
+        fn = getattr(mod, name)
+
+        def timed(*a: Any, **k: Any) -> Any:
+            t0 = time.thread_time()
+            try:
+                return fn(*a, **k)
+            finally:
+                acc[key] = acc.get(key, 0.0) + time.thread_time() - t0
+
+        saved.append((mod, name, fn))
+        setattr(mod, name, timed)
+
+    run = partial(segment, f.depth, valid=f.valid, intrinsics=f.intrinsics)
+    run()  # every kernel compiled or loaded before its global is swapped for a timer
+    for name in STAGES:
+        if hasattr(core, name):
+            wrap(core, name, name)
+    mods = [m for n, m in sorted(sys.modules.items()) if n.startswith(pkg.__name__ + ".")]
+    for m in mods:
+        for name, obj in list(vars(m).items()):
+            if isinstance(obj, CPUDispatcher):
+                wrap(m, name, "[numba]")
+    whole = []
+    try:
+        for _ in range(runs):
+            acc.clear()
+            t0 = time.thread_time()
+            run()
+            whole.append(time.thread_time() - t0)
+            for k, v in acc.items():
+                times.setdefault(k, []).append(v)
+    finally:
+        for mod, name, fn in reversed(saved):
+            setattr(mod, name, fn)
+    med = {k: float(np.median(v)) * 1e3 for k, v in times.items()}
+    numba_ms = med.pop("[numba]", 0.0)
+    return float(np.median(whole)) * 1e3, med, numba_ms
+
+
 def _profile(size: tuple[int, int]) -> str:
     import cProfile
     import io
@@ -213,6 +283,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--profile", action="store_true", help="also profile slices at 640x480")
     p.add_argument("--stages", action="store_true", help="also the time of each step of thresholding")
+    p.add_argument("--surfaces-stages", action="store_true", help="also where the default method's time goes")
     p.add_argument("--sizes", default=",".join(f"{w}x{h}" for w, h in SIZES))
     p.add_argument("--quick", action="store_true", help="176x132 and 640x480 only")
     args = p.parse_args(argv)
@@ -229,6 +300,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         for size in sizes:
             st = threshold_stages((size[0], size[1]))
             print(f"thresholding steps at {size[0]}x{size[1]}, ms:", {k: round(v, 3) for k, v in st.items()})
+    if args.surfaces_stages:
+        for size in sizes:
+            whole, steps, numba_ms = surfaces_stages((size[0], size[1]))
+            print(f"default method at {size[0]}x{size[1]}: {whole:.2f} ms CPU, {numba_ms:.2f} ms in numba kernels")
+            for k, v in sorted(steps.items(), key=lambda kv: -kv[1]):
+                print(f"  {k:22} {v:7.3f} ms")
     if args.profile:
         print("labellers at 640x480, ms:", {k: round(v, 2) for k, v in compare_labellers().items()})
         print(_profile((640, 480)))

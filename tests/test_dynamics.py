@@ -86,7 +86,9 @@ def test_assignment_drops_forbidden_pairs() -> None:
         {"queue_length": 2.5},
         {"min_hits": 0},
         {"max_missed": -1},
-        {"max_center_frac": 0.0},
+        {"max_center_rate": 0.0},
+        {"fps": 0.0},
+        {"center_tau_s": -1.0},
         {"max_area_ratio": 1.0},
         {"max_area_jump": 0.5},
         {"min_iou": 1.5},
@@ -104,22 +106,24 @@ def test_config_rejects_absurd_values(kwargs: dict[str, object]) -> None:
 def test_config_defaults_follow_the_paper() -> None:
     c = TrackerConfig()
     assert c.queue_length >= 3  # "three or more will increase the robustness"
-    assert TrackerConfig(queue_length=2, max_depth_change=1).queue_length == 2  # TOML ints accepted
+    assert TrackerConfig(queue_length=2, max_depth_rate=1).queue_length == 2  # TOML ints accepted
 
 
 def test_match_cost_hand_computed_and_gates() -> None:
-    cfg = TrackerConfig()  # center gate 0.1 * diagonal, depth gate 20 %, weights 1, 1, 0.5, 1, 0.2
+    cfg = TrackerConfig()  # center gate 3/s * diagonal, depth gate 6/s, weights 1, 1, 0.5, 1, 0.2
 
-    def cost(obj_depth: float, missed: int) -> float:
+    def cost(obj_depth: float, elapsed: float, dt: float = 1 / 30) -> float:
         c = match_cost(
-            [[100.0, 100.0]], [1000.0], [400.0], [[90.0, 90.0, 110.0, 110.0]], [0], [missed],
+            [[100.0, 100.0]], [1000.0], [400.0], [[90.0, 90.0, 110.0, 110.0]], [0], [elapsed],
             [[110.0, 100.0]], [obj_depth], [400.0], [[100.0, 90.0, 120.0, 110.0]], [1],
-            800.0, cfg,
+            800.0, dt, cfg,
         )  # fmt: skip
         return float(c[0, 0])
 
-    # center 10/80, depth 50/200, area 0, 1 - IoU = 1 - 200/600, label mismatch 0.2
-    assert cost(1050.0, 0) == pytest.approx(10 / 80 + 50 / 200 + 2 / 3 + 0.2)
-    assert cost(1300.0, 0) == FORBIDDEN  # 30 % depth change in one frame
+    # at 30 frames/s: center 10/80, depth 50/200, area 0, 1 - IoU = 1 - 200/600, label mismatch 0.2
+    assert cost(1050.0, 1 / 30) == pytest.approx(10 / 80 + 50 / 200 + 2 / 3 + 0.2)
+    assert cost(1300.0, 1 / 30) == FORBIDDEN  # 30 % depth change in one frame
     # After one missed frame the depth gate doubles and the center gate grows by 25 %.
-    assert cost(1300.0, 1) == pytest.approx(10 / 100 + 300 / 400 + 2 / 3 + 0.2)
+    assert cost(1300.0, 2 / 30) == pytest.approx(10 / 100 + 300 / 400 + 2 / 3 + 0.2)
+    # At 10 frames/s the same 30 % in one frame step is within the gate (60 % per 0.1 s).
+    assert cost(1300.0, 0.1, 0.1) == pytest.approx(10 / 240 + 300 / 600 + 2 / 3 + 0.2)

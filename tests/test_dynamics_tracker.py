@@ -41,7 +41,7 @@ def test_approach_velocity_and_ttc_noise_free() -> None:
     objs = approaching(-600.0, 2000.0, 8, noise=0.0)
     for k, o in enumerate(objs):
         m = tr.update([o], k / FPS, (W, H)).motions[3]
-        assert m.track_id == 1 and m.status == "visible" and not m.per_frame
+        assert m.track_id == 1 and m.status == "visible" and m.fps_assumed is None
         if k == 0:
             assert m.v_radial is None and m.ttc is None
             continue
@@ -79,14 +79,21 @@ def test_receding_object_has_no_ttc() -> None:
     assert m.v_radial == pytest.approx(500.0) and m.ttc is None
 
 
-def test_per_frame_units_without_timestamps() -> None:
-    tr = Tracker()
-    objs = approaching(-300.0, 1500.0, 6, noise=0.0)  # 10 mm per frame
+def test_frames_without_timestamps_take_the_configured_rate_or_warn() -> None:
+    objs = approaching(-300.0, 1500.0, 6, noise=0.0)  # 10 mm per frame at 30 frames/s
+    tr = Tracker(TrackerConfig(fps=15.0))  # the same frames at 15 frames/s: 150 mm/s
     for o in objs:
         m = tr.update([o], None, (W, H)).motions[3]
-    assert m.per_frame
-    assert m.v_radial == pytest.approx(-10.0)
-    assert m.ttc == pytest.approx(objs[-1].depth / 10.0)  # frames
+    assert m.v_radial == pytest.approx(-150.0)
+    assert m.ttc == pytest.approx(objs[-1].depth / 150.0)  # s
+    tr = Tracker()
+    with pytest.warns(UserWarning, match="--fps") as record:
+        for o in objs:
+            m = tr.update([o], None, (W, H)).motions[3]
+    assert len(record) == 1  # once, not every frame
+    assert m.v_radial == pytest.approx(-300.0)  # the nominal 30 frames/s
+    assert m.fps_assumed == 30.0
+    assert m.ttc == pytest.approx(objs[-1].depth / 300.0)
 
 
 def test_still_object_noise_does_not_explode() -> None:
@@ -269,7 +276,7 @@ def test_motions_are_ordinary_motion_objects() -> None:
     tr = Tracker()
     for k, o in enumerate(approaching(-600.0, 2000.0, 3, noise=0.0)):
         m = tr.update([o], k / FPS, (W, H)).motions[3]
-    expected = Motion(track_id=1, v_radial=m.v_radial, ttc=m.ttc, status="visible", per_frame=False)
+    expected = Motion(track_id=1, v_radial=m.v_radial, ttc=m.ttc, status="visible")
     assert m == expected and repr(m) == repr(expected) and hash(m) == hash(expected)
     with pytest.raises(dataclasses.FrozenInstanceError):
         m.ttc = 0.0  # type: ignore[misc]
@@ -287,7 +294,7 @@ def test_depth_jump_restarts_the_queue_instead_of_reading_speed() -> None:
     assert m.track_id == 1
     assert vs[5] is None  # one valid entry after the restart
     assert all(v == pytest.approx(0.0, abs=1e-9) for v in vs[6:])
-    off = Tracker(TrackerConfig(max_depth_jump=float("inf")))
+    off = Tracker(TrackerConfig(max_depth_jump_rate=float("inf")))
     for k in range(7):
         z = 2000.0 if k < 5 else 2300.0
         m = off.update([box(1, 320, 240, 80, 80, z)], k / FPS, (W, H)).motions[1]

@@ -345,3 +345,102 @@ def test_histogram_smoothing_gives_scipys_numbers(sigma: float) -> None:
         padded = _smooth_padded(counts, _gaussian_weights(sigma))
         np.testing.assert_array_equal(padded[1:-1], gaussian_filter1d(counts.astype(np.float64), sigma))
         assert padded[0] == 0.0 and padded[-1] == 0.0
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_sensor_order_statistics_equal_numpy(seed: int) -> None:
+    # the estimator's median and 20th percentile replace np.median / np.percentile for speed:
+    # on quantised values (many ties, as a sensor's differences are) and on odd and even sizes
+    # they must give numpy's numbers exactly
+    from depthgram.segmentation.sensor import _median, _percentile20
+
+    rng = np.random.default_rng(seed)
+    for n in (20, 21, 22, 37, 400, 1001):
+        a = np.round(rng.gamma(2.0, 3.0, n) * (4 if seed % 2 else 1)) / (4 if seed % 2 else 1)
+        b = rng.normal(0, 5.0, n)
+        for x in (a, b, np.abs(b - np.median(b))):
+            assert _median(x) == np.median(x)
+            assert _percentile20(x) == np.percentile(x, 20)
+
+
+def _surfaces_reference(
+    depth: np.ndarray, state: np.ndarray, t0: float, t2: float, sl: float, bridge: int
+) -> np.ndarray:
+    # the definition: union of every row and column pair of active pixels with only holes (at
+    # most `bridge`) between them and continuous depths; components numbered in raster order
+    h, w = depth.shape
+    parent = list(range(h * w))
+
+    def root(i: int) -> int:
+        while parent[i] != i:
+            i = parent[i]
+        return i
+
+    def pair(a: tuple[int, int], b: tuple[int, int], gap: int) -> None:
+        za, zb = depth[a], depth[b]
+        zm = min(za, zb)
+        if abs(za - zb) <= t0 + t2 * zm * zm + gap * sl * zm:
+            ra, rb = root(a[0] * w + a[1]), root(b[0] * w + b[1])
+            parent[max(ra, rb)] = min(ra, rb)
+
+    for lines in (((y, x) for x in range(w)) for y in range(h)), (((y, x) for y in range(h)) for x in range(w)):
+        for line in lines:
+            last, k_last = None, -1
+            for k, p in enumerate(line):
+                if state[p] == ACTIVE:
+                    if last is not None and k - k_last - 1 <= bridge:
+                        pair(last, p, k - k_last)
+                    last, k_last = p, k
+                elif state[p] == BLOCK:
+                    last = None
+    out = np.zeros((h, w), np.int32)
+    ids: dict[int, int] = {}
+    for y in range(h):
+        for x in range(w):
+            if state[y, x] == ACTIVE:
+                out[y, x] = ids.setdefault(root(y * w + x), len(ids) + 1)
+    return out
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_label_surfaces_equals_pairwise_definition(seed: int) -> None:
+    from depthgram.segmentation.surfaces import label_surfaces
+
+    rng = np.random.default_rng(seed)
+    h, w = 23, 31
+    # steps between a few planes, noise, holes and blocking pixels
+    depth = (1000.0 + 300.0 * (rng.integers(0, 3, (h, w)) if seed % 2 else (np.arange(w) // 8)[None, :] % 3)
+             + rng.normal(0, 3.0, (h, w))).astype(np.float32)  # fmt: skip
+    state = np.full((h, w), ACTIVE, np.int8)
+    state[rng.random((h, w)) < 0.15] = HOLE
+    state[rng.random((h, w)) < 0.05] = BLOCK
+    args = (4.0, 1e-6, 0.002, 2)
+    labels, n = label_surfaces(depth, state, tol_0=args[0], tol_2=args[1], slope_per_px=args[2], bridge_px=args[3])
+    ref = _surfaces_reference(depth, state, *args)
+    assert n == ref.max() > 1
+    assert np.array_equal(labels, ref)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_creases_compiled_equal_numpy(seed: int) -> None:
+    # the compiled crease pass against the numpy one it replaced, on a tilted, bent surface with
+    # noise, steps and holes, under a structured-light, a ToF and an estimated sensor model
+    from depthgram.segmentation.sensor import PROFILES, SensorModel
+    from depthgram.segmentation.surfaces import _creases_numpy, concave_creases
+
+    rng = np.random.default_rng(seed)
+    h, w = 60, 80
+    x = np.arange(w)[None, :]
+    y = np.arange(h)[:, None]
+    depth = (900.0 + 4.0 * np.abs(x - 40) + 2.0 * y + 150.0 * (x > 60) + rng.normal(0, 1.5, (h, w))).astype(np.float32)
+    valid = rng.random((h, w)) > 0.1
+    depth[~valid] = 0.0
+    sensors = (PROFILES["kinect-v1"], PROFILES["tof"], SensorModel("auto", 1.3, 8e-7, 2.9, 2.1e-6))
+    for sensor in sensors:
+        for r in (2, 3):
+            k = 2 * (r // 2) + 1
+            geom = np.float32(r * math.tan(math.radians(10.0)) / 500.0)
+            ref = _creases_numpy(depth, valid, sensor, r, k, geom, np.float32(math.sqrt(6.0) / (0.7 * k)))
+            got = concave_creases(depth, valid, sensor, scale_px=r, min_angle_deg=10.0, focal_px=500.0)
+            assert ref.any()
+            assert np.array_equal(got, ref)

@@ -93,7 +93,9 @@ def process_recording(
     return summary
 
 
-def _guarded(spec: str, out_dir: str, config: Mapping[str, Any], opts: Mapping[str, Any], track: bool) -> dict:
+def _guarded(
+    spec: str, out_dir: str, config: Mapping[str, Any], opts: Mapping[str, Any], track: bool
+) -> dict[str, Any]:
     """process_recording that turns any failure into a record instead of losing the batch."""
     try:
         return {"ok": True, **process_recording(spec, out_dir, config, opts, track)}
@@ -161,16 +163,15 @@ def run_batch(
 
     args = [(inputs[i], str(root / names[i]), cfg, opts, track) for i in todo]
     if todo and scheduler:
-        try:
+        from depthgram._optional import needs_extra
+
+        with needs_extra("dask", "--scheduler (a Dask cluster)"):
             from distributed import Client
             from distributed import as_completed as dask_completed
-        except ImportError as exc:  # pragma: no cover - depends on the extra
-            from depthgram.errors import InputError
-
-            raise InputError("--scheduler needs Dask: pip install 'depthgram[dask]'") from exc
-        with Client(scheduler) as client:
+        # distributed has no type hints: its calls are untyped
+        with Client(scheduler) as client:  # type: ignore[no-untyped-call]
             futs = {client.submit(_guarded, *a, pure=False): i for a, i in zip(args, todo, strict=True)}
-            for fut in dask_completed(list(futs)):
+            for fut in dask_completed(list(futs)):  # type: ignore[no-untyped-call]
                 record(futs[fut], fut.result())
     elif todo:
         n = workers or os.cpu_count() or 1
@@ -179,7 +180,7 @@ def run_batch(
                 record(i, _guarded(*a))
         else:
             with ProcessPoolExecutor(max_workers=min(n, len(todo))) as pool:
-                pfuts: dict[Future[dict], int] = {
+                pfuts: dict[Future[dict[str, Any]], int] = {
                     pool.submit(_guarded, *a): i for a, i in zip(args, todo, strict=True)
                 }
                 for pf in as_completed(pfuts):

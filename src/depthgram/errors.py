@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-__all__ = ["DepthgramError", "InputError"]
+__all__ = ["DepthgramError", "InputError", "MissingExtraError"]
 
 
 class DepthgramError(Exception):
@@ -11,3 +11,7 @@ class DepthgramError(Exception):
 
 class InputError(DepthgramError, ValueError):
     """Bad input: unreadable or truncated file, wrong shape or dtype, empty folder, bad value."""
+
+
+class MissingExtraError(DepthgramError, ImportError):
+    """An optional dependency is not installed; the message names the extra that installs it."""

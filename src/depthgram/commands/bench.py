@@ -1,4 +1,8 @@
-"""depthgram bench: run the stage benchmarks in benchmarks/ and print their tables."""
+"""depthgram bench: run the stage benchmarks in benchmarks/ and print their tables.
+
+The benchmarks are scripts of the source checkout (they read ``../shared/data`` beside it and
+are not part of the wheel): from an installed depthgram, pass ``--dir CHECKOUT/benchmarks``.
+"""
 
 from __future__ import annotations
 
@@ -8,7 +12,7 @@ import sys
 from pathlib import Path
 
 NAME = "bench"
-HELP = "run the benchmarks (speed per stage and resolution, Table 1 accuracy, tracking, sound)"
+HELP = "run the benchmarks (speed per stage and resolution, Table 1 accuracy, tracking, sound, real accuracy)"
 
 #: Benchmark name -> script in benchmarks/ (each defines main(argv) -> int).
 SUITES = {
@@ -18,6 +22,7 @@ SUITES = {
     "scene": "bench_scene.py",
     "tracking": "bench_tracking.py",
     "sound": "bench_sound.py",
+    "real": "real.py",
 }
 
 
@@ -25,11 +30,15 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("suites", nargs="*", default=[], metavar="SUITE",
                    help=f"which benchmarks: {', '.join(SUITES)} (default: all)")
     p.add_argument("--quick", action="store_true", help="fewer repetitions (a rough figure in seconds)")
+    p.add_argument("--dir", default=None, metavar="BENCHMARKS",
+                   help="the benchmarks/ folder of a depthgram checkout (default: the one this depthgram runs from)")
 
 
-def benchmarks_dir() -> Path:
-    """The benchmarks/ folder of the source checkout."""
-    return Path(__file__).resolve().parents[3] / "benchmarks"
+def benchmarks_dir() -> Path | None:
+    """The benchmarks/ folder of the source checkout this depthgram runs from; None when installed."""
+    package = Path(__file__).resolve().parents[1]
+    folder = package.parents[1] / "benchmarks"  # src/depthgram -> the checkout's root
+    return folder if package.parent.name == "src" and folder.is_dir() else None
 
 
 def run(args: argparse.Namespace) -> int:
@@ -38,9 +47,15 @@ def run(args: argparse.Namespace) -> int:
     unknown = [s for s in args.suites if s not in SUITES]
     if unknown:
         raise InputError(f"unknown benchmark(s) {unknown}; choose from {', '.join(SUITES)}")
-    folder = benchmarks_dir()
+    folder = Path(args.dir) if args.dir else benchmarks_dir()
+    if folder is None:
+        raise InputError(
+            f"the benchmarks are scripts of a source checkout, not part of the installed package "
+            f"({Path(__file__).resolve().parents[1]}): clone depthgram and run `depthgram bench` there, "
+            "or pass --dir CHECKOUT/benchmarks"
+        )
     if not folder.is_dir():
-        raise InputError(f"benchmarks folder not found at {folder}: run from a source checkout of depthgram")
+        raise InputError(f"--dir {folder}: no such folder (expected a depthgram checkout's benchmarks/)")
     status = 0
     for name in args.suites or list(SUITES):
         path = folder / SUITES[name]

@@ -17,14 +17,18 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     import json
 
-    import soundfile as sf
-
+    from depthgram._optional import needs_extra
     from depthgram.act import plan_to_text
     from depthgram.errors import InputError
     from depthgram.pipeline import Pipeline
     from depthgram.sound import Sonifier
     from depthgram.sources import open_source
-    from depthgram.views.report import ReportWriter
+
+    with needs_extra("sound,report", "depthgram demo (sound and pictures)"):
+        import matplotlib  # noqa: F401  (the report's pictures; checked here, before any work)
+        import soundfile as sf
+
+        from depthgram.views.report import ReportWriter
 
     if not 2 <= args.frames <= 10000:
         raise InputError(f"--frames must be between 2 and 10000, got {args.frames}")

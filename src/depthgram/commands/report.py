@@ -17,8 +17,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from depthgram._optional import needs_extra
     from depthgram.errors import InputError
     from depthgram.views.report import ReportWriter
+
+    with needs_extra("report", "depthgram report (pictures)"):
+        import depthgram.views.pictures  # noqa: F401  (fails here, before any frame is processed)
 
     if args.pictures < 1:
         raise InputError(f"--pictures must be at least 1, got {args.pictures}")

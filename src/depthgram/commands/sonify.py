@@ -21,9 +21,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    import soundfile as sf
-
+    from depthgram._optional import needs_extra
     from depthgram.errors import InputError
+
+    with needs_extra("sound", "writing WAV files"):
+        import soundfile as sf
+
     from depthgram.sound import Sonifier, SoundMapping
 
     if not 4000 <= args.samplerate <= 192000:

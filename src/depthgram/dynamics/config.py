@@ -7,7 +7,10 @@ from dataclasses import dataclass
 
 from depthgram.errors import InputError
 
-__all__ = ["TrackerConfig"]
+__all__ = ["NOMINAL_FPS", "TrackerConfig"]
+
+#: Frame rate assumed for frames without timestamps when no rate is configured (frames/s).
+NOMINAL_FPS = 30.0
 
 
 def _check(ok: bool, what: str, value: object, expected: str) -> None:
@@ -30,13 +33,18 @@ class TrackerConfig:
         first miss, so a one-frame segmentation splinter never becomes an occluded track.
     max_missed : int
         Occlusion budget: frames a confirmed track survives without a detection.
-    max_center_frac : float
+    fps : float or None
+        Frame rate (frames/s) of frames that come without timestamps: frame k is at
+        ``k / fps`` s. None: such frames are taken at :data:`NOMINAL_FPS` with a warning, and
+        every Motion says which rate was assumed.
+    max_center_rate : float
         Gate on the distance between an object's center and the track's predicted center, as
-        a fraction of the image diagonal (dimensionless, per frame missed it grows by
-        ``gate_growth``).
-    max_depth_change : float
-        Gate on the relative change of mean depth, ``|z - z_track| / z_track`` per frame
-        (dimensionless); grows linearly with the frames missed.
+        a fraction of the image diagonal per second of the frame step (1/s; 3.0 is 0.1 of
+        the diagonal at 30 frames/s); it grows by ``gate_growth`` per second missed.
+    max_depth_rate : float
+        Gate on the relative change of depth from the track's prediction,
+        ``|z - z_pred| / z_pred``, per second since the track's last detection (1/s; 6.0 is
+        0.2 per frame at 30 frames/s).
     max_area_ratio : float
         Gate on ``max(a / a_track, a_track / a)`` of the pixel areas (dimensionless, > 1).
         Generous by default because entering objects and splits change area fast.
@@ -44,8 +52,9 @@ class TrackerConfig:
         Gate on the overlap of the object's bbox with the track's predicted bbox (0..1);
         0 disables it.
     gate_growth : float
-        Relative widening of the center gate per frame missed (dimensionless), so that an
-        object can reappear a little away from its predicted place after an occlusion.
+        Relative widening of the center gate per second missed (1/s; 7.5 is 25 % per frame
+        at 30 frames/s), so that an object can reappear a little away from its predicted
+        place after an occlusion.
     w_center, w_depth, w_area, w_iou, w_label : float
         Weights of the cost terms (dimensionless, >= 0): center distance over its gate,
         depth change over its gate, ``|log area ratio|`` over ``log max_area_ratio``,
@@ -53,50 +62,57 @@ class TrackerConfig:
     border_px : int
         An object whose bbox comes within this many pixels of the image border is at the
         border: ``entering`` when its area grows, ``leaving`` when it shrinks (px).
-    border_area_change : float
-        Relative change of the depth-compensated area ``A z^2`` between two frames above
-        which an object at the border is entering or leaving (dimensionless). The
-        compensation keeps an object that approaches at the border from reading as
-        entering.
+    border_area_rate : float
+        Relative change of the depth-compensated area ``A z^2`` per second above which an
+        object at the border is entering or leaving (1/s; 1.5 is 5 % per frame at 30
+        frames/s). The compensation keeps an object that approaches at the border from
+        reading as entering.
     max_area_jump : float
         A detection whose depth-compensated area differs from the track's running area by
         more than this factor is a split or merge by segmentation; its mean depth is biased
         and is kept out of the velocity fit (dimensionless, > 1).
-    max_depth_jump : float
-        A detection whose mean depth is further than this fraction of the predicted depth
-        from the track's predicted path (per frame since the last detection) restarts the
+    max_depth_jump_rate : float
+        A detection whose depth is further from the track's predicted path than this
+        fraction of the predicted depth per second since the last detection restarts the
         queue: the segment now covers another surface, and fitting across the jump would
-        read it as a fast motion (dimensionless, > 0; ``inf`` disables).
+        read it as a fast motion (1/s, > 0; 0.9 is 3 % per frame at 30 frames/s; ``inf``
+        disables). Only tracks that already have a velocity are tested: a new track's
+        prediction is "standing still", which a fast approach leaves on every frame.
     fit_border_entries : bool
         Whether mean depths of entering or leaving frames enter the velocity fit. Off by
         default: a partly visible object's mean depth is biased by what part is seen.
     min_speed : float
-        Radial speed below which an object is still and has no time to collision (mm/s,
-        used when timestamps are known).
-    min_speed_per_frame : float
-        The same threshold when no timestamps are known (mm/frame).
+        Radial speed below which an object is still and has no time to collision (mm/s).
+    center_tau_s : float
+        Time constant of the smoothing of each track's image velocity (s; 0.048 s weighs a
+        new reading by 0.5 at 30 frames/s).
+    area_tau_s : float
+        Time constant of the running depth-compensated area against which splits and merges
+        are judged (s; 0.094 s weighs a new reading by 0.3 at 30 frames/s).
     """
 
     queue_length: int = 4
     min_hits: int = 3
     max_missed: int = 10
-    max_center_frac: float = 0.1
-    max_depth_change: float = 0.2
+    fps: float | None = None
+    max_center_rate: float = 3.0
+    max_depth_rate: float = 6.0
     max_area_ratio: float = 6.0
     min_iou: float = 0.0
-    gate_growth: float = 0.25
+    gate_growth: float = 7.5
     w_center: float = 1.0
     w_depth: float = 1.0
     w_area: float = 0.5
     w_iou: float = 1.0
     w_label: float = 0.2
     border_px: int = 2
-    border_area_change: float = 0.05
+    border_area_rate: float = 1.5
     max_area_jump: float = 1.25
-    max_depth_jump: float = 0.03
+    max_depth_jump_rate: float = 0.9
     fit_border_entries: bool = False
     min_speed: float = 50.0
-    min_speed_per_frame: float = 2.0
+    center_tau_s: float = 0.048
+    area_tau_s: float = 0.094
 
     def __post_init__(self) -> None:
         for name in ("queue_length", "min_hits", "max_missed", "border_px"):
@@ -108,20 +124,27 @@ class TrackerConfig:
         _check(self.max_missed >= 0, "max_missed", self.max_missed, "0 or more frames")
         _check(self.border_px >= 0, "border_px", self.border_px, "0 or more pixels")
         floats = (
-            "max_center_frac", "max_depth_change", "max_area_ratio", "min_iou", "gate_growth",
-            "w_center", "w_depth", "w_area", "w_iou", "w_label", "border_area_change",
-            "max_area_jump", "min_speed", "min_speed_per_frame",
+            "max_center_rate", "max_depth_rate", "max_area_ratio", "min_iou", "gate_growth",
+            "w_center", "w_depth", "w_area", "w_iou", "w_label", "border_area_rate",
+            "max_area_jump", "min_speed", "center_tau_s", "area_tau_s",
         )  # fmt: skip
         for name in floats:
             v = getattr(self, name)
             ok = isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v) and v >= 0
             _check(ok, name, v, "a finite number >= 0")
-        _check(0 < self.max_center_frac <= 2, "max_center_frac", self.max_center_frac, "in (0, 2]")
-        _check(self.max_depth_change > 0, "max_depth_change", self.max_depth_change, "> 0")
+        _check(self.max_center_rate > 0, "max_center_rate", self.max_center_rate, "> 0 (1/s)")
+        _check(self.max_depth_rate > 0, "max_depth_rate", self.max_depth_rate, "> 0 (1/s)")
+        _check(self.center_tau_s > 0, "center_tau_s", self.center_tau_s, "> 0 s")
+        _check(self.area_tau_s > 0, "area_tau_s", self.area_tau_s, "> 0 s")
+        f = self.fps
+        ok = f is None or (
+            isinstance(f, int | float) and not isinstance(f, bool) and math.isfinite(f) and 0 < f <= 100_000
+        )
+        _check(ok, "fps", f, "None or a frame rate in (0, 100000] frames/s")
         _check(self.max_area_ratio > 1, "max_area_ratio", self.max_area_ratio, "> 1")
-        j = self.max_depth_jump
+        j = self.max_depth_jump_rate
         ok = isinstance(j, int | float) and not isinstance(j, bool) and not math.isnan(j) and j > 0
-        _check(ok, "max_depth_jump", j, "a number > 0 (inf disables)")
+        _check(ok, "max_depth_jump_rate", j, "a number > 0 (1/s; inf disables)")
         _check(self.max_area_jump > 1, "max_area_jump", self.max_area_jump, "> 1")
         _check(self.min_iou <= 1, "min_iou", self.min_iou, "in [0, 1]")
         _check(isinstance(self.fit_border_entries, bool), "fit_border_entries", self.fit_border_entries, "a bool")

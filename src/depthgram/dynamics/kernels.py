@@ -75,28 +75,32 @@ def cost_kernel(
     ta: NDArray[np.float64],
     tb: NDArray[np.float64],
     tl: NDArray[np.float64],
-    tm: NDArray[np.float64],
+    te: NDArray[np.float64],
     oc: NDArray[np.float64],
     oz: NDArray[np.float64],
     oa: NDArray[np.float64],
     ob: NDArray[np.float64],
     ol: NDArray[np.float64],
     diagonal_px: float,
+    dt: float,
     params: NDArray[np.float64],
 ) -> NDArray[np.float64]:
     """Compiled body of :func:`match_cost`; ``params`` from :func:`cost_params`.
+
+    ``te`` is each track's time since its last detection and ``dt`` this frame's step (s):
+    the gates are rates, so they admit the same physical motion at any frame rate.
 
     Hand-written loops because the tracker calls it every frame on matrices of a few dozen
     entries, where numpy's per-call overhead of some twenty array expressions would cost
     more than the arithmetic.
     """
-    center_frac, growth, dz_max, log_ratio, min_iou, w_c, w_z, w_a, w_iou, w_label = params
+    center_rate, growth, dz_rate, log_ratio, min_iou, w_c, w_z, w_a, w_iou, w_label = params
     nt = tc.shape[0]
     no = oc.shape[0]
     cost = np.empty((nt, no))
     for i in range(nt):
-        r = center_frac * diagonal_px * (1.0 + growth * tm[i])
-        zg = tz[i] * dz_max * (1.0 + tm[i])
+        r = center_rate * dt * diagonal_px * (1.0 + growth * max(te[i] - dt, 0.0))
+        zg = tz[i] * dz_rate * max(te[i], dt)
         area_t = max(ta[i], 1.0)
         bt_area = (tb[i, 2] - tb[i, 0]) * (tb[i, 3] - tb[i, 1])
         for j in range(no):
@@ -129,9 +133,10 @@ def cost_kernel(
 
 
 # Columns of the track state array.
+# VX, VY in px/s; TSEEN the time of the last detection (s).
 ID, HITS, MISSED, STATUS, CX, CY, VX, VY, X0, Y0, X1, Y1 = range(12)
-DEPTH, ZFIT, AREA, MAREA, LABEL, V, READ = range(12, 19)
-NCOL = 19
+DEPTH, ZFIT, AREA, MAREA, LABEL, V, READ, TSEEN = range(12, 20)
+NCOL = 20
 # Columns of the per-object feature array; F_READ says how its depth was read (0: mean depth,
 # 1: nearest part of a compound), see depthgram.dynamics.tracker.track_depth.
 F_CX, F_CY, F_Z, F_AREA, F_LABEL, F_X0, F_BEHIND, F_READ = 0, 1, 2, 3, 4, 5, 9, 10
@@ -158,16 +163,19 @@ def mark_behind(f: NDArray[np.float64]) -> None:
 
 @njit(cache=True)
 def predict_cost(
-    s: NDArray[np.float64], n: int, f: NDArray[np.float64], diagonal_px: float, vscale: float, p: NDArray[np.float64]
+    s: NDArray[np.float64], n: int, f: NDArray[np.float64], diagonal_px: float, t_now: float, dt: float,
+    p: NDArray[np.float64],
 ) -> NDArray[np.float64]:
-    """Predict each track forward by the frames since its last detection, then cost all pairs."""
+    """Predict each track forward by the time since its last detection, then cost all pairs."""
     pc = np.empty((n, 2))
     pb = np.empty((n, 4))
     pz = np.empty(n)
+    te = np.empty(n)
     for i in range(n):
-        steps = s[i, MISSED] + 1.0
-        dx = s[i, VX] * steps
-        dy = s[i, VY] * steps
+        el = t_now - s[i, TSEEN]
+        te[i] = el
+        dx = s[i, VX] * el
+        dy = s[i, VY] * el
         pc[i, 0] = s[i, CX] + dx
         pc[i, 1] = s[i, CY] + dy
         pb[i, 0] = s[i, X0] + dx
@@ -181,10 +189,10 @@ def predict_cost(
             pz[i] = s[i, DEPTH]
         else:
             v = s[i, V] if np.isfinite(s[i, V]) else 0.0
-            pz[i] = s[i, ZFIT] + v * vscale * steps
+            pz[i] = s[i, ZFIT] + v * el
     return cost_kernel(
-        pc, pz, s[:n, AREA], pb, s[:n, LABEL], s[:n, MISSED],
-        f[:, 0:2], f[:, F_Z], f[:, F_AREA], f[:, F_X0 : F_X0 + 4], f[:, F_LABEL], diagonal_px, p,
+        pc, pz, s[:n, AREA], pb, s[:n, LABEL], te,
+        f[:, 0:2], f[:, F_Z], f[:, F_AREA], f[:, F_X0 : F_X0 + 4], f[:, F_LABEL], diagonal_px, dt, p,
     )  # fmt: skip
 
 
@@ -210,7 +218,7 @@ def step(
     cols: NDArray[np.intp],
     cost: NDArray[np.float64],
     t_now: float,
-    vscale: float,
+    dt: float,
     width: float,
     height: float,
     first: bool,
@@ -221,13 +229,18 @@ def step(
 
     This is the project's own bookkeeping (queues, statuses, split/merge and border tests),
     hand-written in one compiled pass because it runs every frame on a few dozen rows.
-    ``p`` holds border_px, border_area_change, max_area_jump, fit_border_entries,
-    min_speed (in v's unit), min_hits, max_missed, max_depth_jump.
+    ``p`` holds border_px, border_area_rate (1/s), max_area_jump, fit_border_entries,
+    min_speed (mm/s), min_hits, max_missed, max_depth_jump_rate (1/s), center_tau_s,
+    area_tau_s. ``dt`` is this frame's time step (s): every rate and time constant is
+    scaled by it, so the tracker behaves alike at any frame rate.
 
     Returns the track row of each object, the reported velocity and time to collision of
     every row, which rows die this frame, and the number of new tracks.
     """
-    border, thr, max_jump, fit_border, min_speed, min_hits, max_missed, depth_jump = p
+    border, area_rate, max_jump, fit_border, min_speed, min_hits, max_missed, jump_rate, c_tau, a_tau = p
+    # Exponential smoothing with a time constant: the same weight per second at any rate.
+    c_gain = 1.0 - np.exp(-dt / c_tau)
+    a_gain = 1.0 - np.exp(-dt / a_tau)
     m = f.shape[0]
     nq = qt.shape[1]
     # Every queue advances one slot; detections fill the newest one below.
@@ -246,16 +259,20 @@ def step(
         if cost[i, c] >= FORBIDDEN:  # the assignment had to pair it; the gates say no
             continue
         obj_row[c] = i
-        steps = s[i, MISSED]
-        v_old = s[i, V] if np.isfinite(s[i, V]) else 0.0
-        p_depth = s[i, ZFIT] + v_old * vscale * steps
+        el = t_now - s[i, TSEEN]  # time since the last detection (s)
+        thr = area_rate * el
+        has_v = np.isfinite(s[i, V])
+        v_old = s[i, V] if has_v else 0.0
+        p_depth = s[i, ZFIT] + v_old * el
         zo = f[c, F_Z]
         z_ok = np.isfinite(zo) and zo > 0
         z_new = zo if z_ok else s[i, DEPTH]
         # Areas compared at the track's fitted depth, not this frame's mean depth: the area
         # change of an approaching object is then not read as entering, and the biased mean
         # depth of a partly visible object does not hide its area change either.
-        z_ref = p_depth if np.isfinite(p_depth) else z_new
+        # Without a velocity the prediction is "still", wrong for anything moving fast: the
+        # area is then compared at this frame's depth.
+        z_ref = p_depth if (has_v and np.isfinite(p_depth)) else z_new
         z_ref_of[i] = z_ref
         area = f[c, F_AREA]
         ma_new = area * z_ref * z_ref
@@ -286,7 +303,10 @@ def step(
         # of the visible part is biased, so the entry stays out of the fit (paper, case b).
         hidden = f[c, F_BEHIND] > 0 and abs(change) > thr
         valid = z_ok and not (jump > max_jump) and (fit_border > 0 or status == VISIBLE) and not hidden
-        restart = valid and np.isfinite(p_depth) and abs(zo - p_depth) > depth_jump * p_depth * steps
+        # Only a track with a velocity has a path to leave: a new track's prediction is "still",
+        # and an object closing fast would otherwise restart its queue on every frame and never
+        # get a velocity (issue 13: 0 of 21 frames at 1.5 m/s, 30 frames/s).
+        restart = valid and has_v and np.isfinite(p_depth) and abs(zo - p_depth) > jump_rate * p_depth * el
         # The segment turned from a plain object into a compound or back (an oblique side
         # came into view or left it): its depth is now read another way (nearest part against
         # mean), so earlier entries measure another surface. Measured on `crossing`: the cart
@@ -302,16 +322,16 @@ def step(
         if valid:
             qz[i, nq - 1] = zo
             s[i, READ] = f[c, F_READ]
-        dcx = (f[c, F_CX] - s[i, CX]) / steps
-        dcy = (f[c, F_CY] - s[i, CY]) / steps
+        dcx = (f[c, F_CX] - s[i, CX]) / el
+        dcy = (f[c, F_CY] - s[i, CY]) / el
         # While the visible area changes (partial occlusion, entering, leaving, a split) the
         # center of the visible part moves for reasons other than motion: keep the earlier
         # image velocity then, so that an object passing behind another is looked for where
         # it really goes.
         if abs(change) <= thr:
             if s[i, HITS] >= 2:
-                s[i, VX] = 0.5 * s[i, VX] + 0.5 * dcx
-                s[i, VY] = 0.5 * s[i, VY] + 0.5 * dcy
+                s[i, VX] += c_gain * (dcx - s[i, VX])
+                s[i, VY] += c_gain * (dcy - s[i, VY])
             else:
                 s[i, VX] = dcx
                 s[i, VY] = dcy
@@ -326,13 +346,14 @@ def step(
         if status != VISIBLE or not ma_run > 0:
             s[i, MAREA] = ma_new
         else:
-            s[i, MAREA] = 0.7 * ma_run + 0.3 * ma_new
+            s[i, MAREA] = ma_run + a_gain * (ma_new - ma_run)
         if restart:  # sizes are compared at the new depth from now on
             s[i, MAREA] = area * zo * zo
         s[i, LABEL] = f[c, F_LABEL]
         s[i, STATUS] = status
         s[i, HITS] += 1.0
         s[i, MISSED] = 0.0
+        s[i, TSEEN] = t_now
     # Unmatched objects start tracks.
     nn = n
     for c in range(m):
@@ -363,6 +384,7 @@ def step(
         s[i, LABEL] = f[c, F_LABEL]
         s[i, V] = np.nan
         s[i, READ] = f[c, F_READ]
+        s[i, TSEEN] = t_now
         for j in range(nq):
             qt[i, j] = np.nan
             qz[i, j] = np.nan
@@ -387,7 +409,7 @@ def step(
         else:
             # Occluded tracks coast on their held velocity.
             vo = s[i, V]
-            z_pred = s[i, ZFIT] + (vo if np.isfinite(vo) else 0.0) * vscale * s[i, MISSED]
+            z_pred = s[i, ZFIT] + (vo if np.isfinite(vo) else 0.0) * (t_now - s[i, TSEEN])
             s[i, STATUS] = OCCLUDED
             dead[i] = s[i, HITS] < min_hits or s[i, MISSED] > max_missed
         v_out[i] = vo

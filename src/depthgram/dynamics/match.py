@@ -48,7 +48,7 @@ def bbox_iou(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.float
 def cost_params(config: TrackerConfig) -> NDArray[np.float64]:
     """The gates and weights of ``config`` in the order :func:`cost_kernel` reads them."""
     c = config
-    gates = [c.max_center_frac, c.gate_growth, c.max_depth_change, math.log(c.max_area_ratio), c.min_iou]
+    gates = [c.max_center_rate, c.gate_growth, c.max_depth_rate, math.log(c.max_area_ratio), c.min_iou]
     weights = [c.w_center, c.w_depth, c.w_area, c.w_iou, c.w_label]
     return np.array(gates + weights, dtype=np.float64)
 
@@ -59,13 +59,14 @@ def match_cost(
     track_area: ArrayLike,
     track_bbox: ArrayLike,
     track_label: ArrayLike,
-    track_missed: ArrayLike,
+    track_elapsed_s: ArrayLike,
     obj_center: ArrayLike,
     obj_depth: ArrayLike,
     obj_area: ArrayLike,
     obj_bbox: ArrayLike,
     obj_label: ArrayLike,
     diagonal_px: float,
+    dt_s: float,
     config: TrackerConfig,
 ) -> NDArray[np.float64]:
     """Cost of matching each track (predicted state) to each object, gates applied.
@@ -73,8 +74,10 @@ def match_cost(
     The cost sums, with the weights of ``config``: center distance over the center gate,
     depth change over the depth gate, ``|log area ratio|`` over ``log max_area_ratio``,
     ``1 - IoU`` of the boxes, and ``w_label`` when the depth labels differ. A pair is
-    allowed only when each of the first three is <= 1 and IoU >= ``min_iou``; the center
-    and depth gates widen with the frames a track has missed.
+    allowed only when each of the first three is <= 1 and IoU >= ``min_iou``. The gates are
+    rates: the center gate is ``max_center_rate * dt_s`` of the diagonal, widened by
+    ``gate_growth`` per second missed, the depth gate ``max_depth_rate`` times the time since
+    the track's last detection, so that the same physical motion passes at any frame rate.
 
     Parameters
     ----------
@@ -88,12 +91,14 @@ def match_cost(
         Predicted bbox (px, half-open).
     track_label : array_like, shape (T,)
         Last depth label.
-    track_missed : array_like, shape (T,)
-        Frames missed before this one.
+    track_elapsed_s : array_like, shape (T,)
+        Time since each track's last detection (s): ``dt_s`` for a track seen last frame.
     obj_center, obj_depth, obj_area, obj_bbox, obj_label : array_like
         The same attributes of this frame's M objects.
     diagonal_px : float
         Image diagonal (px), the scale of the center gate.
+    dt_s : float
+        This frame's time step (s).
     config : TrackerConfig
         Gates and weights.
 
@@ -108,11 +113,11 @@ def match_cost(
 
     nt = np.asarray(track_depth).size
     no = np.asarray(obj_depth).size
-    return cost_kernel(  # type: ignore[no-any-return]
+    return cost_kernel(
         f(track_center, (nt, 2)), f(track_depth, (nt,)), f(track_area, (nt,)), f(track_bbox, (nt, 4)),
-        f(track_label, (nt,)), f(track_missed, (nt,)),
+        f(track_label, (nt,)), f(track_elapsed_s, (nt,)),
         f(obj_center, (no, 2)), f(obj_depth, (no,)), f(obj_area, (no,)), f(obj_bbox, (no, 4)),
-        f(obj_label, (no,)), float(diagonal_px), cost_params(config),
+        f(obj_label, (no,)), float(diagonal_px), float(dt_s), cost_params(config),
     )  # fmt: skip
 
 

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import itertools
 import math
+import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -17,7 +18,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.optimize import linear_sum_assignment
 
-from depthgram.dynamics.config import TrackerConfig
+from depthgram.dynamics.config import NOMINAL_FPS, TrackerConfig
 from depthgram.dynamics.kernels import (
     F_READ,
     HITS,
@@ -63,8 +64,8 @@ class Track:
     motion : Motion
         The track's motion as of this frame (status ``occluded`` while missed).
     queue : tuple of (float, float or None)
-        The last N queue entries, oldest first: (time in s, or frame number when no
-        timestamps are known; mean depth in mm, or None for an invalid entry).
+        The last N queue entries, oldest first: (time in s, from the frame rate when the
+        frames have no timestamps; depth in mm, or None for an invalid entry).
     """
 
     id: int
@@ -146,14 +147,14 @@ def _features(objects: Sequence[SceneObject]) -> NDArray[np.float64]:
 _NO_PAIRS = np.zeros(0, np.intp)
 
 
-def _motion(track_id: int, v: float, ttc: float, status: str, per_frame: bool) -> Motion:
+def _motion(track_id: int, v: float, ttc: float, status: str, fps_assumed: float | None) -> Motion:
     """A Motion; NaN velocity or time to collision become None."""
     return Motion(
         track_id=track_id,
         v_radial=None if math.isnan(v) else v,
         ttc=None if math.isnan(ttc) else ttc,
         status=status,
-        per_frame=per_frame,
+        fps_assumed=fps_assumed,
     )
 
 
@@ -183,8 +184,8 @@ class Tracker:
         c = self.config
         self._cost_params = cost_params(c)
         self._step_params = np.array(
-            [c.border_px, c.border_area_change, c.max_area_jump, float(c.fit_border_entries), 0.0,
-             c.min_hits, c.max_missed, c.max_depth_jump],
+            [c.border_px, c.border_area_rate, c.max_area_jump, float(c.fit_border_entries), c.min_speed,
+             c.min_hits, c.max_missed, c.max_depth_jump_rate, c.center_tau_s, c.area_tau_s],
             dtype=np.float64,
         )  # fmt: skip
         self.reset()
@@ -196,7 +197,8 @@ class Tracker:
         self._frame = -1
         self._t_last: float | None = None
         self._per_frame: bool | None = None
-        self._dt = 1.0  # running frame period (s, or 1 frame), to predict depth per frame
+        self._dt = 1.0 / NOMINAL_FPS  # this frame's time step (s)
+        self._fps_assumed: float | None = None
         self._n = 0
         self._s = np.zeros((16, NCOL))
         self._qt = np.zeros((16, n))
@@ -242,7 +244,19 @@ class Tracker:
                 "(call reset() between sequences)"
             )
         if time_s is None:
-            return float(self._frame)
+            fps = self.config.fps
+            if fps is None:
+                if self._fps_assumed is None:
+                    warnings.warn(
+                        f"tracker: the frames have no timestamps and no frame rate is set; assuming "
+                        f"{NOMINAL_FPS:g} frames/s for velocities (mm/s) and times to collision (s). "
+                        "Give the real rate with --fps (or [tracker] fps in the config).",
+                        UserWarning,
+                        stacklevel=3,
+                    )
+                fps = NOMINAL_FPS
+                self._fps_assumed = fps
+            time_s = self._frame / fps
         t = float(time_s)
         if not math.isfinite(t):
             raise InputError(f"tracker frame {self._frame}: time_s must be a finite number of seconds, got {t}")
@@ -252,8 +266,7 @@ class Tracker:
                     f"tracker frame {self._frame}: time_s {t} s is not after the previous frame's "
                     f"{self._t_last} s; timestamps must increase (call reset() between sequences)"
                 )
-            dt = t - self._t_last
-            self._dt = dt if self._frame == 1 else 0.8 * self._dt + 0.2 * dt
+            self._dt = t - self._t_last
         self._t_last = t
         return t
 
@@ -267,8 +280,9 @@ class Tracker:
         objects : sequence of SceneObject
             This frame's objects (top level; parts of compounds are not tracked apart).
         time_s : float or None
-            Frame timestamp (s). None for every frame of a sequence gives velocities in
-            mm/frame and times to collision in frames.
+            Frame timestamp (s). None for every frame of a sequence: frame k is at
+            ``k / config.fps``, or at the nominal 30 frames/s with one warning when no rate is
+            configured (each Motion then says which rate it assumed).
         frame_size : tuple of int
             (width, height) of the image (px), as :attr:`depthgram.frame.Frame.size`.
 
@@ -293,7 +307,7 @@ class Tracker:
             ids = sorted(o.id for o in objects)
             raise InputError(f"tracker frame {self._frame + 1}: duplicate SceneObject ids {ids}")
         t_now = self._clock(time_s)
-        per_frame = bool(self._per_frame)
+        fps_assumed = self._fps_assumed
         f = _features(objects)
         n, m = self._n, len(objects)
         if n + m > len(self._s):
@@ -302,16 +316,14 @@ class Tracker:
             self._qt = np.concatenate([self._qt, np.zeros((grow - len(self._qt), self._qt.shape[1]))])
             self._qz = np.concatenate([self._qz, np.zeros((grow - len(self._qz), self._qz.shape[1]))])
         s = self._s
-        vscale = 1.0 if per_frame else self._dt
-        cost = predict_cost(s, n, f, math.hypot(width, height), vscale, self._cost_params)
+        cost = predict_cost(s, n, f, math.hypot(width, height), t_now, self._dt, self._cost_params)
         if n and m:
             rows, cols = linear_sum_assignment(cost)
         else:
             rows = cols = _NO_PAIRS
         params = self._step_params
-        params[4] = cfg.min_speed_per_frame if per_frame else cfg.min_speed
         obj_row, v_out, ttc, dead, k = step(
-            s, self._qt, self._qz, n, f, rows, cols, cost, t_now, vscale,
+            s, self._qt, self._qz, n, f, rows, cols, cost, t_now, self._dt,
             float(width), float(height), self._frame == 0, self._next_id, params,
         )  # fmt: skip
         self._n = n + k
@@ -327,13 +339,13 @@ class Tracker:
         ttc_l = ttc.tolist()
         motions: dict[int, Motion] = {}
         for o, i in zip(objects, obj_row.tolist(), strict=True):
-            mo = _motion(ids_l[i], v_l[i], ttc_l[i], STATUSES[st_l[i]], per_frame)
+            mo = _motion(ids_l[i], v_l[i], ttc_l[i], STATUSES[st_l[i]], fps_assumed)
             motions[o.id] = mo
             self._motion[i] = mo
             self._last[i] = o
         missed = [i for i in range(n) if st_l[i] == OCCLUDED]
         for i in missed:
-            self._motion[i] = _motion(ids_l[i], v_l[i], ttc_l[i], "occluded", per_frame)
+            self._motion[i] = _motion(ids_l[i], v_l[i], ttc_l[i], "occluded", fps_assumed)
         min_hits = cfg.min_hits
         hits = s[: self._n, HITS]
         ended = tuple(self._snapshot(i) for i in missed if dead[i] and hits[i] >= min_hits)

@@ -13,6 +13,7 @@ import math
 from collections.abc import Iterable
 from functools import lru_cache
 from importlib import resources
+from typing import Any
 
 from lark import Lark, Token, Tree
 from lark.exceptions import UnexpectedCharacters, UnexpectedEOF, UnexpectedInput, UnexpectedToken
@@ -36,6 +37,8 @@ ROOT_KIND = "Bkg"
 RELATIONS = ("left_of", "right_of", "above", "below", "in_front_of", "occludes")
 #: Depth label of the root when none is written (the background is no depth band).
 ROOT_LABEL = -1
+#: Units written after the motion attributes: radial velocity in mm/s, time to collision in s.
+UNITS = {"v": "mm/s", "ttc": "s"}
 
 
 class SentenceError(InputError):
@@ -81,9 +84,9 @@ def _attrs(n: Node, precision: int, root: bool) -> str:
     if root and n.depth_label != ROOT_LABEL:
         parts.append(f"L={int(n.depth_label)}")
     if n.v_radial is not None:
-        parts.append(f"v={_num(n.v_radial, precision)}")
+        parts.append(f"v={_num(n.v_radial, precision)}{UNITS['v']}")
     if n.ttc is not None:
-        parts.append(f"ttc={_num(n.ttc, precision)}")
+        parts.append(f"ttc={_num(n.ttc, precision)}{UNITS['ttc']}")
     if n.status is not None:
         parts.append(f"s={n.status}")
     return "[" + ",".join(parts) + "]"
@@ -117,8 +120,8 @@ def to_sentence(tree: SceneTree, *, precision: int = 1) -> str:
         The tree; every node's id, kind, label, parts, area, center, depth, v_radial, ttc and
         status are written, and the relations.
     precision : int
-        Decimals written for center (px), depth (mm), v_radial (mm/s or mm/frame) and ttc
-        (s or frames). Area is an integer pixel count.
+        Decimals written for center (px), depth (mm), v_radial (written ``v=-512.0mm/s``)
+        and ttc (written ``ttc=2.9s``). Area is an integer pixel count.
 
     Returns
     -------
@@ -192,7 +195,7 @@ class _Reader:
         col = tok.column if tok is not None and tok.column is not None else len(self.text) + 1
         return SentenceError(what, text=self.text, line=self.line, column=int(col), source=self.source)
 
-    def attrs(self, t: Tree | None, *, root: bool) -> dict[str, tuple[object, Token]]:
+    def attrs(self, t: Tree[Token] | None, *, root: bool) -> dict[str, tuple[object, Token]]:
         out: dict[str, tuple[object, Token]] = {}
         if t is None:
             return out
@@ -213,6 +216,11 @@ class _Reader:
                 value: object = (float(toks[0]), float(toks[1]))
             elif val.data == "number":
                 value = float(toks[0])
+                if len(toks) > 1:
+                    unit = str(toks[1])
+                    if UNITS.get(key) != unit:
+                        want_unit = f"in {UNITS[key]}" if key in UNITS else "without a unit"
+                        raise self.fail(f"attribute {key!r} is written {want_unit}, not {unit!r}", toks[1])
             else:
                 value = str(toks[0])
             want = {"c": "pair", "s": "word"}.get(key, "number")
@@ -224,7 +232,7 @@ class _Reader:
             out[key] = (value, key_tok)
         return out
 
-    def node_attrs(self, at: dict[str, tuple[object, Token]], where: Token, *, required: bool) -> dict:
+    def node_attrs(self, at: dict[str, tuple[object, Token]], where: Token, *, required: bool) -> dict[str, Any]:
         if required:
             missing = [k for k in ("A", "c", "z") if k not in at]
             if missing:
@@ -245,7 +253,7 @@ class _Reader:
             "status": at["s"][0] if "s" in at else None,
         }
 
-    def p_object(self, t: Tree, parent: int) -> Node:
+    def p_object(self, t: Tree[Token], parent: int) -> Node:
         kind_tok, id_tok, term, *rest = t.children
         assert isinstance(kind_tok, Token) and isinstance(id_tok, Token) and isinstance(term, Tree)
         if str(kind_tok) == ROOT_KIND:
@@ -270,10 +278,11 @@ class _Reader:
         attrs_t = next((c for c in rest if isinstance(c, Tree) and c.data == "attrs"), None)
         kids_t = next((c for c in rest if isinstance(c, Tree) and c.data == "children"), None)
         values = self.node_attrs(self.attrs(attrs_t, root=False), kind_tok, required=True)
-        kids = tuple(self.p_object(c, nid) for c in kids_t.children) if kids_t is not None else ()
+        kid_trees = [c for c in kids_t.children if isinstance(c, Tree)] if kids_t is not None else []
+        kids = tuple(self.p_object(c, nid) for c in kid_trees)
         return Node(id=nid, kind=str(kind_tok), depth_label=label, parts=parts, children=kids, **values)
 
-    def relations(self, t: Tree | None) -> tuple[Relation, ...]:
+    def relations(self, t: Tree[Token] | None) -> tuple[Relation, ...]:
         if t is None:
             return ()
         out = []
@@ -290,7 +299,7 @@ class _Reader:
             out.append(Relation(int(a_tok), str(rel_tok), int(b_tok)))
         return tuple(out)
 
-    def sentence(self, t: Tree) -> SceneTree:
+    def sentence(self, t: Tree[Token]) -> SceneTree:
         (bkg,) = t.children
         assert isinstance(bkg, Tree)
         bkg_tok = bkg.children[0]

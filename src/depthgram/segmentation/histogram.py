@@ -139,7 +139,7 @@ def _gaussian_weights(sigma: float) -> NDArray[np.float64]:
     radius = int(4.0 * sigma + 0.5)  # gaussian_filter1d's default truncate=4.0
     impulse = np.zeros(2 * radius + 1)
     impulse[radius] = 1.0
-    weights = gaussian_filter1d(impulse, sigma, mode="constant")
+    weights: NDArray[np.float64] = gaussian_filter1d(impulse, sigma, mode="constant")
     weights.setflags(write=False)
     return weights
 

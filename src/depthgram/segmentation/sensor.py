@@ -160,29 +160,76 @@ def estimate_sensor(
     # depth ranges of equal pixel count, so each fit point has the same weight of evidence
     n_bins = int(min(12, max(2, z.size // 400)))
     order = np.argsort(z)
-    zs, d1s, d2s = z[order], d1[order], d2[order]
-    centers, steps, sigmas = [], [], []
-    for part in np.array_split(np.arange(z.size), n_bins):
-        zc = float(np.median(zs[part]))
-        # a jump to another surface is not noise: keep differences within 5 % of depth
-        a = d1s[part]
-        nz = a[(a > 1e-6) & (a < 0.05 * zc)]
-        b = d2s[part]
-        b = b[np.abs(b) < 0.05 * zc]
-        if nz.size < 20 or b.size < 20:
-            continue
-        step = float(np.percentile(nz, 20))
-        mad = float(np.median(np.abs(b - np.median(b)))) * 1.4826
-        sigma2 = max(mad * mad - step * step / 2.0, 0.0) / 6.0
-        centers.append(zc)
-        steps.append(step)
-        sigmas.append(math.sqrt(sigma2))
+    # the parts of np.array_split(range(z.size), n_bins): the first (size % n_bins) one longer
+    each, extra = divmod(z.size, n_bins)
+    bounds = np.cumsum([0] + [each + 1] * extra + [each] * (n_bins - extra)).astype(np.int64)
+    fit = _range_estimates(z[order], d1[order], d2[order], bounds)
+    centers = fit[:, 0][fit[:, 3] > 0].tolist()
+    steps = fit[:, 1][fit[:, 3] > 0].tolist()
+    sigmas = fit[:, 2][fit[:, 3] > 0].tolist()
     if not centers:
         return PROFILES["tof"]
     z_fit = np.asarray(centers, np.float64)
     s0, s2 = _fit_a_bz2(z_fit, np.asarray(steps, np.float64))
     n0, n2 = _fit_a_bz2(z_fit, np.asarray(sigmas, np.float64))
     return SensorModel("auto", s0, s2, n0, n2)
+
+
+def _median(a: NDArray[np.float64]) -> float:
+    """``np.median`` of a 1-D array: the same order statistics and arithmetic, without its
+    Python overhead (about 30 us a call, 36 calls per estimate)."""
+    n = a.size
+    h = n // 2
+    if n % 2:
+        return float(np.partition(a, h)[h])
+    p = np.partition(a, (h - 1, h))
+    return float((p[h - 1] + p[h]) / 2.0)
+
+
+def _percentile20(a: NDArray[np.float64]) -> float:
+    """``np.percentile(a, 20)`` (method ``linear``) of a 1-D array, with numpy's arithmetic."""
+    n = a.size
+    vi = (n - 1) * (20 / 100)
+    j = math.floor(vi)
+    if vi >= n - 1:
+        return float(np.max(a))
+    p = np.partition(a, (j, j + 1))
+    t = vi - j
+    lo, hi = p[j], p[j + 1]
+    diff = hi - lo
+    # numpy's _lerp: from the nearer end
+    return float(hi - diff * (1.0 - t)) if t >= 0.5 else float(lo + diff * t)
+
+
+def _range_estimates(
+    zs: NDArray[np.float64], d1s: NDArray[np.float64], d2s: NDArray[np.float64], bounds: NDArray[np.int64]
+) -> NDArray[np.float64]:
+    """Per depth range ``zs[bounds[i]:bounds[i + 1]]`` (``zs`` sorted): median depth, step,
+    sigma, and 1 when the range had enough differences (else 0)."""
+    k = bounds.size - 1
+    out = np.zeros((k, 4), np.float64)
+    for i in range(k):
+        lo, hi = int(bounds[i]), int(bounds[i + 1])
+        zc = _median_sorted(zs[lo:hi])
+        lim = 0.05 * zc
+        # a jump to another surface is not noise: keep differences within 5 % of depth
+        a = d1s[lo:hi]
+        nz = a[(a > 1e-6) & (a < lim)]
+        b = d2s[lo:hi]
+        b = b[np.abs(b) < lim]
+        if nz.size < 20 or b.size < 20:
+            continue
+        step = _percentile20(nz)
+        mad = _median(np.abs(b - _median(b))) * 1.4826
+        sigma2 = max(mad * mad - step * step / 2.0, 0.0) / 6.0
+        out[i] = (zc, step, math.sqrt(sigma2), 1.0)
+    return out
+
+
+def _median_sorted(a: NDArray[np.float64]) -> float:
+    n = a.size
+    h = n // 2
+    return float(a[h]) if n % 2 else float((a[h - 1] + a[h]) / 2.0)
 
 
 def _fit_a_bz2(z: NDArray[np.float64], y: NDArray[np.float64]) -> tuple[float, float]:

@@ -188,7 +188,8 @@ def correlation_samples(
     phi = depth_to_phase(distance_mm, f_mod_hz)
     a = np.asarray(amplitude, dtype=np.float64)
     theta = PHASE_OFFSETS.reshape((4,) + (1,) * phi.ndim)
-    return np.asarray(ambient, dtype=np.float64) + a * (1.0 + np.cos(phi - theta))
+    out: NDArray[np.float64] = np.asarray(ambient, dtype=np.float64) + a * (1.0 + np.cos(phi - theta))
+    return out
 
 
 def sample_noise(samples: NDArray[np.float64], read_noise_e: float, rng: np.random.Generator) -> NDArray[np.float64]:
@@ -258,7 +259,8 @@ def unwrap_two_frequencies(
     b1 = np.take_along_axis(d1, best, axis=0)[0]
     b2 = np.take_along_axis(d2, best, axis=0)[0]
     w1, w2 = f1_hz**2, f2_hz**2
-    return (w1 * b1 + w2 * b2) / (w1 + w2)
+    out: NDArray[np.float64] = (w1 * b1 + w2 * b2) / (w1 + w2)
+    return out
 
 
 def quantize(depth_mm: ArrayLike, cfg: ToFConfig) -> NDArray[np.float32]:

@@ -181,7 +181,7 @@ class SoundMapping:
     def gain(self, depth_mm: float) -> float:
         """Linear amplitude of a voice at this depth (mm)."""
         db = self.gain_far_db + (self.gain_near_db - self.gain_far_db) * self.nearness(depth_mm)
-        return 10.0 ** (db / 20.0)
+        return float(10.0 ** (db / 20.0))  # float ** float is typed Any (it may be complex)
 
     def rate(self, depth_mm: float, ttc: float | None = None) -> float:
         """Beep repetition rate (Hz) at this depth (mm), sped up by a short time to collision."""
@@ -193,7 +193,7 @@ class SoundMapping:
     def pitch(self, y: float, height: int) -> float:
         """Pitch (Hz) of an image row: ``pitch_high_hz`` at the top row, ``pitch_low_hz`` at the bottom."""
         up = 1.0 - min(max(y / max(height - 1, 1), 0.0), 1.0)
-        return self.pitch_low_hz * (self.pitch_high_hz / self.pitch_low_hz) ** up
+        return float(self.pitch_low_hz * (self.pitch_high_hz / self.pitch_low_hz) ** up)
 
     def pan(self, x: float, width: int) -> tuple[float, float]:
         """Equal-power (left, right) amplitudes of an image column."""

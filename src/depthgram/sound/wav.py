@@ -34,7 +34,10 @@ def write_wav(path: str | Path, audio: ArrayLike, samplerate: int) -> Path:
     InputError
         When the audio is not 1-D or 2-D, holds NaN or infinity, or the folder is missing.
     """
-    import soundfile as sf
+    from depthgram._optional import needs_extra
+
+    with needs_extra("sound", "writing WAV files"):
+        import soundfile as sf
 
     p = Path(path)
     a = np.asarray(audio, dtype=np.float64)

@@ -13,6 +13,7 @@ from typing import Any
 
 import numpy as np
 
+from depthgram._optional import needs_extra
 from depthgram.errors import InputError
 from depthgram.frame import Frame, Intrinsics
 from depthgram.sources.base import Source
@@ -44,15 +45,17 @@ def image_array(msg: Any, where: str) -> np.ndarray:
 
 
 def _reader(path: Path) -> Any:
-    from rosbags.highlevel import AnyReader
-    from rosbags.typesys import Stores, get_typestore
+    with needs_extra("bags", f"{path}: reading ROS bags"):
+        from rosbags.highlevel import AnyReader
+        from rosbags.typesys import Stores, get_typestore
 
     # Bags without embedded message definitions (ROS 2 before Iron) need a default typestore.
     return AnyReader([path], default_typestore=get_typestore(Stores.ROS2_HUMBLE))
 
 
 def _open_errors() -> tuple[type[BaseException], ...]:
-    from rosbags.highlevel import AnyReaderError
+    with needs_extra("bags", "reading ROS bags"):
+        from rosbags.highlevel import AnyReaderError
 
     return (AnyReaderError, OSError, ValueError, KeyError, EOFError)
 

@@ -62,7 +62,8 @@ def read_image(path: Path, *, key: str | None = None, where: str | None = None) 
     suffix = path.suffix.lower()
     if suffix == ".npy":
         try:
-            return np.load(path, mmap_mode="r", allow_pickle=False)
+            arr: NDArray[np.generic] = np.load(path, mmap_mode="r", allow_pickle=False)
+            return arr
         except (ValueError, OSError, EOFError) as exc:
             raise InputError(f"{where}: cannot read the .npy ({exc})") from None
     if suffix == ".npz":

@@ -90,9 +90,12 @@ def draw_tree(tree: SceneTree, path: str | Path) -> None:
         raise InputError(f"{out}: folder {out.parent} does not exist")
 
     # a Figure with its own Agg canvas, not pyplot: the user's backend is left alone
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-    from matplotlib.patches import FancyArrowPatch
+    from depthgram._optional import needs_extra
+
+    with needs_extra("report", "drawing the tree"):
+        from matplotlib.backends.backend_agg import FigureCanvasAgg
+        from matplotlib.figure import Figure
+        from matplotlib.patches import FancyArrowPatch
 
     pos = tree_layout(tree)
     nodes = [tree.root, *tree.nodes()]
