@@ -343,6 +343,7 @@ async function onFrame(buf) {
     $("colourbar").height = canvas.height;
   }
   f.s = s;
+  view.dataset.ended = "false";
   drawDepth(f, s);
   msg.drawScale = s;
   drawOverlay(msg);
