@@ -475,6 +475,7 @@ def test_beyond_loopback_every_request_needs_the_token_whatever_its_host() -> No
         assert client.get("/static/viewer.js").status_code == 200
         with client.websocket_connect("ws://rebound.example:8765/ws/sim-table") as ws:
             assert _recv(ws)["type"] == "hello"
+    app = create_app(_sim_player(playing=False), allowed_hosts=None, token="s3cret-token")
     with TestClient(app, base_url="http://box.lan:8765") as client:
         r = client.get("/api/recordings", headers={"Authorization": "Bearer s3cret-token"})
         assert r.status_code == 200
