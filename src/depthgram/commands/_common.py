@@ -35,7 +35,8 @@ def add_source_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "input",
         metavar="INPUT",
-        help="file, folder or glob of depth frames, ROS bag / MCAP, or sim:SCENE (table, corridor, approach, crossing)",
+        help="file, folder or glob of depth frames, ROS bag / MCAP, or sim:SCENE (table, corridor, approach, "
+        "crossing, ball_wall, touching; sim:SCENE?sensor=sl for structured light)",
     )
     g = p.add_argument_group("reading the input")
     g.add_argument("--scale", type=float, default=None, metavar="MM_PER_UNIT",
