@@ -218,8 +218,11 @@ def _object_record(o: SceneObject, node: Mapping[str, Any], m: Motion | None) ->
     }
     if m is not None:
         rec["v_radial"] = _clean(m.v_radial)
-        rec["v_unit"] = "mm/frame" if m.per_frame else "mm/s"
+        rec["v_unit"] = "mm/s"
+        rec["v_sigma"] = _clean(m.v_sigma)
         rec["ttc"] = _clean(m.ttc, 3)
+        if m.fps_assumed is not None:  # no timestamps and no --fps: the rate v and ttc rest on
+            rec["fps_assumed"] = m.fps_assumed
         rec["status"] = m.status
     return rec
 

@@ -38,8 +38,12 @@ _RANGES = (
     ("join_resolutions", 0.5, 100.0),
     ("max_slope_deg", 0.0, 89.0),
     ("crease_deg", 1.0, 89.0),
+    ("far_mm", 100.0, 1e6),
 
 )
+
+#: Most histogram bins ``far_mm / bin_mm`` may ask for (each costs 32 bytes of counts).
+_MAX_BINS = 4e6
 
 
 @dataclass(frozen=True)
@@ -180,6 +184,11 @@ class SegmentConfig:
         or a cart seen at an angle), and the two become one ``compound``; larger vertical
         supports stay walls. 0 turns this off. On ``crossing`` the cart's side face was its own
         ``wall`` track as it entered and left (2 identity switches, 0 with the fold).
+    far_mm : float
+        Far limit (mm): readings at or beyond it are left out as invalid and counted
+        (:attr:`Segmentation.beyond_far_px`), which bounds the histogram. 20 m is past every
+        indoor depth camera's range (the Azure Kinect's wide mode reaches 5.5 m, a RealSense
+        D455 about 10 m).
     """
 
     method: str = "surfaces"
@@ -221,6 +230,7 @@ class SegmentConfig:
     join_resolutions: float = 2.5
     max_slope_deg: float = 70.0
     crease_deg: float = 40.0
+    far_mm: float = 20_000.0
 
     def __post_init__(self) -> None:
         def bad(name: str, value: object, expected: str) -> InputError:
@@ -284,6 +294,8 @@ class SegmentConfig:
             if not (isinstance(v, int) and 0 <= v <= 100_000):
                 raise bad(name, v, "an integer number of pixels >= 0 (0: use the fraction)")
 
+        if self.far_mm / self.bin_mm > _MAX_BINS:
+            raise bad("far_mm", self.far_mm, f"at most {_MAX_BINS:.0e} histogram bins of bin_mm = {self.bin_mm}")
         if not (isinstance(self.max_planes, int) and 0 <= self.max_planes <= 20):
             raise bad("max_planes", self.max_planes, "an integer number of planes in [0, 20]")
 

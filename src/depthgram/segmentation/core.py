@@ -45,7 +45,7 @@ from depthgram.segmentation.surfaces import (
     merge_openings,
     reattach,
 )
-from depthgram.segmentation.validate import check_depth
+from depthgram.segmentation.validate import check_depth_far
 
 __all__ = ["segment"]
 
@@ -127,7 +127,18 @@ def segment(
         overrides["sensor"] = sensor
         sensor = None
     cfg = (config or _DEFAULTS).with_overrides(**overrides)
-    depth, ok = check_depth(depth_mm, valid)
+    depth, ok, n_far = check_depth_far(depth_mm, valid, cfg.far_mm)
+    seg = _segment(depth, ok, intrinsics, cfg, sensor)
+    return replace(seg, beyond_far_px=n_far) if n_far else seg
+
+
+def _segment(
+    depth: NDArray[np.float32],
+    ok: NDArray[np.bool_],
+    intrinsics: Intrinsics | None,
+    cfg: SegmentConfig,
+    sensor: SensorModel | None,
+) -> Segmentation:
     if cfg.method == "region":
         return region_grow(depth, valid=ok, intrinsics=intrinsics, config=cfg)
     if not ok.any():
@@ -442,8 +453,15 @@ def _add_support_planes(
         # the pixels it left facing (a table top seen at a slant), which also keeps it cheap
         search=classes == FACING,
     )
+    # a support runs away from the camera: its normal leans at least 90 - oblique_deg degrees off
+    # the optical axis toward the image's vertical (floor, table) or horizontal (wall) axis. A
+    # wall facing a camera that looks slightly down has a normal mostly along the axis, with
+    # more y than x in what remains: without this test it became a 2 m "floor" (Azure Kinect)
+    lean = math.sin(math.radians(cfg.oblique_deg))
     for plane in planes:
         n = plane_normal(plane.coef, cam)
+        if max(abs(n[0]), abs(n[1])) < lean:
+            continue
         classes[plane.inliers] = HORIZONTAL if abs(n[1]) >= abs(n[0]) else VERTICAL
 
 

@@ -125,6 +125,8 @@ class Segmentation:
     aperture_px : dict of str to int, or None
         Slice thickness (px) used by the ``paper`` method per direction (``"rows"``,
         ``"columns"``); None for the other methods.
+    beyond_far_px : int
+        Readings at or beyond the config's ``far_mm`` (+inf included), left out as invalid.
     """
 
     labels: NDArray[np.int32]
@@ -134,6 +136,7 @@ class Segmentation:
     bands_mm: NDArray[np.float64] | None = None
     classes: NDArray[np.int8] | None = None
     aperture_px: dict[str, int] | None = None
+    beyond_far_px: int = 0
 
     def by_id(self) -> dict[int, SceneObject]:
         """Objects keyed by id."""
