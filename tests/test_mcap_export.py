@@ -12,15 +12,15 @@ import pytest
 
 pytest.importorskip("mcap_protobuf")
 
-from mcap.decoder import DecoderFactory as McapDecoderFactory  # noqa: E402
-from mcap.reader import make_reader  # noqa: E402
-from mcap_protobuf.decoder import DecoderFactory  # noqa: E402
+from mcap.decoder import DecoderFactory as McapDecoderFactory
+from mcap.reader import make_reader
+from mcap_protobuf.decoder import DecoderFactory
 
-from depthgram.cli import main  # noqa: E402
-from depthgram.export.mcap_file import TOPICS, McapWriter  # noqa: E402
-from depthgram.frame import Intrinsics, make_frame  # noqa: E402
-from depthgram.pipeline import Pipeline  # noqa: E402
-from depthgram.sources import read  # noqa: E402
+from depthgram.cli import main
+from depthgram.export.mcap_file import TOPICS, McapWriter
+from depthgram.frame import Intrinsics, make_frame
+from depthgram.pipeline import Pipeline
+from depthgram.sources import read
 
 
 class _JsonDecoder(McapDecoderFactory):
