@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import sys
 from pathlib import Path
@@ -49,16 +50,21 @@ def write_label_map(path: Path, labels: NDArray[np.integer], frame_name: str) ->
     top = int(labels.max(initial=0))
     if top > 65535:
         raise InputError(f"{frame_name}: object id {top} is above 65535; cannot write a 16-bit PNG label map ({path})")
-    if not cv2.imwrite(str(path), labels.astype("uint16")):
-        raise InputError(f"{path}: could not write the label map")
+    from depthgram.atomic import atomic_path
+
+    with atomic_path(path) as tmp:
+        if not cv2.imwrite(str(tmp), labels.astype("uint16")):
+            raise InputError(f"{path}: could not write the label map")
 
 
 def run(args: argparse.Namespace) -> int:
     labels_dir = Path(args.labels_dir) if args.labels_dir else None
     if labels_dir is not None:
         labels_dir.mkdir(parents=True, exist_ok=True)
-    out = open(args.json, "w", encoding="utf-8") if args.json else sys.stdout
-    try:
+    from depthgram.atomic import atomic_open
+
+    # a file output appears only when every frame is written: a failure leaves no look-alike
+    with atomic_open(args.json) if args.json else contextlib.nullcontext(sys.stdout) as out:
         _, results = pipeline_results(args, NAME)
         for result in results:
             if args.format == "text":
@@ -68,7 +74,4 @@ def run(args: argparse.Namespace) -> int:
             if labels_dir is not None:
                 path = labels_dir / label_file_name(result.frame.name, result.frame.index)
                 write_label_map(path, result.segmentation.labels, result.frame.name or f"frame {result.frame.index}")
-    finally:
-        if out is not sys.stdout:
-            out.close()
     return 0
