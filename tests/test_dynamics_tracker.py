@@ -41,7 +41,7 @@ def test_approach_velocity_and_ttc_noise_free() -> None:
     objs = approaching(-600.0, 2000.0, 8, noise=0.0)
     for k, o in enumerate(objs):
         m = tr.update([o], k / FPS, (W, H)).motions[3]
-        assert m.track_id == 1 and m.status == "visible" and not m.per_frame
+        assert m.track_id == 1 and m.status == "visible" and m.fps_assumed is None
         if k == 0:
             assert m.v_radial is None and m.ttc is None
             continue
@@ -92,6 +92,7 @@ def test_frames_without_timestamps_take_the_configured_rate_or_warn() -> None:
             m = tr.update([o], None, (W, H)).motions[3]
     assert len(record) == 1  # once, not every frame
     assert m.v_radial == pytest.approx(-300.0)  # the nominal 30 frames/s
+    assert m.fps_assumed == 30.0
     assert m.ttc == pytest.approx(objs[-1].depth / 300.0)
 
 
@@ -275,7 +276,7 @@ def test_motions_are_ordinary_motion_objects() -> None:
     tr = Tracker()
     for k, o in enumerate(approaching(-600.0, 2000.0, 3, noise=0.0)):
         m = tr.update([o], k / FPS, (W, H)).motions[3]
-    expected = Motion(track_id=1, v_radial=m.v_radial, ttc=m.ttc, status="visible", per_frame=False)
+    expected = Motion(track_id=1, v_radial=m.v_radial, ttc=m.ttc, status="visible")
     assert m == expected and repr(m) == repr(expected) and hash(m) == hash(expected)
     with pytest.raises(dataclasses.FrozenInstanceError):
         m.ttc = 0.0  # type: ignore[misc]

@@ -71,7 +71,7 @@ def test_approaching_hand_keeps_its_id_and_reads_the_true_speed() -> None:
         track_ids.append(best.id)
     assert len(set(track_ids)) == 1, f"hand changed identity: {track_ids}"
     last = results[-1].motions[track_ids[-1]]
-    assert last.v_radial is not None and not last.per_frame
+    assert last.v_radial is not None and last.fps_assumed is None
     truth_v = hand_truth[-1].v_radial
     assert abs(last.v_radial - truth_v) <= max(0.05 * abs(truth_v), 2 * 30.0), (last.v_radial, truth_v)
 

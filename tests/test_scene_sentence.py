@@ -24,7 +24,7 @@ from depthgram.scene import (
 EXAMPLE = (
     "Bkg[A=307200,c=(319.5,239.5),z=0.0] -> floor#1 o_4..6[A=52000,c=(320.0,400.2),z=2100.0] "
     "{ object#2 o_2[A=9000,c=(300.1,250.0),z=1500.0] "
-    "{ object#3 o_1[A=300,c=(290.0,180.5),z=1420.0,v=-120.0,ttc=11.8,s=visible] } } "
+    "{ object#3 o_1[A=300,c=(290.0,180.5),z=1420.0,v=-120.0mm/s,ttc=11.8s,s=visible] } } "
     "wall#4 o_3(3,5,6)[A=8000,c=(20.0,200.0),z=1800.0] ; 2 left_of 4, 3 occludes 2"
 )
 
@@ -47,10 +47,26 @@ def test_precision_rounds_and_empty_scene():
     n = Node(1, "object", 2, 1234.567, 10, (1.25, 2.75), v_radial=-0.04, ttc=math.inf)
     t = SceneTree(Node(0, "Bkg", -1, 0.0, 100, (4.5, 4.5), children=(n,)))
     s = to_sentence(t, precision=0)
-    assert "o_2[A=10,c=(1,3),z=1235,v=0,ttc=inf]" in s
+    assert "o_2[A=10,c=(1,3),z=1235,v=0mm/s,ttc=infs]" in s
     assert parse_sentence(s) == round_tree(t, 0)
     empty = SceneTree(Node(0, "Bkg", -1, 0.0, 0, (0.0, 0.0)))
     assert parse_sentence(to_sentence(empty)) == empty
+
+
+def test_motion_units_are_written_and_checked():
+    n = Node(1, "object", 2, 1500.0, 10, (1.0, 2.0), v_radial=-512.0, ttc=2.93, status="visible")
+    t = SceneTree(Node(0, "Bkg", -1, 0.0, 100, (4.5, 4.5), children=(n,)))
+    s = to_sentence(t)
+    assert "v=-512.0mm/s,ttc=2.9s,s=visible" in s
+    assert parse_sentence(s) == round_tree(t)
+    # sentences written before units were explicit read in the fixed units
+    assert parse_sentence(s.replace("mm/s", "").replace("2.9s", "2.9")) == round_tree(t)
+    for wrong, where in (("v=-512.0s", "v=-512.0s"), ("ttc=2.9mm/s", "ttc=2.9mm/s")):
+        bad = s.replace(where.split("=")[0] + "=" + ("-512.0mm/s" if wrong.startswith("v") else "2.9s"), wrong)
+        with pytest.raises(SentenceError, match="is written in"):
+            parse_sentence(bad)
+    with pytest.raises(SentenceError, match="without a unit"):
+        parse_sentence(s.replace("z=1500.0", "z=1500.0s"))
 
 
 def test_root_label_and_multiple_lines():

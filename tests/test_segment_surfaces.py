@@ -156,3 +156,15 @@ def test_the_default_takes_any_positive_depth_without_an_internal_error(depth_mm
     assert sorted(o.area for o in seg.objects) == [100, 1100]
     far = segment(z * 1e4, min_area_px=20, far_mm=1e6)
     assert far.objects == () and far.beyond_far_px == z.size
+
+
+@pytest.mark.parametrize("pitch", [-13.0, 13.0])
+def test_a_wall_nearly_facing_the_camera_is_no_floor_or_ceiling(pitch: float) -> None:
+    # the Azure Kinect frame's window wall, 2 m away and 9 degrees off square, had become a
+    # "floor" (camera looking 13 degrees up); looking down, it became a "ceiling"
+    wall = Body(1, "wall", "wall", (Plane((0, 0, 2200), (0.16, 0, 1)),))
+    desk = Body(2, "desk", "floor", (Box((-900.0, 600.0, 300.0), (900.0, 640.0, 1100.0)),))
+    depth, truth, cam = _render((wall, desk), _camera(pitch=pitch, height=1000.0))
+    seg = segment(depth, valid=depth > 0, intrinsics=cam)
+    wall_seg = seg.objects[_best(seg.labels, truth, 1)[0] - 1]
+    assert wall_seg.kind not in ("floor", "ceiling", "compound"), wall_seg.kind

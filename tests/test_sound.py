@@ -12,6 +12,7 @@ from scipy.ndimage import maximum_filter1d
 
 from depthgram.errors import InputError
 from depthgram.scene.tree import Node, SceneTree
+from depthgram.segmentation.objects import SceneObject
 from depthgram.sound import PRESETS, Sonifier, SoundMapping, render_scene, voices, write_wav
 
 W, H = 176, 132
@@ -153,14 +154,21 @@ def test_voice_phase_is_continuous_across_pushes() -> None:
 
 def test_surface_glides_between_its_near_and_far_ends() -> None:
     m = SoundMapping.from_dict({"harmonics_max": 1})
-    near = Node(11, "part", 0, 500.0, 800, (10.0, 60.0))
-    far = Node(12, "part", 3, 3500.0, 300, (70.0, 60.0))
-    wall = Node(10, "wall", 0, 2000.0, 1100, (30.0, 60.0), parts=(11, 12), children=(near, far))
-    (v,) = voices(tree_of(wall), (W, H), m)  # the parts are heard in the glide, not alone
+
+    def so(i: int, kind: str, label: int, depth: float, x: float, parts: tuple[SceneObject, ...] = ()) -> SceneObject:
+        return SceneObject(i, kind, label, depth, 10.0, 500, 0.02, (x, 60.0), (0, 50, 80, 70), parts=parts)
+
+    near, far = so(11, "part", 0, 500.0, 10.0), so(12, "part", 3, 3500.0, 70.0)
+    wall_obj = so(10, "wall", 0, 2000.0, 30.0, (near, far))
+    # The tree carries the parts' depth labels (0, 3), not node ids: their extent comes from the objects.
+    wall = Node(10, "wall", 0, 2000.0, 1100, (30.0, 60.0), parts=(0, 3))
+    (v,) = voices(tree_of(wall), (W, H), m, [wall_obj])  # the parts are heard in the glide, not alone
+    assert v.pan_a == pytest.approx(m.pan(10.0, W)) and v.pan_b == pytest.approx(m.pan(70.0, W))
     fc = m.pitch(60.0, H)
     span = m.glide_octaves * (m.nearness(500.0) - m.nearness(3500.0))
     assert v.freq_a == pytest.approx(fc * 2 ** (span / 2)) and v.freq_b == pytest.approx(fc * 2 ** (-span / 2))
-    mono = render_scene(tree_of(wall), (W, H), mapping=m, duration_s=1.2, samplerate=SR).sum(axis=1)
+    mono = render_scene(tree_of(wall), (W, H), mapping=m, duration_s=1.2, samplerate=SR,
+                        objects=[wall_obj]).sum(axis=1)
 
     def zc_hz(t: float) -> float:
         seg = mono[int((t - 0.02) * SR) : int((t + 0.02) * SR)]

@@ -218,8 +218,11 @@ def _object_record(o: SceneObject, node: Mapping[str, Any], m: Motion | None) ->
     }
     if m is not None:
         rec["v_radial"] = _clean(m.v_radial)
-        rec["v_unit"] = "mm/frame" if m.per_frame else "mm/s"
+        rec["v_unit"] = "mm/s"
+        rec["v_sigma"] = _clean(m.v_sigma)
         rec["ttc"] = _clean(m.ttc, 3)
+        if m.fps_assumed is not None:  # no timestamps and no --fps: the rate v and ttc rest on
+            rec["fps_assumed"] = m.fps_assumed
         rec["status"] = m.status
     return rec
 
@@ -366,8 +369,24 @@ def describe(
     """Describe one depth image (mm; 0 or NaN invalid): objects, tree, sentence and plan.
 
     A convenience for a single still; use :class:`Pipeline` for sequences (range flow).
-    """
-    from depthgram.frame import make_frame
 
-    frame = make_frame(depth_mm, intrinsics=intrinsics, name="array")
+    Parameters
+    ----------
+    depth_mm : ndarray, shape (H, W), or Frame
+        Depth (mm), or a :class:`~depthgram.frame.Frame` from :func:`depthgram.read`, whose
+        validity mask and intrinsics are used (``intrinsics`` overrides them). A bare array
+        that cannot be millimetres warns (:class:`~depthgram.frame.UnitsWarning`).
+    intrinsics : Intrinsics, optional
+        Camera intrinsics (px).
+    config : Config, optional
+        Settings; defaults when omitted.
+    """
+    import dataclasses
+
+    from depthgram.frame import Frame, make_frame
+
+    if isinstance(depth_mm, Frame):
+        frame = depth_mm if intrinsics is None else dataclasses.replace(depth_mm, intrinsics=intrinsics)
+    else:
+        frame = make_frame(depth_mm, intrinsics=intrinsics, name="array")
     return Pipeline(config, track=False).process(frame)

@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 import sys
 
+from depthgram.commands._common import add_reading_arguments, reading_options
+
 NAME = "batch"
 HELP = "process many recordings (local cores, or a Dask cluster with --scheduler); resumable"
 
@@ -16,9 +18,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--scheduler", default=None, metavar="ADDRESS",
                    help="Dask distributed scheduler address, e.g. tcp://10.0.0.5:8786")
     p.add_argument("--config", default=None, metavar="TOML", help="pipeline settings")
-    p.add_argument("--scale", type=float, default=None, metavar="MM_PER_UNIT", help="millimetres per raw unit")
-    p.add_argument("--invalid", type=float, nargs="+", default=[], metavar="VALUE", help="raw no-reading values")
-    p.add_argument("--fps", type=float, default=None, help="frame rate of folders without timestamps")
+    add_reading_arguments(p)  # the same reading options as every command, applied to each recording
     p.add_argument("--no-track", action="store_true", help="treat frames as unrelated stills")
     p.add_argument("--quiet", action="store_true", help="no per-recording lines")
 
@@ -31,7 +31,7 @@ def run(args: argparse.Namespace) -> int:
     if args.workers is not None and args.workers < 1:
         raise InputError(f"--workers must be at least 1, got {args.workers}")
     cfg = Config.load(args.config) if args.config else Config()
-    opts = {"scale_mm": args.scale, "invalid": tuple(args.invalid), "fps": args.fps}
+    opts = reading_options(args)
 
     def show(r: BatchResult) -> None:
         if args.quiet:

@@ -4,7 +4,7 @@
 >>> tracker = Tracker()
 >>> upd = tracker.update(segmentation.objects, frame.time_s, frame.size)  # doctest: +SKIP
 >>> upd.motions[obj.id]  # doctest: +SKIP
-Motion(track_id=1, v_radial=-410.2, ttc=1.9, status='visible', per_frame=False)
+Motion(track_id=1, v_radial=-410.2, ttc=1.9, status='visible', v_sigma=21.5, fps_assumed=None)
 """
 
 from depthgram.dynamics.config import TrackerConfig

@@ -64,8 +64,8 @@ class Track:
     motion : Motion
         The track's motion as of this frame (status ``occluded`` while missed).
     queue : tuple of (float, float or None)
-        The last N queue entries, oldest first: (time in s, or frame number when no
-        timestamps are known; mean depth in mm, or None for an invalid entry).
+        The last N queue entries, oldest first: (time in s, from the frame rate when the
+        frames have no timestamps; depth in mm, or None for an invalid entry).
     """
 
     id: int
@@ -147,14 +147,14 @@ def _features(objects: Sequence[SceneObject]) -> NDArray[np.float64]:
 _NO_PAIRS = np.zeros(0, np.intp)
 
 
-def _motion(track_id: int, v: float, ttc: float, status: str, per_frame: bool) -> Motion:
+def _motion(track_id: int, v: float, ttc: float, status: str, fps_assumed: float | None) -> Motion:
     """A Motion; NaN velocity or time to collision become None."""
     return Motion(
         track_id=track_id,
         v_radial=None if math.isnan(v) else v,
         ttc=None if math.isnan(ttc) else ttc,
         status=status,
-        per_frame=per_frame,
+        fps_assumed=fps_assumed,
     )
 
 
@@ -280,8 +280,9 @@ class Tracker:
         objects : sequence of SceneObject
             This frame's objects (top level; parts of compounds are not tracked apart).
         time_s : float or None
-            Frame timestamp (s). None for every frame of a sequence gives velocities in
-            mm/frame and times to collision in frames.
+            Frame timestamp (s). None for every frame of a sequence: frame k is at
+            ``k / config.fps``, or at the nominal 30 frames/s with one warning when no rate is
+            configured (each Motion then says which rate it assumed).
         frame_size : tuple of int
             (width, height) of the image (px), as :attr:`depthgram.frame.Frame.size`.
 
@@ -306,7 +307,7 @@ class Tracker:
             ids = sorted(o.id for o in objects)
             raise InputError(f"tracker frame {self._frame + 1}: duplicate SceneObject ids {ids}")
         t_now = self._clock(time_s)
-        per_frame = False  # always mm/s and s now; frames without timestamps take a rate
+        fps_assumed = self._fps_assumed
         f = _features(objects)
         n, m = self._n, len(objects)
         if n + m > len(self._s):
@@ -338,13 +339,13 @@ class Tracker:
         ttc_l = ttc.tolist()
         motions: dict[int, Motion] = {}
         for o, i in zip(objects, obj_row.tolist(), strict=True):
-            mo = _motion(ids_l[i], v_l[i], ttc_l[i], STATUSES[st_l[i]], per_frame)
+            mo = _motion(ids_l[i], v_l[i], ttc_l[i], STATUSES[st_l[i]], fps_assumed)
             motions[o.id] = mo
             self._motion[i] = mo
             self._last[i] = o
         missed = [i for i in range(n) if st_l[i] == OCCLUDED]
         for i in missed:
-            self._motion[i] = _motion(ids_l[i], v_l[i], ttc_l[i], "occluded", per_frame)
+            self._motion[i] = _motion(ids_l[i], v_l[i], ttc_l[i], "occluded", fps_assumed)
         min_hits = cfg.min_hits
         hits = s[: self._n, HITS]
         ended = tuple(self._snapshot(i) for i in missed if dead[i] and hits[i] >= min_hits)

@@ -37,6 +37,8 @@ ROOT_KIND = "Bkg"
 RELATIONS = ("left_of", "right_of", "above", "below", "in_front_of", "occludes")
 #: Depth label of the root when none is written (the background is no depth band).
 ROOT_LABEL = -1
+#: Units written after the motion attributes: radial velocity in mm/s, time to collision in s.
+UNITS = {"v": "mm/s", "ttc": "s"}
 
 
 class SentenceError(InputError):
@@ -82,9 +84,9 @@ def _attrs(n: Node, precision: int, root: bool) -> str:
     if root and n.depth_label != ROOT_LABEL:
         parts.append(f"L={int(n.depth_label)}")
     if n.v_radial is not None:
-        parts.append(f"v={_num(n.v_radial, precision)}")
+        parts.append(f"v={_num(n.v_radial, precision)}{UNITS['v']}")
     if n.ttc is not None:
-        parts.append(f"ttc={_num(n.ttc, precision)}")
+        parts.append(f"ttc={_num(n.ttc, precision)}{UNITS['ttc']}")
     if n.status is not None:
         parts.append(f"s={n.status}")
     return "[" + ",".join(parts) + "]"
@@ -118,8 +120,8 @@ def to_sentence(tree: SceneTree, *, precision: int = 1) -> str:
         The tree; every node's id, kind, label, parts, area, center, depth, v_radial, ttc and
         status are written, and the relations.
     precision : int
-        Decimals written for center (px), depth (mm), v_radial (mm/s or mm/frame) and ttc
-        (s or frames). Area is an integer pixel count.
+        Decimals written for center (px), depth (mm), v_radial (written ``v=-512.0mm/s``)
+        and ttc (written ``ttc=2.9s``). Area is an integer pixel count.
 
     Returns
     -------
@@ -214,6 +216,11 @@ class _Reader:
                 value: object = (float(toks[0]), float(toks[1]))
             elif val.data == "number":
                 value = float(toks[0])
+                if len(toks) > 1:
+                    unit = str(toks[1])
+                    if UNITS.get(key) != unit:
+                        want_unit = f"in {UNITS[key]}" if key in UNITS else "without a unit"
+                        raise self.fail(f"attribute {key!r} is written {want_unit}, not {unit!r}", toks[1])
             else:
                 value = str(toks[0])
             want = {"c": "pair", "s": "word"}.get(key, "number")

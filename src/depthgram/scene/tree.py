@@ -21,22 +21,26 @@ class Motion:
     track_id : int
         Stable identity across frames.
     v_radial : float or None
-        Radial velocity: mm/s when the frame period is known, else mm/frame. Positive
-        means receding. None until the queue holds two valid entries.
+        Radial velocity (mm/s), positive means receding. None until it is known.
     ttc : float or None
-        Time to collision (s, or frames when no period is known) for approaching objects;
-        None for receding or still ones.
+        Time to collision (s) for approaching objects; None for receding or still ones, and
+        while the velocity is not known well enough.
     status : str
         ``visible``, ``entering``, ``leaving`` or ``occluded``.
-    per_frame : bool
-        True when ``v_radial`` is in mm/frame (no frame period known).
+    v_sigma : float or None
+        Standard deviation of ``v_radial`` (mm/s), None when not estimated.
+    fps_assumed : float or None
+        The frame rate (frames/s) assumed because the frames had no timestamps and no rate
+        was given; None when the times were known. Velocities and times to collision scale
+        with it.
     """
 
     track_id: int
     v_radial: float | None = None
     ttc: float | None = None
     status: str = "visible"
-    per_frame: bool = False
+    v_sigma: float | None = None
+    fps_assumed: float | None = None
 
 
 @dataclass(frozen=True)

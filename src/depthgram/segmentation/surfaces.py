@@ -93,13 +93,124 @@ def concave_creases(
             min_angle_deg=min_angle_deg,
             focal_px=focal_px / 2.0,
         )
-        full = np.repeat(np.repeat(sub, 2, axis=0), 2, axis=1)[: depth_mm.shape[0], : depth_mm.shape[1]]
-        return full & valid
+        return _upsample2(sub, np.ascontiguousarray(valid, np.bool_))
+    k = 2 * (scale_px // 2) + 1
+    geom = np.float32(scale_px * math.tan(math.radians(min_angle_deg)) / focal_px)
+    noise_scale = np.float32(math.sqrt(6.0) / (0.7 * k))
+    coefs = (sensor.step_0, sensor.step_2, sensor.sigma_0, sensor.sigma_2)
+    if type(sensor).resolution is not SensorModel.resolution or any(type(c) not in (int, float) for c in coefs):
+        return _creases_numpy(depth_mm, valid, sensor, scale_px, k, geom, noise_scale)
+    z = np.ascontiguousarray(depth_mm, np.float32)
+    ok = np.ascontiguousarray(valid, np.bool_)
+    inv, m = _inverse(z, ok)
+    den = np.asarray(cv2.boxFilter(m, -1, (k, k), normalize=False, borderType=cv2.BORDER_CONSTANT), np.float32)
+    ws = np.asarray(cv2.boxFilter(inv, -1, (k, k), normalize=False, borderType=cv2.BORDER_CONSTANT), np.float32)
+    # the sensor's coefficients as float32, as numpy's scalar rules make them in _creases_numpy
+    c32 = np.array(coefs, np.float32)
+    return _creases(ws, den, ok, c32, np.float32(0.5 * k * k), int(scale_px), geom, noise_scale)
+
+
+@njit(cache=True)
+def _inverse(z: NDArray[np.float32], valid: NDArray[np.bool_]) -> tuple[NDArray[np.float32], NDArray[np.float32]]:
+    h, w = z.shape
+    inv = np.zeros((h, w), np.float32)
+    m = np.zeros((h, w), np.float32)
+    thousand = np.float32(1000.0)
+    for y in range(h):
+        for x in range(w):
+            if valid[y, x]:
+                inv[y, x] = thousand / z[y, x]
+                m[y, x] = 1.0
+    return inv, m
+
+
+@njit(cache=True)
+def _creases(
+    ws: NDArray[np.float32],
+    den: NDArray[np.float32],
+    valid: NDArray[np.bool_],
+    c: NDArray[np.float32],
+    min_den: np.float32,
+    r: int,
+    geom: np.float32,
+    noise_scale: np.float32,
+) -> NDArray[np.bool_]:
+    # _creases_numpy in five passes instead of about 60 full-frame temporaries: the window
+    # means and the threshold of each pixel, then one branch-free pass per direction (they
+    # vectorise; a per-pixel loop with the four tests behind branches took 3x as long). Every
+    # operation is the float32 one numpy does there, in the same order (no fast-math, no
+    # contraction), so the same creases (a test compares the two).
+    h, w = ws.shape
+    has = np.zeros((h, w), np.bool_)
+    bend = np.zeros((h, w), np.float32)
+    thousand = np.float32(1000.0)
+    one = np.float32(1.0)
+    two = np.float32(2.0)
+    four = np.float32(4.0)
+    for y in range(h):
+        for x in range(w):
+            if den[y, x] >= min_den:
+                has[y, x] = valid[y, x]  # the result is kept where there is a reading only
+                wc = ws[y, x] / den[y, x]
+                ws[y, x] = wc
+                z = thousand / wc
+                sq = z * z
+                res = max(c[0] + c[1] * sq, two * (c[2] + c[3] * sq))
+                noise = res / two / max(z, one) * noise_scale
+                bend[y, x] = max(geom, four * noise) * wc
+            else:
+                ws[y, x] = 0.0
+    # the neighbours' own `has` is not needed: a neighbour without a mean reads 0 here, which
+    # fails the jump test against a positive mean as it failed numpy's validity test
+    out = np.zeros((h, w), np.bool_)
+    jump = np.float32(0.06)
+    for d in range(4):
+        dy = 0 if d == 0 else r
+        dx = r if d == 0 or d == 2 else 0 if d == 1 else -r
+        adx = abs(dx)
+        for y in range(dy, h - dy):
+            wr = ws[y]
+            ar = ws[y + dy]
+            br = ws[y - dy]
+            hr = has[y]
+            er = bend[y]
+            orow = out[y]
+            for ux in range(np.uint64(adx), np.uint64(w - adx)):
+                wc = wr[ux]
+                a = ar[np.uint64(np.int64(ux) + dx)]
+                b = br[np.uint64(np.int64(ux) - dx)]
+                lim = jump * wc
+                hit = hr[ux] & (abs(a - wc) <= lim) & (abs(b - wc) <= lim) & ((a + b) - two * wc > er[ux])
+                orow[ux] = orow[ux] | hit
+    return out
+
+
+@njit(cache=True)
+def _upsample2(sub: NDArray[np.bool_], valid: NDArray[np.bool_]) -> NDArray[np.bool_]:
+    # each pixel of the half-resolution map repeated 2 x 2, where there is a reading
+    h, w = valid.shape
+    out = np.zeros((h, w), np.bool_)
+    for y in range(h):
+        for x in range(w):
+            out[y, x] = sub[y >> 1, x >> 1] and valid[y, x]
+    return out
+
+
+def _creases_numpy(
+    depth_mm: NDArray[np.float32],
+    valid: NDArray[np.bool_],
+    sensor: SensorModel,
+    scale_px: int,
+    k: int,
+    geom: np.float32,
+    noise_scale: np.float32,
+) -> NDArray[np.bool_]:
+    """:func:`concave_creases` at full resolution in numpy: the reference of the compiled
+    :func:`_creases`, and the route for a sensor model whose arithmetic it does not know."""
     h, w = depth_mm.shape
     inv = np.zeros((h, w), np.float32)
     np.divide(np.float32(1000.0), depth_mm, out=inv, where=valid)
     m = valid.astype(np.float32)
-    k = 2 * (scale_px // 2) + 1
     den = np.asarray(cv2.boxFilter(m, -1, (k, k), normalize=False, borderType=cv2.BORDER_CONSTANT), np.float32)
     ws = np.asarray(cv2.boxFilter(inv, -1, (k, k), normalize=False, borderType=cv2.BORDER_CONSTANT), np.float32)
     has = den >= 0.5 * k * k
@@ -110,8 +221,7 @@ def concave_creases(
     # relative noise of w equals that of z; a mean over ~k*k/2 readings and a second difference
     # of three such means (variance 6x)
     rel_noise = np.asarray(sensor.resolution(z), np.float32) / 2.0 / np.maximum(z, 1.0)
-    noise = rel_noise * np.float32(math.sqrt(6.0) / (0.7 * k))
-    geom = np.float32(scale_px * math.tan(math.radians(min_angle_deg)) / focal_px)
+    noise = rel_noise * noise_scale
     thr = np.maximum(geom, 4.0 * noise)
     out = np.zeros((h, w), np.bool_)
     r = scale_px

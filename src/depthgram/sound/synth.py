@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import functools
 import math
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -22,9 +23,13 @@ from numpy.typing import NDArray
 
 from depthgram.errors import InputError
 from depthgram.scene.tree import Node, SceneTree
+from depthgram.segmentation.objects import SceneObject
 from depthgram.sound.mapping import SoundMapping
 
-__all__ = ["OBLIQUE_KINDS", "Sonifier", "Voice", "render_scene", "voices"]
+__all__ = [
+    "BEEP_KINDS", "OBLIQUE_KINDS", "Selection", "Sonifier", "Voice", "render_scene", "select", "still_seconds",
+    "voices",
+]
 
 #: Node kinds heard as a gliding tone rather than beeps.
 OBLIQUE_KINDS = ("floor", "wall", "ceiling", "compound")
@@ -55,11 +60,83 @@ class Voice:
     order: float  # scan position in 0..1 (when the voice first sounds)
 
 
-def _hidden_parts(nodes: list[Node]) -> set[int]:
-    return {p for n in nodes for p in n.parts}
+#: Node kinds heard as beeps.
+BEEP_KINDS = ("object",)
 
 
-def voices(tree: SceneTree, frame_size: tuple[int, int], mapping: SoundMapping) -> list[Voice]:
+@dataclass(frozen=True)
+class Selection:
+    """Which nodes of a tree sound under a mapping, and why the others do not.
+
+    Attributes
+    ----------
+    beeps : tuple of Node
+        Objects heard as beeps, nearest first (at most ``max_voices``).
+    glides : tuple of Node
+        Oblique surfaces heard as a gliding tone, nearest first (at most ``max_glides``).
+    left_out : tuple of (Node, str)
+        Every other node with the reason it is silent, nearest first.
+    """
+
+    beeps: tuple[Node, ...]
+    glides: tuple[Node, ...]
+    left_out: tuple[tuple[Node, str], ...]
+
+    def describe_left_out(self) -> list[str]:
+        """One line per silent node: ``o_3 (object, 2.10 m): ...``."""
+        return [f"o_{n.id} ({n.kind}, {n.depth / 1000:.2f} m): {why}" for n, why in self.left_out]
+
+
+def select(tree: SceneTree, mapping: SoundMapping) -> Selection:
+    """The nodes a scene voices: the nearest ``max_voices`` objects and ``max_glides`` surfaces.
+
+    Every node of the tree counts on its own, whatever its parent: an object standing on a
+    table or inside a compound support is voiced like one standing on the floor. (A compound's
+    ``parts`` are depth labels of its slices, not node ids, so they never name other nodes.)
+
+    Parameters
+    ----------
+    tree : SceneTree
+    mapping : SoundMapping
+
+    Returns
+    -------
+    Selection
+    """
+    nodes = sorted(tree.nodes(), key=lambda n: (n.depth, n.id))
+    objs = [n for n in nodes if n.kind in BEEP_KINDS]
+    surfs = [n for n in nodes if n.kind in OBLIQUE_KINDS]
+    left: list[tuple[Node, str]] = []
+    for n in nodes:
+        if n.kind not in BEEP_KINDS and n.kind not in OBLIQUE_KINDS:
+            left.append((n, f"no voice rule for kind {n.kind!r}"))
+    for group, cap, what, setting in ((objs, mapping.max_voices, "objects", "max_voices"),
+                                      (surfs, mapping.max_glides, "surfaces", "max_glides")):
+        for n in group[cap:]:
+            left.append((n, f"{cap} nearer {what} already sound ({setting} = {cap})"))
+    left.sort(key=lambda t: (t[0].depth, t[0].id))
+    return Selection(tuple(objs[: mapping.max_voices]), tuple(surfs[: mapping.max_glides]), tuple(left))
+
+
+def _extent(n: Node, objects: Mapping[int, SceneObject]) -> tuple[float, float, float, float]:
+    """(near depth mm, far depth mm, near column px, far column px) of an oblique surface."""
+    o = objects.get(n.id)
+    parts = o.parts if o is not None else ()
+    if len(parts) >= 2:
+        near_p = min(parts, key=lambda p: p.depth)
+        far_p = max(parts, key=lambda p: p.depth)
+        return near_p.depth, far_p.depth, near_p.center_xy[0], far_p.center_xy[0]
+    # Without its parts (a tree read back from text) the extent is unknown: assume the
+    # surface runs from half to one and a half times its mean depth, at its center column.
+    return 0.5 * n.depth, 1.5 * n.depth, n.center_xy[0], n.center_xy[0]
+
+
+def voices(
+    tree: SceneTree,
+    frame_size: tuple[int, int],
+    mapping: SoundMapping,
+    objects: Sequence[SceneObject] = (),
+) -> list[Voice]:
     """The voices a scene makes under a mapping: the nearest objects and surfaces only.
 
     Parameters
@@ -68,26 +145,26 @@ def voices(tree: SceneTree, frame_size: tuple[int, int], mapping: SoundMapping) 
     frame_size : tuple of int
         (width, height) of the frame (px).
     mapping : SoundMapping
+    objects : sequence of SceneObject, optional
+        The segmentation's objects (ids as in the tree). A surface's glide runs between its
+        nearest and farthest slice (``parts``) when they are given, else over an assumed extent.
 
     Returns
     -------
     list of Voice
+        Beeping objects first (nearest first), then glides; :func:`select` says which nodes
+        were left out and why.
     """
     w, h = frame_size
-    nodes = tree.nodes()
-    by_id = {n.id: n for n in nodes}
-    hidden = _hidden_parts(nodes)
-    objs = sorted((n for n in nodes if n.kind not in (*OBLIQUE_KINDS, "part") and n.id not in hidden),
-                  key=lambda n: (n.depth, n.id))[: mapping.max_voices]
-    surfaces = sorted((n for n in nodes if n.kind in OBLIQUE_KINDS and n.id not in hidden),
-                      key=lambda n: (n.depth, n.id))[: mapping.max_glides]
+    sel = select(tree, mapping)
+    by_id = {o.id: o for o in objects}
     if mapping.scan == "left_to_right":
-        ranked = sorted(objs, key=lambda n: (n.center_xy[0], n.id))
+        ranked = sorted(sel.beeps, key=lambda n: (n.center_xy[0], n.id))
     else:
-        ranked = list(objs)  # already nearest first; "none" ignores the order
+        ranked = list(sel.beeps)  # already nearest first; "none" ignores the order
     rank = {n.id: i / max(len(ranked) - 1, 1) for i, n in enumerate(ranked)}
     out: list[Voice] = []
-    for n in objs:
+    for n in sel.beeps:
         f = mapping.pitch(n.center_xy[1], h)
         g = mapping.gain(n.depth)
         pan = mapping.pan(n.center_xy[0], w)
@@ -95,18 +172,8 @@ def voices(tree: SceneTree, frame_size: tuple[int, int], mapping: SoundMapping) 
         order = rank[n.id] if mapping.scan != "none" else 0.0
         rate = mapping.rate(n.depth, n.ttc)
         out.append(Voice(("o", n.id), f, f, g, g, pan, pan, rate, beep, harm, order))
-    for n in surfaces:
-        parts = [by_id[p] for p in n.parts if p in by_id]
-        if len(parts) >= 2:
-            near_n = min(parts, key=lambda p: p.depth)
-            far_n = max(parts, key=lambda p: p.depth)
-            d_near, d_far = near_n.depth, far_n.depth
-            x_near, x_far = near_n.center_xy[0], far_n.center_xy[0]
-        else:
-            # Without its parts the extent is unknown: assume the surface runs from half to one
-            # and a half times its mean depth, at its center column.
-            d_near, d_far = 0.5 * n.depth, 1.5 * n.depth
-            x_near = x_far = n.center_xy[0]
+    for n in sel.glides:
+        d_near, d_far, x_near, x_far = _extent(n, by_id)
         fc = mapping.pitch(n.center_xy[1], h)
         span = mapping.glide_octaves * (mapping.nearness(d_near) - mapping.nearness(d_far))
         k = 10.0 ** (mapping.glide_gain_db / 20.0)
@@ -116,6 +183,34 @@ def voices(tree: SceneTree, frame_size: tuple[int, int], mapping: SoundMapping) 
             mapping.pan(x_near, w), mapping.pan(x_far, w), 0.0, 0.0, 1, 0.0,
         ))
     return out
+
+
+def still_seconds(voices_: Sequence[Voice], mapping: SoundMapping, *, beeps: int = 2) -> float:
+    """Length (s) of a still's sound in which every voice is heard at least ``beeps`` times.
+
+    A beeping voice first sounds at ``order * scan_s`` and then every ``1 / rate`` s; a glide
+    needs one ``glide_period_s`` to run near -> far -> near. The result adds one beep period
+    of the slowest voice as a margin (so the last beep is whole, before the final fade),
+    is at least 1 s and is rounded up to 0.1 s.
+
+    Parameters
+    ----------
+    voices_ : sequence of Voice
+    mapping : SoundMapping
+    beeps : int
+        Times each object is heard.
+
+    Returns
+    -------
+    float
+    """
+    need = 1.0
+    for v in voices_:
+        if v.rate > 0:
+            need = max(need, v.order * mapping.scan_s + beeps / v.rate + v.beep_s + mapping.ramp_s)
+        else:
+            need = max(need, beeps * mapping.glide_period_s)
+    return math.ceil(need * 10 - 1e-9) / 10
 
 
 @dataclass
@@ -205,8 +300,11 @@ class Sonifier:
         """Total duration (s) pushed so far."""
         return self._seconds
 
-    def push(self, tree: SceneTree, duration_s: float) -> NDArray[np.float32]:
+    def push(self, tree: SceneTree, duration_s: float, objects: Sequence[SceneObject] = ()) -> NDArray[np.float32]:
         """Audio for one frame of ``duration_s`` seconds.
+
+        ``objects`` are the frame's segmented objects (``SceneResult.segmentation.objects``):
+        with them a surface's glide spans its real near and far ends.
 
         The number of samples is chosen so that the total over all pushes is the rounded total
         duration: a sequence's audio lasts exactly as long as the sequence.
@@ -224,7 +322,7 @@ class Sonifier:
         if n <= 0:
             return np.zeros((0, 2), np.float32)
         self._samples = total
-        targets = {v.key: v for v in voices(tree, self._size_of(tree), self.mapping)}
+        targets = {v.key: v for v in voices(tree, self._size_of(tree), self.mapping, objects)}
         return self._render(targets, n).astype(np.float32)
 
     def _size_of(self, tree: SceneTree) -> tuple[int, int]:
@@ -296,8 +394,9 @@ def render_scene(
     frame_size: tuple[int, int] | None = None,
     *,
     mapping: SoundMapping | None = None,
-    duration_s: float = 0.5,
+    duration_s: float | None = None,
     samplerate: int = 22050,
+    objects: Sequence[SceneObject] = (),
 ) -> NDArray[np.float32]:
     """One scene as a short stereo sound: a scan (left to right by default), then its beeps.
 
@@ -310,17 +409,22 @@ def render_scene(
     frame_size : tuple of int, optional
         (width, height) of the frame (px); the tree's own (:attr:`SceneTree.frame_size`) when omitted.
     mapping : SoundMapping, optional
-    duration_s : float
-        Length of the sound (s).
+    duration_s : float, optional
+        Length of the sound (s). By default :func:`still_seconds`: long enough for every
+        voice to be heard twice.
     samplerate : int
         Samples per second (Hz).
+    objects : sequence of SceneObject, optional
+        The segmented objects, for the real extent of surfaces (see :func:`voices`).
 
     Returns
     -------
     ndarray of float32, shape (round(duration_s * samplerate), 2)
     """
     s = Sonifier(mapping, samplerate, frame_size)
-    audio = s.push(tree, duration_s)
+    if duration_s is None:
+        duration_s = still_seconds(voices(tree, s._size_of(tree), s.mapping, objects), s.mapping)
+    audio = s.push(tree, duration_s, objects)
     r = min(len(audio), max(1, round(s.mapping.ramp_s * samplerate)))
     if r:
         audio[-r:] *= np.linspace(1.0, 0.0, r, dtype=np.float32)[:, None]

@@ -108,8 +108,7 @@ def draw_overlay(
         text = f"#{o.id} {o.kind}\n{o.depth:.0f} mm, A={o.area}"
         m = motions.get(o.id) if motions else None
         if m is not None and getattr(m, "v_radial", None) is not None:
-            unit = "mm/f" if m.per_frame else "mm/s"
-            text += f"\nv={m.v_radial:+.0f} {unit}"
+            text += f"\nv={m.v_radial:+.0f} mm/s"
         ax.text(
             (x + 0.5) * s, (y + 0.5) * s, text, color="white", fontsize=7,
             ha="center", va="center", bbox={"facecolor": "black", "alpha": 0.55, "pad": 1.5, "edgecolor": "none"},

@@ -130,8 +130,8 @@ class ReportWriter:
             v = s.v.setdefault(o.id, [None] * i)
             d.append(o.depth)
             v.append(None if m is None else m.v_radial)
-            if m is not None and m.per_frame:
-                s.per_frame = True
+            if f.time_s is None:
+                s.per_frame = True  # no timestamps: the time axis counts frames
         for lst in (*s.depth.values(), *s.v.values()):
             if len(lst) < i + 1:
                 lst.append(None)
@@ -152,7 +152,7 @@ class ReportWriter:
             keep = {k: v for k, v in s.depth.items() if sum(x is not None for x in v) >= 3}
             draw_tracks(
                 s.times, keep, {k: s.v[k] for k in keep}, self.out / "tracks.png",
-                time_unit="frame" if s.per_frame else "s", v_unit="mm/frame" if s.per_frame else "mm/s",
+                time_unit="frame" if s.per_frame else "s", v_unit="mm/s",
             )
             extra = '<section><h2>tracks</h2><img src="tracks.png" alt="tracks"></section>'
         (self.out / "series.json").write_text(
