@@ -13,11 +13,13 @@ if TYPE_CHECKING:
 
 
 def add_pipeline_arguments(p: argparse.ArgumentParser, *, stills: bool = False) -> None:
-    """INPUT, how to read it, the settings, --quiet, and with ``stills`` the --no-track switch."""
+    """INPUT, how to read it (with --stills), the settings and --quiet.
+
+    ``stills`` is kept for callers of the time when only some commands had --no-track; every
+    command now has --stills (alias --no-track) among the reading options.
+    """
     add_source_arguments(p)
     add_config_arguments(p)
-    if stills:
-        p.add_argument("--no-track", action="store_true", help="treat frames as unrelated stills (no range flow)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
@@ -26,7 +28,7 @@ def pipeline_results(args: argparse.Namespace, desc: str) -> tuple[Source, Itera
     from depthgram.pipeline import Pipeline
 
     src = open_input(args)
-    pipe = Pipeline(load_config(args), track=not getattr(args, "no_track", False))
+    pipe = Pipeline(load_config(args))
     return src, progress(pipe.run(src), total=source_len(src), desc=desc, quiet=args.quiet)
 
 
@@ -45,6 +47,11 @@ def add_source_arguments(p: argparse.ArgumentParser) -> None:
     g.add_argument("--fps", type=float, default=None, metavar="RATE",
                    help="frame rate of a folder of frames without timestamps")
     g.add_argument("--timestamps", default=None, metavar="FILE", help="file with one time (s) per frame")
+    g.add_argument("--stills", "--no-track", dest="stills", default=None, nargs="?", const="yes",
+                   choices=["yes", "no", "auto"],
+                   help="the frames are unrelated still images: no motion (velocity, time to collision, approach "
+                        "alarm) is read between them. 'no': one recording, always track; default 'auto' (or the "
+                        "config's 'stills'): tracks are dropped between frames with nothing in common")
     g.add_argument("--encoding", default="auto", help="raw encoding: auto, mm, sun, kinect-disparity")
     g.add_argument("--topic", default=None, help="depth Image topic of a ROS bag")
     g.add_argument("--range", type=float, nargs=2, default=None, metavar=("NEAR_MM", "FAR_MM"),
@@ -82,6 +89,9 @@ def load_config(args: argparse.Namespace) -> Config:
     cfg = Config.load(args.config) if getattr(args, "config", None) else Config()
     if getattr(args, "method", None):
         cfg = cfg.replace(segment={"method": args.method})
+    stills = getattr(args, "stills", None)
+    if stills is not None:
+        cfg = cfg.with_stills({"yes": True, "no": False}.get(stills, "auto"))
     return cfg
 
 

@@ -19,7 +19,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--scale", type=float, default=None, metavar="MM_PER_UNIT", help="millimetres per raw unit")
     p.add_argument("--invalid", type=float, nargs="+", default=[], metavar="VALUE", help="raw no-reading values")
     p.add_argument("--fps", type=float, default=None, help="frame rate of folders without timestamps")
-    p.add_argument("--no-track", action="store_true", help="treat frames as unrelated stills")
+    p.add_argument("--stills", "--no-track", dest="no_track", action="store_true",
+                   help="the frames are unrelated still images: no motion read between them")
     p.add_argument("--quiet", action="store_true", help="no per-recording lines")
 
 
