@@ -6,9 +6,12 @@ import argparse
 import importlib
 import pkgutil
 import sys
-from collections.abc import Sequence
+import warnings
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
+from typing import TextIO
 
-from depthgram import commands
+from depthgram import __version__, commands
 from depthgram.errors import DepthgramError
 
 __all__ = ["build_parser", "main"]
@@ -20,6 +23,7 @@ def build_parser() -> argparse.ArgumentParser:
         prog="depthgram",
         description="Depth frames to a compact scene description: objects, motion, grammar, actions, sound.",
     )
+    parser.add_argument("--version", action="version", version=f"depthgram {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     for info in sorted(pkgutil.iter_modules(commands.__path__), key=lambda m: m.name):
         if info.name.startswith("_"):
@@ -39,7 +43,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         parser.print_help()
         return 2
     try:
-        return int(args._run(args) or 0)
+        with _plain_warnings(args.command):
+            return int(args._run(args) or 0)
     except DepthgramError as exc:
         print(f"depthgram {args.command}: error: {exc}", file=sys.stderr)
         return 2
@@ -57,6 +62,25 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         print(f"depthgram {args.command}: interrupted", file=sys.stderr)
         return 130
+
+
+@contextmanager
+def _plain_warnings(command: str) -> Iterator[None]:
+    """depthgram's own warnings (wrong units ...) as one line for people, without the source line."""
+    shown = warnings.showwarning
+
+    def show(message: Warning | str, category: type[Warning], filename: str, lineno: int,
+             file: TextIO | None = None, line: str | None = None) -> None:
+        if category.__module__.startswith("depthgram"):
+            print(f"depthgram {command}: warning: {message}", file=sys.stderr)
+        else:
+            shown(message, category, filename, lineno, file, line)
+
+    warnings.showwarning = show
+    try:
+        yield
+    finally:
+        warnings.showwarning = shown
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -8,7 +8,8 @@ datasets), metres (float images), a units-per-metre scale (TUM's 5000), and the 
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+import warnings
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -20,10 +21,29 @@ __all__ = [
     "DepthError",
     "Frame",
     "Intrinsics",
+    "UnitsWarning",
     "depth_from_8bit",
     "depth_to_8bit",
+    "implausible_depth",
     "make_frame",
+    "warn_units",
 ]
+
+#: Median valid depth (mm) a depth camera can plausibly see: below 50 mm no camera reads, and
+#: beyond 8 m structured light and ToF give noise, not scenes (TUM read without its scale gives
+#: 12 m, SUN and NYU without their encodings 21 m and 54 m).
+PLAUSIBLE_MEDIAN_MM = (50.0, 8000.0)
+
+#: A float image whose readings all sit under this is metres or a normalised image, not mm.
+FLOAT_METRES_BELOW = 20.0
+
+#: Pixels sampled for the check (a strided subset: the median of 10,000 pixels is within a
+#: few mm of the whole frame's, and costs 0.2 ms instead of 5 ms at 640 x 480).
+_SAMPLE_PX = 10_000
+
+
+class UnitsWarning(UserWarning):
+    """Depth values implausible for a depth camera: the units or the encoding are probably wrong."""
 
 
 class DepthError(InputError):
@@ -100,6 +120,82 @@ class Frame:
         return 1.0 - float(np.count_nonzero(self.valid)) / self.valid.size
 
 
+def implausible_depth(depth_mm: NDArray[np.floating], valid: NDArray[np.bool_]) -> tuple[str, bool] | None:
+    """Why the depths cannot come from a depth camera in these units, or None when they can.
+
+    Parameters
+    ----------
+    depth_mm : ndarray, shape (H, W)
+        Depth as read (mm).
+    valid : ndarray of bool, shape (H, W)
+        Pixels with a reading.
+
+    Returns
+    -------
+    (str, bool) or None
+        The reason (``"the median depth 12075 mm is beyond 8 m ..."``, from a strided sample of
+        the valid pixels) and whether the depths are too far (else too near); None when the
+        median lies in :data:`PLAUSIBLE_MEDIAN_MM` or nothing is valid.
+    """
+    step = max(1, int(np.sqrt(depth_mm.size / _SAMPLE_PX)))
+    d = depth_mm[::step, ::step][valid[::step, ::step]]
+    if d.size == 0:
+        return None
+    med = float(np.median(d))
+    lo, hi = PLAUSIBLE_MEDIAN_MM
+    if med > hi:
+        return f"the median depth {med:.0f} mm is beyond {hi / 1000:.0f} m, farther than depth cameras read", True
+    if med < lo:
+        return f"the median depth {med:.1f} mm is under {lo:.0f} mm, nearer than depth cameras read", False
+    return None
+
+
+def warn_units(where: str, reason: str, hints: Sequence[str]) -> None:
+    """Warn (:class:`UnitsWarning`) that the units of ``where`` look wrong, naming the likely fixes.
+
+    Python shows a given warning once per place, so a sequence read in the wrong units warns
+    once, not once per frame, when the message names the source rather than the frame.
+    """
+    fix = ("try " + "; or ".join(hints)) if hints else "check the units in the recording's documentation (--scale)"
+    warnings.warn(f"{where}: {reason}: the units are likely wrong; {fix}", UnitsWarning, stacklevel=3)
+
+
+def _float_metres(arr: NDArray[np.generic]) -> bool:
+    """A float image whose readings all sit under :data:`FLOAT_METRES_BELOW` (metres, not mm)."""
+    if not np.issubdtype(arr.dtype, np.floating):
+        return False
+    a = np.asarray(arr, dtype=np.float64)
+    with np.errstate(invalid="ignore"):
+        d = a[np.isfinite(a) & (a > 0)]
+    return bool(d.size) and float(d.max()) < FLOAT_METRES_BELOW
+
+
+def check_array_units(arr: ArrayLike, where: str, valid: NDArray[np.bool_] | None = None) -> None:
+    """Warn when a depth array handed over as millimetres looks like metres or other units.
+
+    For the entry points that take bare arrays (:func:`make_frame`, :func:`depthgram.segment`,
+    :func:`depthgram.describe`): float values all under 20 are metres; a median beyond 8 m or
+    under 50 mm is some other unit.
+    """
+    a = np.asarray(arr)
+    if a.ndim != 2 or a.size == 0 or a.dtype.kind not in "iuf":
+        return  # the entry point's own checks give the error
+    if _float_metres(a):
+        warn_units(where, f"float depths all under {FLOAT_METRES_BELOW:.0f} look like metres, read here as mm",
+                   ["scale_mm=1000 (--scale 1000), or multiply by 1000 before passing"])
+        return
+    ok = np.isfinite(a) & (a > 0) if valid is None else valid
+    found = implausible_depth(a, ok)
+    if found:
+        warn_units(where, found[0], _scale_hints(found[1]))
+
+
+def _scale_hints(too_far: bool) -> list[str]:
+    if too_far:
+        return ["scale_mm=MM_PER_UNIT (--scale 0.2 for TUM's 5000 units per metre, --scale 0.1 for 0.1 mm units)"]
+    return ["scale_mm=1000 (--scale 1000) if the depths are metres"]
+
+
 def make_frame(
     raw: ArrayLike,
     *,
@@ -111,6 +207,7 @@ def make_frame(
     intrinsics: Intrinsics | None = None,
     name: str = "",
     allow_all_invalid: bool = True,
+    check_units: bool = True,
 ) -> Frame:
     """Build a :class:`Frame` from raw depth values.
 
@@ -129,6 +226,10 @@ def make_frame(
         Stored on the frame.
     allow_all_invalid : bool
         When False, a frame without a single valid pixel raises :class:`DepthError`.
+    check_units : bool
+        Warn (:class:`UnitsWarning`) when the first frame (``index`` 0) holds depths no depth
+        camera reads: float values all under 20 (metres read as mm), a median beyond 8 m or
+        under 50 mm. Sources that know the raw encoding check themselves and pass False.
 
     Returns
     -------
@@ -167,6 +268,14 @@ def make_frame(
         depth[too_far] = 0.0
     if not allow_all_invalid and not valid.any():
         raise DepthError(f"{where}: no valid depth pixel (all zero, NaN or marked invalid)")
+    if check_units and index == 0:
+        if scale_mm == 1.0 and _float_metres(arr):
+            warn_units(where, f"float depths all under {FLOAT_METRES_BELOW:.0f} look like metres, read here as mm",
+                       ["scale_mm=1000 (--scale 1000)"])
+        else:
+            found = implausible_depth(depth, valid)
+            if found:
+                warn_units(where, found[0], _scale_hints(found[1]))
     return Frame(depth=depth, valid=valid, index=index, time_s=time_s, intrinsics=intrinsics, name=name)
 
 

@@ -422,8 +422,24 @@ def describe(
     """Describe one depth image (mm; 0 or NaN invalid): objects, tree, sentence and plan.
 
     A convenience for a single still; use :class:`Pipeline` for sequences (range flow).
-    """
-    from depthgram.frame import make_frame
 
-    frame = make_frame(depth_mm, intrinsics=intrinsics, name="array")
+    Parameters
+    ----------
+    depth_mm : ndarray, shape (H, W), or Frame
+        Depth (mm), or a :class:`~depthgram.frame.Frame` from :func:`depthgram.read`, whose
+        validity mask and intrinsics are used (``intrinsics`` overrides them). A bare array
+        that cannot be millimetres warns (:class:`~depthgram.frame.UnitsWarning`).
+    intrinsics : Intrinsics, optional
+        Camera intrinsics (px).
+    config : Config, optional
+        Settings; defaults when omitted.
+    """
+    import dataclasses
+
+    from depthgram.frame import Frame, make_frame
+
+    if isinstance(depth_mm, Frame):
+        frame = depth_mm if intrinsics is None else dataclasses.replace(depth_mm, intrinsics=intrinsics)
+    else:
+        frame = make_frame(depth_mm, intrinsics=intrinsics, name="array")
     return Pipeline(config, track=False).process(frame)

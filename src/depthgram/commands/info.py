@@ -12,27 +12,17 @@ HELP = "Show what a depth source holds: kind, frames, size, depth range (mm), in
 #: Sources with more frames than this get a progress bar on stderr.
 _PROGRESS_FROM = 20
 
+#: Frames of a live camera summarised when its spec gives no count.
+_LIVE_FRAMES = 30
+
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    """Add the ``info`` options."""
-    parser.add_argument("input", metavar="INPUT",
-                        help="file, folder, glob, .npy/.npz stack, ROS bag/.mcap, or sim:SCENE?frames=N")
-    parser.add_argument("--scale", type=float, metavar="MM_PER_UNIT", default=None,
-                        help="mm per raw unit (default 1 for integer images, 1000 for float = metres; TUM: 0.2)")
-    parser.add_argument("--invalid", type=float, nargs="+", metavar="V", default=[],
-                        help="raw values meaning no reading (65535 in uint16 images always is)")
-    parser.add_argument("--fps", type=float, metavar="RATE", default=None, help="frame rate (frames/s)")
-    parser.add_argument("--timestamps", metavar="FILE", default=None,
-                        help="timestamps file: one time (s) per line, or 'index time' pairs")
-    parser.add_argument("--encoding", default="auto",
-                        choices=["auto", "raw", "mm", "m", "8bit", "sun", "kinect-disparity"],
-                        help="sample encoding (mm/m: units whatever the dtype; sun: SUN RGB-D bit shift; "
-                        "kinect-disparity: NYU raw PGM)")
-    parser.add_argument("--range", type=float, nargs=2, metavar=("NEAR", "FAR"), default=None, dest="depth_range",
-                        help="depth range in mm: of the 8-bit codes 1..255, else the valid range")
-    parser.add_argument("--topic", default=None, help="bag topic (needed when a bag has several depth topics)")
-    parser.add_argument("--key", default=None, help="array name inside an .npz")
-    parser.add_argument("--json", action="store_true", help="print one JSON object instead of text")
+    """Add the ``info`` options: INPUT, the reading options every command shares, --json."""
+    from depthgram.commands._common import add_output_argument, add_source_arguments
+
+    parser.epilog = "The summary is printed as text unless --json names a file ('-' is standard output)."
+    add_source_arguments(parser, input_optional=True)
+    add_output_argument(parser, "--json", "the summary as one JSON object", bare_deprecated=True)
 
 
 def _fmt_mm(v: float | None) -> str:
@@ -69,24 +59,23 @@ def format_info(info: object) -> str:
 
 def run(args: argparse.Namespace) -> int:
     """Open the source, stream it once and print the summary."""
-    from depthgram.sources import open_source
+    from depthgram.commands._common import Output, open_input, output_target, source_len
 
-    src = open_source(
-        args.input,
-        scale_mm=args.scale,
-        invalid=tuple(args.invalid),
-        fps=args.fps,
-        timestamps=args.timestamps,
-        depth_range_mm=tuple(args.depth_range) if args.depth_range else None,
-        encoding=args.encoding,
-        topic=args.topic,
-        key=args.key,
-    )
+    json_to = output_target(args, "json")
+    src = open_input(args)
+    n = source_len(src)
+    if n is None and src.live:
+        # a camera streams for ever: summarise a fixed number of its frames
+        spec = f"{args.input}{'&' if '?' in args.input else '?'}frames={_LIVE_FRAMES}"
+        print(f"depthgram info: live camera: summarising its first {_LIVE_FRAMES} frames "
+              f"(add ?frames=N to choose)", file=sys.stderr)
+        args.input, n = spec, _LIVE_FRAMES
+        src = open_input(args)
     # Same rule as the other commands: no bar in logs or pipes.
-    info = src.info(progress=len(src) > _PROGRESS_FROM and sys.stderr.isatty())
-    if args.json:
-        json.dump(info.to_dict(), sys.stdout)
-        sys.stdout.write("\n")
+    info = src.info(progress=(n or 0) > _PROGRESS_FROM and sys.stderr.isatty())
+    if json_to is not None:
+        with Output(json_to, "--json") as out:
+            out.write(json.dumps(info.to_dict()) + "\n")
     else:
         print(format_info(info))
     return 0

@@ -10,7 +10,10 @@ HELP = "Parse scene sentences (one per line, '-' for stdin) and print each tree 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Add the command's arguments."""
+    from depthgram.commands._common import add_output_argument
+
     parser.add_argument("file", help="text file with one sentence per line, or '-' for standard input")
+    add_output_argument(parser, "--json", "the trees as JSON lines (default: standard output)")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -35,10 +38,13 @@ def run(args: argparse.Namespace) -> int:
         except OSError as exc:
             raise InputError(f"{path}: cannot read ({exc.strerror})") from None
         source = str(path)
-    # Trees of the lines before a bad one are still printed: parse line by line.
-    for i, line in enumerate(text.splitlines()):
-        if not line.strip():
-            continue
-        tree = parse_sentence(line, source=source, first_line=i + 1)
-        print(json.dumps(tree_to_dict(tree), separators=(",", ":")), flush=True)
+    from depthgram.commands._common import STDOUT, Output
+
+    # Trees of the lines before a bad one are still written: parse line by line.
+    with Output(args.json or STDOUT, "--json") as out:
+        for i, line in enumerate(text.splitlines()):
+            if not line.strip():
+                continue
+            tree = parse_sentence(line, source=source, first_line=i + 1)
+            out.write(json.dumps(tree_to_dict(tree), separators=(",", ":")) + "\n")
     return 0

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import socket
 import sys
 
 from depthgram.commands._common import add_config_arguments, add_source_arguments
@@ -33,17 +34,19 @@ def run(args: argparse.Namespace) -> int:
     import threading
     import webbrowser
 
+    from depthgram.commands._common import load_config, open_input, source_len
+    from depthgram.errors import InputError
+
+    if not 0 <= args.port <= 65535:
+        raise InputError(f"--port must be in 0..65535, got {args.port}")
     from depthgram._optional import needs_extra
 
     with needs_extra("view", "the browser viewer"):
         import uvicorn
 
         from depthgram.views.server import LOOPBACK_HOSTS, Player, ViewerConfig, create_app, recording_name
-    from depthgram.commands._common import load_config, open_input, source_len
-    from depthgram.errors import InputError
 
-    if not 0 <= args.port <= 65535:
-        raise InputError(f"--port must be in 0..65535, got {args.port}")
+    sock = bind_port(args.host, args.port)
     src = open_input(args)
     cfg = load_config(args)
     viewer = ViewerConfig(fps=args.fps, speed=args.speed, loop=not args.no_loop,
@@ -76,6 +79,39 @@ def run(args: argparse.Namespace) -> int:
             webbrowser.open(url)
 
     threading.Thread(target=announce, daemon=True).start()
-    asyncio.run(server.serve())
+    asyncio.run(server.serve(sockets=[sock]))
     return 0
+
+
+def bind_port(host: str, port: int) -> socket.socket:
+    """A listening socket on ``host``:``port``, or an :class:`InputError` saying what to do.
+
+    The viewer binds it itself (uvicorn then serves on it) so that a port in use is a one-line
+    message instead of uvicorn's log and exit.
+    """
+    import errno
+
+    from depthgram.errors import InputError
+
+    try:
+        infos = socket.getaddrinfo(host or None, port, type=socket.SOCK_STREAM, flags=socket.AI_PASSIVE)
+    except socket.gaierror as exc:
+        raise InputError(f"--host {host}: not an address of this machine ({exc.strerror})") from None
+    family, kind, proto, _, addr = infos[0]
+    sock = socket.socket(family, kind, proto)
+    sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+    try:
+        sock.bind(addr)
+    except OSError as exc:
+        sock.close()
+        if exc.errno == errno.EADDRINUSE:
+            raise InputError(f"port {port} on {host} is already in use (another depthgram view?): "
+                             "stop it, or choose another with --port N (--port 0 picks a free one)") from None
+        if exc.errno == errno.EACCES:
+            raise InputError(f"port {port} on {host}: permission denied (ports below 1024 need root): "
+                             "choose another with --port N") from None
+        raise InputError(f"cannot listen on {host}:{port}: {exc.strerror or exc}") from None
+    sock.listen(128)
+    sock.set_inheritable(True)
+    return sock
 

@@ -9,7 +9,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from depthgram.frame import Intrinsics
+from depthgram.frame import Frame, Intrinsics, check_array_units
 from depthgram.segmentation.attributes import Stats, make_objects
 from depthgram.segmentation.config import SegmentConfig
 from depthgram.segmentation.histogram import Bands, bin_index, depth_bands
@@ -54,7 +54,7 @@ _DEFAULTS = SegmentConfig()
 
 
 def segment(
-    depth_mm: NDArray[np.floating],
+    depth_mm: NDArray[np.floating] | Frame,
     *,
     valid: NDArray[np.bool_] | None = None,
     intrinsics: Intrinsics | None = None,
@@ -66,8 +66,12 @@ def segment(
 
     Parameters
     ----------
-    depth_mm : ndarray, shape (H, W)
-        Depth along the optical axis (mm); 0 or NaN where there is no reading.
+    depth_mm : ndarray, shape (H, W), or Frame
+        Depth along the optical axis (mm); 0 or NaN where there is no reading. A
+        :class:`~depthgram.frame.Frame` (from :func:`depthgram.read`) brings its own validity
+        mask and intrinsics, used unless ``valid`` / ``intrinsics`` are given. A bare array
+        whose values cannot be millimetres (floats all under 20: metres; a median beyond 8 m)
+        gives a :class:`~depthgram.frame.UnitsWarning`.
     valid : ndarray of bool, optional
         Pixels with a reading; by default finite and > 0.
     intrinsics : Intrinsics, optional
@@ -123,6 +127,13 @@ def segment(
       (6.3x one ``np.bincount`` pass at 640 x 480); slicing about 178, 48 and 21; region
       growing about 1,430, 121 and 43.
     """
+    if isinstance(depth_mm, Frame):
+        valid = depth_mm.valid if valid is None else valid
+        intrinsics = depth_mm.intrinsics if intrinsics is None else intrinsics
+        depth_mm = depth_mm.depth
+    elif valid is None:
+        # a caller's own array (the pipeline and the sources pass a mask and were checked when read)
+        check_array_units(depth_mm, "segment")
     if isinstance(sensor, str):
         overrides["sensor"] = sensor
         sensor = None

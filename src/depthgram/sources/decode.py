@@ -143,10 +143,15 @@ def to_frame(
         time_s=time_s,
         intrinsics=intrinsics,
         name=name,
+        check_units=False,
     )
     if near_far is not None and near_far[0] > 0:
         # The arrays are fresh from make_frame and owned by this frame only.
         too_near = frame.valid & (frame.depth < near_far[0])
         frame.depth[too_near] = 0.0
         frame.valid[too_near] = False
+    if index == 0:
+        from depthgram.sources.units import check_first_frame
+
+        check_first_frame(arr, frame, cfg, where)
     return frame
