@@ -314,8 +314,8 @@ class Pipeline:
     def _sensor_model(self, frame: Frame) -> SensorModel | None:
         """The camera's sensor model, estimated from the stream every ``_SENSOR_EVERY`` frames.
 
-        A camera's depth step and noise do not change from frame to frame; estimating them
-        costs about 2.4 ms at 640 x 480, a tenth of a frame's segmentation.
+        A camera's depth step and noise do not change from frame to frame, while estimating
+        them costs a fair share of a frame's segmentation (docs/design-notes.md).
         """
         seg = self.config.segment
         if seg.method != "surfaces" or seg.sensor != "auto":
@@ -333,8 +333,8 @@ class Pipeline:
         stages' lazy imports, which takes a few hundred milliseconds. Calling this before a
         live stream starts keeps that out of the first frame's latency; this pipeline's
         tracks are not touched. A real-time loop may then call ``gc.freeze()``, as
-        ``depthgram run`` does: Python's full collections then skip everything loaded so far
-        (one of them stalled a 7-Scenes frame by 63 ms).
+        ``depthgram run`` does: Python's full collections then skip everything loaded so far,
+        which otherwise stalls a frame now and then (docs/design-notes.md).
         """
         t0 = time.perf_counter()
         Pipeline(self.config, track=self.track).process(frame)
@@ -383,9 +383,8 @@ class Pipeline:
         works, as a sensor delivers them; 0 reads on the caller's thread, as does a live camera
         (a source with ``live`` true), whose queued frames would be stale. Frames that depend on
         earlier results (a closed loop, e.g. a simulator steered by the plan) need 0: up to
-        ``read_ahead + 1`` frames are made before the result of the current one is known. On the
-        300 PNG frames of 7-Scenes reading ahead raised throughput from 23-25 to 25-28 frames/s
-        (2 cores, alternating runs).
+        ``read_ahead + 1`` frames are made before the result of the current one is known. Why,
+        and what it gained: docs/design-notes.md (the real-time loop).
         """
         for frame in prefetch(frames, ahead=read_ahead):
             yield self.process(frame)
@@ -409,7 +408,7 @@ def _relabel(seg: Segmentation, new_ids: Mapping[int, int]) -> Segmentation:
     objects = tuple(
         sorted((dataclasses.replace(o, id=new_ids.get(o.id, o.id)) for o in seg.objects), key=lambda o: o.id)
     )
-    # the compiled pass: numpy's lut[labels] gather took 1.6 ms on a 640 x 480 frame, this 0.27
+    # the compiled pass, not numpy's lut[labels] gather (docs/design-notes.md)
     return dataclasses.replace(seg, labels=relabel(seg.labels, lut), objects=objects)
 
 

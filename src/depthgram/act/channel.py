@@ -82,7 +82,7 @@ def column_clearance(frame: Frame, config: ActConfig | None = None) -> NDArray[n
         # Height above the floor of each point, optical axis horizontal (Y grows downwards):
         # height = sensor - dy * depth with dy = (row - cy) / fy. Both band limits are linear in
         # depth, so each row admits one depth interval: two comparisons per pixel against
-        # per-row bounds instead of a full-frame float64 product (3x faster at 1280 x 720).
+        # per-row bounds instead of a full-frame float64 product (docs/design-notes.md).
         dy = (np.arange(h, dtype=np.float64) - k.cy) / k.fy
         lo = np.zeros(h)
         hi = np.full(h, np.inf)
@@ -109,7 +109,7 @@ def _column_min(
     depth: NDArray[np.float32], valid: NDArray[np.bool_], lo: NDArray[np.float32], hi: NDArray[np.float32]
 ) -> NDArray[np.float64]:
     # One pass over the frame for what numpy did in five full-frame temporaries (validity,
-    # two band tests, the masked copy, the column minimum): 0.94 -> 0.17 ms at 640 x 480.
+    # two band tests, the masked copy, the column minimum); docs/design-notes.md.
     h, w = depth.shape
     out = np.full(w, np.inf, np.float32)
     for y in range(h):

@@ -49,8 +49,7 @@ def run(args: argparse.Namespace) -> int:
     # compiled kernels load before the clock starts, as a live system starts before its sensor
     warm_s = pipe.warm_up(first)
     # Everything loaded so far (modules, compiled kernels) lives as long as the process: out of
-    # the collector's sight, a full collection no longer stalls a frame (one took 63 ms
-    # mid-recording on 7-Scenes, the frame's latency 98 ms; none in 300 frames after this).
+    # the collector's sight, a full collection no longer stalls a frame (docs/design-notes.md).
     gc.freeze()
     try:
         frames = itertools.chain([first], frames)

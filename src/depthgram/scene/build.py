@@ -150,8 +150,8 @@ def _contacts_below(
     n: int,
 ) -> NDArray[np.float64]:
     # Per column of each object: its lowest pixel, then the first other label within `rows`
-    # below it. The numpy version built a dozen box-sized temporaries per object (1.3 ms per
-    # 7-Scenes frame); this reads each box once.
+    # below it, reading each box once instead of building box-sized temporaries per object
+    # (docs/design-notes.md, compiled kernels).
     out = np.zeros((n, n))
     h = labels.shape[0]
     for i in range(ids.size):

@@ -13,7 +13,7 @@ from depthgram.frame import Frame, Intrinsics, check_array_units
 from depthgram.segmentation.attributes import Stats, make_objects
 from depthgram.segmentation.config import SegmentConfig
 from depthgram.segmentation.histogram import Bands, bin_index, depth_bands
-from depthgram.segmentation.label import ACTIVE, BLOCK, HOLE, label_bands_stats, label_stats_fused, plane_sums, relabel
+from depthgram.segmentation.label import label_bands_stats, label_stats_fused, plane_sums, relabel
 from depthgram.segmentation.objects import Histogram, SceneObject, Segmentation
 from depthgram.segmentation.orientation import (
     FACING,
@@ -41,9 +41,12 @@ from depthgram.segmentation.slices import (
 from depthgram.segmentation.surfaces import (
     concave_creases,
     crease_scale_px,
+    keep_large,
     label_surfaces,
+    loosen_small,
     merge_openings,
     reattach,
+    surface_state,
 )
 from depthgram.segmentation.validate import check_depth_far
 
@@ -232,26 +235,15 @@ def _surface_objects(
     creases = concave_creases(depth, ok, sensor, scale_px=r, min_angle_deg=cfg.crease_deg, focal_px=cam.fx)
     t0, t2 = sensor.tolerance(0.0, cfg.join_resolutions)
     slope = math.tan(math.radians(cfg.max_slope_deg)) / cam.fx
-    state = np.where(ok, np.int8(BLOCK), np.int8(HOLE))
-    state[facing & ~creases] = ACTIVE
+    state = surface_state(ok, facing, creases)
     labels, n = label_surfaces(depth, state, tol_0=t0, tol_2=t2, slope_per_px=slope, bridge_px=cfg.fill_holes_px)
     min_px = cfg.min_pixels(depth.size)
     # crease pixels and pieces too small to keep (the inside of a cup cut off by the crease of
     # its bottom) go to the surface they continue, then what is still too small is dropped
-    small = np.bincount(labels.ravel(), minlength=n + 1) < min_px
-    small[0] = True
-    loose = facing & small[labels]
-    labels[loose] = 0
+    loose = loosen_small(labels, n, facing, min_px)
     labels = reattach(labels, depth, loose, tol_0=t0, tol_2=t2, slope_per_px=slope, max_px=4 * r + 1)
-    count = np.bincount(labels.ravel(), minlength=n + 1)
-    keep = count >= min_px
-    keep[0] = False
-    lut = np.zeros(n + 1, np.int32)
-    lut[keep] = np.arange(1, int(keep.sum()) + 1, dtype=np.int32)
-    labels = relabel(labels, lut)
-    n = int(keep.sum())
+    labels, n, sums, boxes = keep_large(labels, n, min_px, depth)
     no_key = np.zeros(depth.shape, np.float32)
-    sums, boxes = label_stats_fused(labels, n, depth, no_key)
     mean = sums[:, 1] / np.maximum(sums[:, 0], 1.0)
     step = t0 + t2 * float(np.median(mean[1:])) ** 2 if n else t0
     joined = merge_openings(labels, depth, boxes, mean, focal_px=cam.fx, ring_px=2 * r, jump_mm=4.0 * step)

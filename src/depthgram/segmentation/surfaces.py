@@ -24,10 +24,19 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-from depthgram.segmentation.label import ACTIVE, BLOCK, _resolve, _union
+from depthgram.segmentation.label import ACTIVE, BLOCK, HOLE, _resolve, _union
 from depthgram.segmentation.sensor import SensorModel
 
-__all__ = ["concave_creases", "crease_scale_px", "label_surfaces", "merge_openings", "reattach"]
+__all__ = [
+    "concave_creases",
+    "crease_scale_px",
+    "keep_large",
+    "label_surfaces",
+    "loosen_small",
+    "merge_openings",
+    "reattach",
+    "surface_state",
+]
 
 
 def crease_scale_px(width_px: int) -> int:
@@ -509,18 +518,19 @@ def merge_openings(
     parent = np.arange(n + 1)
     kernel = cv2.getStructuringElement(cv2.MORPH_RECT, (2 * ring_px + 1, 2 * ring_px + 1))
     width = (objs[:, 2] - objs[:, 0] + 1) * z_mean / focal_px
-    for r in range(1, n + 1):
+    # cheap tests first, for every pair (R, A) at once: some nearer A that holds R's columns, R
+    # no deeper behind it than it is wide (the ring below costs a dilation of R's box). As one
+    # n x n test instead of a dozen numpy calls per surface: 0.5 ms of 0.6 at 176 x 132.
+    margin_all = 0.15 * (objs[:, 2] - objs[:, 0] + 1)
+    zr_col = z_mean[:, None]
+    maybe = (z_mean[None, :] < zr_col) & (zr_col - z_mean[None, :] <= width[None, :])
+    maybe &= (objs[None, :, 0] - margin_all[None, :] <= objs[:, 0, None])
+    maybe &= objs[:, 2, None] <= objs[None, :, 2] + margin_all[None, :]
+    maybe[:, 0] = False
+    np.fill_diagonal(maybe, False)
+    todo = np.flatnonzero(maybe.any(axis=1) & (objs[:, 2] >= 0))
+    for r in todo[todo > 0].tolist():
         x0, y0, x1, y1 = objs[r]
-        if x1 < 0:
-            continue
-        # cheap tests first: some nearer A that holds R's columns, R no deeper behind it than it
-        # is wide (the ring below costs a dilation of R's box)
-        margin_all = 0.15 * (objs[:, 2] - objs[:, 0] + 1)
-        maybe = (z_mean < z_mean[r]) & (z_mean[r] - z_mean <= width)
-        maybe &= (objs[:, 0] - margin_all <= x0) & (x1 <= objs[:, 2] + margin_all)
-        maybe[[0, r]] = False
-        if not maybe.any():
-            continue
         ys = slice(max(0, y0 - ring_px), min(h, y1 + ring_px + 1))
         xs = slice(max(0, x0 - ring_px), min(w, x1 + ring_px + 1))
         lab = labels[ys, xs]
@@ -566,3 +576,95 @@ def merge_openings(
     new[keep] = np.arange(1, keep.size + 1, dtype=np.int32)
     out: NDArray[np.int32] = new[roots]
     return out
+
+
+@njit(cache=True)
+def surface_state(valid: NDArray[np.bool_], facing: NDArray[np.bool_], creases: NDArray[np.bool_]) -> NDArray[np.int8]:
+    """Labeller state of :func:`label_surfaces`: facing pixels off a crease are active, other
+    readings block, pixels without a reading are holes (one pass for numpy's four)."""
+    h, w = valid.shape
+    out = np.empty((h, w), np.int8)
+    for y in range(h):
+        for x in range(w):
+            if not valid[y, x]:
+                out[y, x] = HOLE
+            elif facing[y, x] and not creases[y, x]:
+                out[y, x] = ACTIVE
+            else:
+                out[y, x] = BLOCK
+    return out
+
+
+@njit(cache=True)
+def loosen_small(labels: NDArray[np.int32], n: int, facing: NDArray[np.bool_], min_px: int) -> NDArray[np.bool_]:
+    """Facing pixels without a label or in a component under ``min_px`` pixels: returned as a
+    mask, their labels set to 0 (in place). One count and one pass for numpy's bincount,
+    gather and two masked writes."""
+    h, w = labels.shape
+    count = np.zeros(n + 1, np.int64)
+    for y in range(h):
+        for x in range(w):
+            count[labels[y, x]] += 1
+    small = count < min_px
+    small[0] = True
+    loose = np.zeros((h, w), np.bool_)
+    for y in range(h):
+        for x in range(w):
+            if facing[y, x] and small[labels[y, x]]:
+                loose[y, x] = True
+                labels[y, x] = 0
+    return loose
+
+
+@njit(cache=True)
+def keep_large(
+    labels: NDArray[np.int32], n: int, min_px: int, depth: NDArray[np.float32]
+) -> tuple[NDArray[np.int32], int, NDArray[np.float64], NDArray[np.int64]]:
+    """Components of at least ``min_px`` pixels renumbered 1..m in order, with the sums and
+    inclusive boxes of :func:`depthgram.segmentation.label.label_stats_fused` (key 0).
+
+    One count and one pass that relabels and sums, for numpy's bincount, the relabelling pass
+    and the statistics pass: the sums are added pixel by pixel in raster order as there, so
+    they are the same numbers.
+    """
+    h, w = labels.shape
+    count = np.zeros(n + 1, np.int64)
+    for y in range(h):
+        for x in range(w):
+            count[labels[y, x]] += 1
+    lut = np.zeros(n + 1, np.int32)
+    m = 0
+    for i in range(1, n + 1):
+        if count[i] >= min_px:
+            m += 1
+            lut[i] = m
+    out = np.zeros((h, w), np.int32)
+    sums = np.zeros((m + 1, 8), np.float64)
+    box = np.empty((m + 1, 4), np.int64)
+    box[:, 0] = w
+    box[:, 1] = h
+    box[:, 2] = -1
+    box[:, 3] = -1
+    for y in range(h):
+        for x in range(w):
+            i = lut[labels[y, x]]
+            if i == 0:
+                continue
+            out[y, x] = i
+            z = np.float64(depth[y, x])
+            sums[i, 0] += 1.0
+            sums[i, 1] += z
+            sums[i, 2] += z * z
+            sums[i, 3] += x
+            sums[i, 4] += y
+            sums[i, 5] += x * z
+            sums[i, 6] += y * z
+            if x < box[i, 0]:
+                box[i, 0] = x
+            if y < box[i, 1]:
+                box[i, 1] = y
+            if x > box[i, 2]:
+                box[i, 2] = x
+            if y > box[i, 3]:
+                box[i, 3] = y
+    return out, m, sums, box
