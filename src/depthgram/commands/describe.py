@@ -93,7 +93,7 @@ def run(args: argparse.Namespace) -> int:
         src, results = pipeline_results(args, NAME)
         mcap = None
         if args.mcap is not None:
-            from depthgram.export.mcap import McapWriter
+            from depthgram.export.mcap_file import McapWriter
 
             mcap = stack.enter_context(McapWriter(args.mcap, source=str(args.input), fps=getattr(src, "fps", None)))
         for result in results:

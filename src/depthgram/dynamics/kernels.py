@@ -224,7 +224,7 @@ def step(
     first: bool,
     next_id: int,
     p: NDArray[np.float64],
-) -> tuple[NDArray[np.int64], NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_], int]:
+) -> tuple[NDArray[np.int64], NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_], NDArray[np.bool_], int]:
     """Advance every track by one frame, in place; new tracks go to rows ``n..``.
 
     This is the project's own bookkeeping (queues, statuses, split/merge and border tests),
@@ -235,7 +235,8 @@ def step(
     scaled by it, so the tracker behaves alike at any frame rate.
 
     Returns the track row of each object, the reported velocity and time to collision of
-    every row, which rows die this frame, and the number of new tracks.
+    every row, which rows die this frame, which rows restarted their queue (new tracks too),
+    and the number of new tracks.
     """
     border, area_rate, max_jump, fit_border, min_speed, min_hits, max_missed, jump_rate, c_tau, a_tau = p
     # Exponential smoothing with a time constant: the same weight per second at any rate.
@@ -252,6 +253,7 @@ def step(
         qz[i, nq - 1] = np.nan
         s[i, MISSED] += 1.0
     obj_row = np.full(m, -1, np.int64)
+    restarted = np.zeros(n + m, np.bool_)
     z_ref_of = np.full(n + m, np.nan)
     for k in range(rows.shape[0]):
         i = rows[k]
@@ -312,6 +314,7 @@ def step(
         # mean), so earlier entries measure another surface. Measured on `crossing`: the cart
         # read 500 mm/s on such a frame while standing still in depth.
         restart = restart or (valid and s[i, READ] != f[c, F_READ])
+        restarted[i] = restart
         if restart:
             # The mean depth left the predicted path by more than any motion explains: the
             # segment now covers another surface (or the object jolted). Older entries no
@@ -367,6 +370,7 @@ def step(
         horiz, vert = _crossing_axes(f, c, border, width, height)
         status = ENTERING if (not first and (horiz or vert)) else VISIBLE
         s[i, ID] = next_id + (i - n)
+        restarted[i] = True
         s[i, HITS] = 1.0
         s[i, MISSED] = 0.0
         s[i, STATUS] = status
@@ -414,4 +418,4 @@ def step(
             dead[i] = s[i, HITS] < min_hits or s[i, MISSED] > max_missed
         v_out[i] = vo
         ttc[i] = z_pred / -vo if (vo < -min_speed and z_pred > 0) else np.nan
-    return obj_row, v_out, ttc, dead, nn - n
+    return obj_row, v_out, ttc, dead, restarted[:nn], nn - n

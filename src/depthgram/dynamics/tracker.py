@@ -18,6 +18,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.optimize import linear_sum_assignment
 
+from depthgram.dynamics import kalman
 from depthgram.dynamics.config import NOMINAL_FPS, TrackerConfig
 from depthgram.dynamics.kernels import (
     F_READ,
@@ -28,6 +29,7 @@ from depthgram.dynamics.kernels import (
     NFEAT,
     OCCLUDED,
     STATUS,
+    ZFIT,
     mark_behind,
     predict_cost,
     step,
@@ -147,13 +149,17 @@ def _features(objects: Sequence[SceneObject]) -> NDArray[np.float64]:
 _NO_PAIRS = np.zeros(0, np.intp)
 
 
-def _motion(track_id: int, v: float, ttc: float, status: str, fps_assumed: float | None) -> Motion:
-    """A Motion; NaN velocity or time to collision become None."""
+def _motion(
+    track_id: int, v: float, ttc: float, status: str, fps_assumed: float | None, v_sigma: float = math.nan
+) -> Motion:
+    """A Motion; NaN velocity, time to collision or v_sigma become None."""
+    known = not math.isnan(v)
     return Motion(
         track_id=track_id,
-        v_radial=None if math.isnan(v) else v,
+        v_radial=v if known else None,
         ttc=None if math.isnan(ttc) else ttc,
         status=status,
+        v_sigma=v_sigma if known and math.isfinite(v_sigma) else None,
         fps_assumed=fps_assumed,
     )
 
@@ -188,6 +194,10 @@ class Tracker:
              c.min_hits, c.max_missed, c.max_depth_jump_rate, c.center_tau_s, c.area_tau_s],
             dtype=np.float64,
         )  # fmt: skip
+        if c.estimator == "kalman":
+            # The filter's innovation gate judges jumps against its own uncertainty (and three
+            # in a row restart it): the queue's fixed jump test would restart it on one outlier.
+            self._step_params[7] = math.inf
         self.reset()
 
     def reset(self) -> None:
@@ -203,6 +213,10 @@ class Tracker:
         self._s = np.zeros((16, NCOL))
         self._qt = np.zeros((16, n))
         self._qz = np.zeros((16, n))
+        self._kx = np.full((16, 2), np.nan)  # filter state: depth (mm), radial velocity (mm/s)
+        self._kp = np.zeros((16, 2, 2))  # its covariance
+        self._kn = np.zeros(16, np.int64)  # readings folded in since the filter (re)started
+        self._krej = np.zeros(16, np.int64)  # outliers rejected in a row
         self._last: list[SceneObject] = []
         self._motion: list[Motion] = []
 
@@ -315,6 +329,11 @@ class Tracker:
             self._s = np.concatenate([self._s, np.zeros((grow - len(self._s), NCOL))])
             self._qt = np.concatenate([self._qt, np.zeros((grow - len(self._qt), self._qt.shape[1]))])
             self._qz = np.concatenate([self._qz, np.zeros((grow - len(self._qz), self._qz.shape[1]))])
+            more = grow - len(self._kx)
+            self._kx = np.concatenate([self._kx, np.full((more, 2), np.nan)])
+            self._kp = np.concatenate([self._kp, np.zeros((more, 2, 2))])
+            self._kn = np.concatenate([self._kn, np.zeros(more, np.int64)])
+            self._krej = np.concatenate([self._krej, np.zeros(more, np.int64)])
         s = self._s
         cost = predict_cost(s, n, f, math.hypot(width, height), t_now, self._dt, self._cost_params)
         if n and m:
@@ -322,7 +341,7 @@ class Tracker:
         else:
             rows = cols = _NO_PAIRS
         params = self._step_params
-        obj_row, v_out, ttc, dead, k = step(
+        obj_row, v_out, ttc, dead, restarted, k = step(
             s, self._qt, self._qz, n, f, rows, cols, cost, t_now, self._dt,
             float(width), float(height), self._frame == 0, self._next_id, params,
         )  # fmt: skip
@@ -331,21 +350,23 @@ class Tracker:
         if k:  # placeholders, filled below
             self._last.extend([objects[0]] * k)
             self._motion.extend([Motion(0)] * k)
+        v_out, ttc, v_sig = self._estimate(n, restarted, v_out, ttc)
 
         # Python objects only for what is returned.
         ids_l = s[: self._n, ID].astype(np.int64).tolist()
         st_l = s[: self._n, STATUS].astype(np.int64).tolist()
         v_l = v_out.tolist()
         ttc_l = ttc.tolist()
+        sig_l = v_sig.tolist()
         motions: dict[int, Motion] = {}
         for o, i in zip(objects, obj_row.tolist(), strict=True):
-            mo = _motion(ids_l[i], v_l[i], ttc_l[i], STATUSES[st_l[i]], fps_assumed)
+            mo = _motion(ids_l[i], v_l[i], ttc_l[i], STATUSES[st_l[i]], fps_assumed, sig_l[i])
             motions[o.id] = mo
             self._motion[i] = mo
             self._last[i] = o
         missed = [i for i in range(n) if st_l[i] == OCCLUDED]
         for i in missed:
-            self._motion[i] = _motion(ids_l[i], v_l[i], ttc_l[i], "occluded", fps_assumed)
+            self._motion[i] = _motion(ids_l[i], v_l[i], ttc_l[i], "occluded", fps_assumed, sig_l[i])
         min_hits = cfg.min_hits
         hits = s[: self._n, HITS]
         ended = tuple(self._snapshot(i) for i in missed if dead[i] and hits[i] >= min_hits)
@@ -354,10 +375,71 @@ class Tracker:
             self._drop(~dead)
         return TrackUpdate(motions=motions, occluded=occluded, ended=ended)
 
+    def _estimate(
+        self, n: int, restarted: NDArray[np.bool_], v_queue: NDArray[np.float64], ttc_queue: NDArray[np.float64]
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+        """Radial velocity, time to collision and v_sigma of every live row (mm/s, s, mm/s).
+
+        ``queue``: the kernel's slope, with the standard error a slope over those entries has
+        under the sensor noise model. ``kalman``: the filter, predicted over this frame's step
+        for every track (occluded ones coast) and updated with each valid depth reading that
+        passes the innovation gate. Either way the time to collision needs a closing speed of
+        at least ``ttc_min_sigmas`` v_sigma.
+        """
+        c = self.config
+        nn = self._n
+        s, qt, qz = self._s[:nn], self._qt[:nn], self._qz[:nn]
+        z_new = qz[:, -1]
+        seen = s[:, MISSED] == 0
+        meas = seen & np.isfinite(z_new)
+        with np.errstate(invalid="ignore"):
+            zr = np.where(np.isfinite(z_new), z_new, s[:, ZFIT])
+            r = kalman.depth_sigma(zr, c.depth_sigma_mm, c.depth_sigma_floor_mm) ** 2
+        if c.estimator == "queue":
+            valid = np.isfinite(qz)
+            cnt = valid.sum(axis=1)
+            tt = np.where(valid, qt, 0.0)
+            mean_t = tt.sum(axis=1) / np.maximum(cnt, 1)
+            stt = (np.where(valid, qt - mean_t[:, None], 0.0) ** 2).sum(axis=1)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                sig = np.where(cnt >= 2, np.sqrt(r / stt), np.nan)
+            v, ttc = v_queue, ttc_queue
+        else:
+            x, p, kn, krej = self._kx[:nn], self._kp[:nn], self._kn[:nn], self._krej[:nn]
+            kn[n:] = 0
+            krej[n:] = 0
+            x[n:] = np.nan
+            kalman.predict(x[:n], p[:n], self._dt, c.accel_sigma)
+            start = meas & (restarted | (kn == 0))
+            with np.errstate(invalid="ignore"):
+                out = meas & ~start & (np.abs(kalman.gate(x, p, z_new, r)) > c.innovation_gate)
+            krej[out] += 1
+            krej[meas & ~out] = 0
+            start |= out & (krej >= 3)  # three outliers in a row: the object did change
+            krej[start] = 0
+            fold = meas & ~start & ~out
+            kalman.init(x, p, start, z_new, r, 3000.0)
+            kalman.update(x, p, fold, z_new, r)
+            kn[start] = 1
+            kn[fold] += 1
+            known = kn >= 2
+            v = np.where(known, x[:, 1], np.nan)
+            sig = np.where(known, np.sqrt(p[:, 1, 1]), np.nan)
+            with np.errstate(invalid="ignore", divide="ignore"):
+                closing = (v < -c.min_speed) & (x[:, 0] > 0)
+                ttc = np.where(closing, x[:, 0] / -v, np.nan)
+        with np.errstate(invalid="ignore"):
+            ttc = np.where(-v >= c.ttc_min_sigmas * sig, ttc, np.nan)
+        return v, ttc, sig
+
     def _drop(self, keep: NDArray[np.bool_]) -> None:
         """Keep only the live rows where ``keep`` is True."""
         n = self._n
         k = int(keep.sum())
+        self._kx[:k] = self._kx[:n][keep]
+        self._kp[:k] = self._kp[:n][keep]
+        self._kn[:k] = self._kn[:n][keep]
+        self._krej[:k] = self._krej[:n][keep]
         self._s[:k] = self._s[:n][keep]
         self._qt[:k] = self._qt[:n][keep]
         self._qz[:k] = self._qz[:n][keep]
