@@ -9,7 +9,9 @@ recordings (with their dropouts).
 
 Run: ``.venv/bin/python benchmarks/bench_segmentation.py`` (``--stages`` adds the time of each
 step of thresholding; ``--profile`` adds where the time goes for thresholding + slicing at
-640x480, and region-growing connectivity by scipy csgraph against the compiled labellers).
+640x480, and region-growing connectivity by scipy csgraph against the compiled labellers;
+``--surfaces-stages`` where the default method's time goes, step by step, in thread CPU time).
+``benchmarks/golden.py`` checks that a speed step left every method's output unchanged.
 The first call of every function (numba loads its cached machine code) is not timed.
 """
 

@@ -48,7 +48,9 @@ def _scene(n: int, frames: int, seed: int) -> list[list[SceneObject]]:
     return out
 
 
-def timing_rows(counts: Sequence[int] = (5, 30, 100), frames: int = 300, repeats: int = 3) -> list[dict[str, float]]:
+def timing_rows(
+    counts: Sequence[int] = (5, 30, 100), frames: int = 300, repeats: int = 3, config: TrackerConfig | None = None
+) -> list[dict[str, float]]:
     """Microseconds per update for each object count (best of ``repeats`` runs, mean per frame).
 
     Returns
@@ -62,7 +64,7 @@ def timing_rows(counts: Sequence[int] = (5, 30, 100), frames: int = 300, repeats
         best = float("inf")
         alive = 0
         for _ in range(repeats):
-            tr = Tracker()
+            tr = Tracker(config)
             t0 = time.perf_counter()
             for k, objs in enumerate(seq):
                 tr.update(objs, k / 30.0, (W, H))
@@ -235,22 +237,27 @@ def main(argv: Sequence[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
     p.add_argument("--quick", action="store_true", help="fewer frames")
     p.add_argument("--no-quality", action="store_true", help="timing only")
+    p.add_argument(
+        "--estimator", choices=("queue", "kalman"), default=None, help="velocity estimator (default: the config's)"
+    )
     args = p.parse_args(argv)
+    cfg = TrackerConfig() if args.estimator is None else TrackerConfig(estimator=args.estimator)
+    print(f"estimator: {cfg.estimator}")
     frames = 60 if args.quick else 300
     print("tracker update cost (synthetic boxes, 30 Hz, 3 % missed detections)")
-    for r in timing_rows(frames=frames):
+    for r in timing_rows(frames=frames, config=cfg):
         n, us, alive = int(r["objects"]), r["us_per_update"], int(r["tracks_alive"])
         print(f"  {n:4d} objects: {us:8.1f} µs/update ({alive} tracks)")
     if args.no_quality:
         return 0
     print("simulated scenes, 176 x 132 at 30 Hz (velocity target: within 5 % or 2 mm/frame after 3 frames)")
-    for r in sim_rows(frames=60 if args.quick else 90):
+    for r in sim_rows(frames=60 if args.quick else 90, config=cfg):
         print(
             f"  {r['scene']:9s} {r['segmenter']:8s} within 5%|60 {r['within']:.3f}  within 25%+30 "
             f"{r['within_25_30']:.3f} ({r['readings']} readings)  |err| p50 {r['err_p50']:.1f} "
             f"p95 {r['err_p95']:.1f} mm/s  id switches {r['switches']}  lost frames {r['lost']}  ids {r['ids']}"
         )
-    gt = truth_rows(frames)
+    gt = truth_rows(frames, config=cfg)
     if gt is None:
         print("7-Scenes ground truth: ../shared/data not found")
     else:

@@ -90,3 +90,31 @@ def test_ttc_only_when_the_velocity_is_known_well_enough() -> None:
             m = tr.update([square(2000.0 - 600.0 * k / 30)], k / 30, (W, H)).motions[1]
         assert m.v_radial is not None and m.v_sigma is not None
         assert (m.ttc is not None) == has_ttc, (sigma, m)
+
+
+@pytest.mark.parametrize("estimator", ["queue", "kalman"])
+@pytest.mark.parametrize("fps", [10.0, 30.0, 60.0])
+def test_moving_object_hidden_for_max_missed_frames_gets_its_id_back(fps: float, estimator: str) -> None:
+    """An object crossing the view at 0.6 m/s (2 m away) and approaching at 0.3 m/s is hidden
+    for ``max_missed`` frames and comes back where its motion takes it: same id, and its
+    velocity is read again at once, at any frame rate."""
+    cfg = TrackerConfig(estimator=estimator)
+    tr = Tracker(cfg)
+    px_per_s = FX * 600.0 / 2000.0  # 150 px/s across the image
+    ids = set()
+    for k in range(40):
+        t = k / fps
+        z = 2000.0 - 300.0 * t
+        o = square(z)
+        shift = px_per_s * t - 100.0
+        x0, y0, x1, y1 = o.bbox_xy
+        o = SceneObject(1, "object", 0, z, 5.0, o.area, o.area_fraction, (o.center_xy[0] + shift, o.center_xy[1]),
+                        (round(x0 + shift), y0, round(x1 + shift), y1))  # fmt: skip
+        hidden = 15 <= k < 15 + cfg.max_missed
+        upd = tr.update([] if hidden else [o], t, (W, H))
+        assert not upd.ended
+        if not hidden:
+            ids.add(upd.motions[1].track_id)
+            if k == 15 + cfg.max_missed:  # back from behind
+                assert upd.motions[1].v_radial == pytest.approx(-300.0, rel=0.10)
+    assert ids == {1}

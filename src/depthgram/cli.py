@@ -9,12 +9,16 @@ import sys
 import warnings
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
+from pathlib import Path
 from typing import TextIO
 
 from depthgram import __version__, commands
 from depthgram.errors import DepthgramError
 
 __all__ = ["build_parser", "main"]
+
+#: Warnings raised from inside the package are printed for people, as one line.
+_PACKAGE = Path(__file__).resolve().parent
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -71,7 +75,7 @@ def _plain_warnings(command: str) -> Iterator[None]:
 
     def show(message: Warning | str, category: type[Warning], filename: str, lineno: int,
              file: TextIO | None = None, line: str | None = None) -> None:
-        if category.__module__.startswith("depthgram"):
+        if category.__module__.startswith("depthgram") or Path(filename).resolve().is_relative_to(_PACKAGE):
             print(f"depthgram {command}: warning: {message}", file=sys.stderr)
         else:
             shown(message, category, filename, lineno, file, line)

@@ -18,7 +18,6 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.optimize import linear_sum_assignment
 
-from depthgram.dynamics import kalman
 from depthgram.dynamics.config import NOMINAL_FPS, TrackerConfig
 from depthgram.dynamics.kernels import (
     F_READ,
@@ -29,7 +28,7 @@ from depthgram.dynamics.kernels import (
     NFEAT,
     OCCLUDED,
     STATUS,
-    ZFIT,
+    estimate,
     mark_behind,
     predict_cost,
     step,
@@ -192,6 +191,11 @@ class Tracker:
         self._step_params = np.array(
             [c.border_px, c.border_area_rate, c.max_area_jump, float(c.fit_border_entries), c.min_speed,
              c.min_hits, c.max_missed, c.max_depth_jump_rate, c.center_tau_s, c.area_tau_s],
+            dtype=np.float64,
+        )  # fmt: skip
+        self._estimate_params = np.array(
+            [float(c.estimator == "kalman"), c.depth_sigma_mm, c.depth_sigma_floor_mm, c.accel_sigma,
+             c.innovation_gate, c.ttc_min_sigmas, c.min_speed, 3000.0],
             dtype=np.float64,
         )  # fmt: skip
         if c.estimator == "kalman":
@@ -378,59 +382,13 @@ class Tracker:
     def _estimate(
         self, n: int, restarted: NDArray[np.bool_], v_queue: NDArray[np.float64], ttc_queue: NDArray[np.float64]
     ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
-        """Radial velocity, time to collision and v_sigma of every live row (mm/s, s, mm/s).
-
-        ``queue``: the kernel's slope, with the standard error a slope over those entries has
-        under the sensor noise model. ``kalman``: the filter, predicted over this frame's step
-        for every track (occluded ones coast) and updated with each valid depth reading that
-        passes the innovation gate. Either way the time to collision needs a closing speed of
-        at least ``ttc_min_sigmas`` v_sigma.
-        """
-        c = self.config
+        """Radial velocity, time to collision and v_sigma of every live row (mm/s, s, mm/s);
+        see :func:`depthgram.dynamics.kernels.estimate`."""
         nn = self._n
-        s, qt, qz = self._s[:nn], self._qt[:nn], self._qz[:nn]
-        z_new = qz[:, -1]
-        seen = s[:, MISSED] == 0
-        meas = seen & np.isfinite(z_new)
-        with np.errstate(invalid="ignore"):
-            zr = np.where(np.isfinite(z_new), z_new, s[:, ZFIT])
-            r = kalman.depth_sigma(zr, c.depth_sigma_mm, c.depth_sigma_floor_mm) ** 2
-        if c.estimator == "queue":
-            valid = np.isfinite(qz)
-            cnt = valid.sum(axis=1)
-            tt = np.where(valid, qt, 0.0)
-            mean_t = tt.sum(axis=1) / np.maximum(cnt, 1)
-            stt = (np.where(valid, qt - mean_t[:, None], 0.0) ** 2).sum(axis=1)
-            with np.errstate(divide="ignore", invalid="ignore"):
-                sig = np.where(cnt >= 2, np.sqrt(r / stt), np.nan)
-            v, ttc = v_queue, ttc_queue
-        else:
-            x, p, kn, krej = self._kx[:nn], self._kp[:nn], self._kn[:nn], self._krej[:nn]
-            kn[n:] = 0
-            krej[n:] = 0
-            x[n:] = np.nan
-            kalman.predict(x[:n], p[:n], self._dt, c.accel_sigma)
-            start = meas & (restarted | (kn == 0))
-            with np.errstate(invalid="ignore"):
-                out = meas & ~start & (np.abs(kalman.gate(x, p, z_new, r)) > c.innovation_gate)
-            krej[out] += 1
-            krej[meas & ~out] = 0
-            start |= out & (krej >= 3)  # three outliers in a row: the object did change
-            krej[start] = 0
-            fold = meas & ~start & ~out
-            kalman.init(x, p, start, z_new, r, 3000.0)
-            kalman.update(x, p, fold, z_new, r)
-            kn[start] = 1
-            kn[fold] += 1
-            known = kn >= 2
-            v = np.where(known, x[:, 1], np.nan)
-            sig = np.where(known, np.sqrt(p[:, 1, 1]), np.nan)
-            with np.errstate(invalid="ignore", divide="ignore"):
-                closing = (v < -c.min_speed) & (x[:, 0] > 0)
-                ttc = np.where(closing, x[:, 0] / -v, np.nan)
-        with np.errstate(invalid="ignore"):
-            ttc = np.where(-v >= c.ttc_min_sigmas * sig, ttc, np.nan)
-        return v, ttc, sig
+        return estimate(
+            self._s[:nn], self._qt[:nn], self._qz[:nn], n, restarted, v_queue, ttc_queue,
+            self._kx[:nn], self._kp[:nn], self._kn[:nn], self._krej[:nn], self._dt, self._estimate_params,
+        )  # fmt: skip
 
     def _drop(self, keep: NDArray[np.bool_]) -> None:
         """Keep only the live rows where ``keep`` is True."""
