@@ -153,6 +153,8 @@ def _build_section(klass: type, values: Mapping[str, Any], where: str) -> Any:
         # TOML has arrays, not tuples: give tuple-typed fields their tuple back.
         if isinstance(v, list) and isinstance(getattr(default, k, None), tuple):
             v = tuple(tuple(x) if isinstance(x, list) else x for x in v)
+        if k in fields:
+            _check_type(k, v, getattr(default, k), where)
         kwargs[k] = v
     try:
         return own(kwargs) if own is not None else klass(**kwargs)
@@ -160,6 +162,29 @@ def _build_section(klass: type, values: Mapping[str, Any], where: str) -> Any:
         raise InputError(f"{where}: {exc}") from None
     except (TypeError, ValueError) as exc:
         raise InputError(f"{where}: {exc}") from None
+
+
+def _check_type(name: str, value: Any, default: Any, where: str) -> None:
+    """Refuse a setting whose kind differs from its default's (issue 18.9).
+
+    Python's truth rules made ``relations = "false"`` true, ``bin_mm = true`` a width of 1 and
+    a string in a numeric field a raw TypeError deep in a stage; the stages' own checks see
+    only the values. A field whose default is None (optional) is left to its stage.
+    """
+    if isinstance(default, bool):
+        ok, expected = isinstance(value, bool), "true or false"
+    elif isinstance(default, int):
+        ok, expected = isinstance(value, int) and not isinstance(value, bool), "an integer"
+    elif isinstance(default, float):
+        ok, expected = isinstance(value, (int, float)) and not isinstance(value, bool), "a number"
+    elif isinstance(default, str):
+        ok, expected = isinstance(value, str), "a string"
+    elif isinstance(default, tuple):
+        ok, expected = isinstance(value, tuple), "an array"
+    else:
+        return
+    if not ok:
+        raise InputError(f"{where}: {name} = {value!r} ({type(value).__name__}), expected {expected}")
 
 
 @dataclass(frozen=True, eq=False)

@@ -214,8 +214,13 @@ class Output:
         if target == STDOUT:
             self.stream: Any = sys.stdout
         else:
+            from depthgram.atomic import atomic_open
+
+            # under a temporary name until __exit__ without an error: a failure leaves no file
+            # that looks complete (issue 18.7)
+            self._atomic = atomic_open(target)
             try:
-                self.stream = open(target, "w", encoding="utf-8")  # closed in __exit__
+                self.stream = self._atomic.__enter__()
             except OSError as exc:
                 raise InputError(f"{option} {target}: cannot write ({exc.strerror or exc})") from None
 
@@ -226,8 +231,8 @@ class Output:
     def __enter__(self) -> Output:
         return self
 
-    def __exit__(self, *exc: object) -> None:
+    def __exit__(self, *exc: Any) -> None:
         if self.stream is sys.stdout:
             self.stream.flush()
         else:
-            self.stream.close()
+            self._atomic.__exit__(*exc)

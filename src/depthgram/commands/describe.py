@@ -62,8 +62,11 @@ def write_label_map(path: Path, labels: NDArray[np.integer], frame_name: str) ->
     top = int(labels.max(initial=0))
     if top > 65535:
         raise InputError(f"{frame_name}: object id {top} is above 65535; cannot write a 16-bit PNG label map ({path})")
-    if not cv2.imwrite(str(path), labels.astype("uint16")):
-        raise InputError(f"{path}: could not write the label map")
+    from depthgram.atomic import atomic_path
+
+    with atomic_path(path) as tmp:
+        if not cv2.imwrite(str(tmp), labels.astype("uint16")):
+            raise InputError(f"{path}: could not write the label map")
 
 
 def run(args: argparse.Namespace) -> int:

@@ -22,6 +22,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from depthgram._optional import needs_extra
+    from depthgram.atomic import atomic_path
     from depthgram.errors import InputError
 
     with needs_extra("sound", "writing WAV files"):
@@ -43,7 +44,10 @@ def run(args: argparse.Namespace) -> int:
     pending = None  # (tree, time_s) of the frame whose duration is known only when the next one arrives
     last_duration = 1.0 / fps if fps else args.still_duration
     # Streamed to disk frame by frame: a long recording never sits in memory as audio.
-    with sf.SoundFile(args.wav, "w", samplerate=args.samplerate, channels=2, subtype="PCM_16") as wav:
+    # under a temporary name until the last frame: a failure leaves no WAV that looks complete
+    with atomic_path(args.wav) as tmp, sf.SoundFile(
+        tmp, "w", samplerate=args.samplerate, channels=2, subtype="PCM_16"
+    ) as wav:
         for result in results:
             f = result.frame
             if sonifier is None:

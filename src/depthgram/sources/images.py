@@ -2,8 +2,15 @@
 
 from __future__ import annotations
 
+import os
+import sys
+import tempfile
+import threading
 import zipfile
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
+from typing import IO
 
 import numpy as np
 from numpy.typing import NDArray
@@ -37,6 +44,37 @@ def _read_npz(path: Path, key: str | None, where: str) -> NDArray[np.generic]:
             return np.asarray(z[npz_pick(names, shapes, key, where)])
     except (ValueError, OSError, zipfile.BadZipFile, EOFError) as exc:
         raise InputError(f"{where}: cannot read the .npz ({exc})") from None
+
+
+_CAPTURE_LOCK = threading.Lock()
+_CAPTURE_FILE: list[IO[bytes]] = []  # one file, made on first use and reused (a new one per frame costs)
+
+
+@contextmanager
+def _stderr_captured() -> Iterator[list[str]]:
+    """What C libraries (libpng) write to file descriptor 2 inside the block, as one stripped
+    string in the yielded list once the block ends."""
+    said: list[str] = []
+    with _CAPTURE_LOCK:
+        if not _CAPTURE_FILE:
+            _CAPTURE_FILE.append(tempfile.TemporaryFile())
+        tmp = _CAPTURE_FILE[0]
+        tmp.seek(0)
+        tmp.truncate()
+        try:
+            sys.stderr.flush()
+            saved = os.dup(2)
+        except (OSError, ValueError):  # no descriptor 2 to borrow: leave it alone
+            yield said
+            return
+        os.dup2(tmp.fileno(), 2)
+        try:
+            yield said
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+            tmp.seek(0)
+            said.append(tmp.read(4096).decode(errors="replace").strip())
 
 
 def read_image(path: Path, *, key: str | None = None, where: str | None = None) -> NDArray[np.generic]:
@@ -83,11 +121,16 @@ def read_image(path: Path, *, key: str | None = None, where: str | None = None) 
         buf = np.fromfile(path, dtype=np.uint8)
     except OSError as exc:
         raise InputError(f"{where}: cannot read the file ({exc.strerror or exc})") from None
-    try:
-        img = cv2.imdecode(buf, cv2.IMREAD_UNCHANGED) if buf.size else None
-    except cv2.error:
-        img = None
+    with _stderr_captured() as said:
+        try:
+            img = cv2.imdecode(buf, cv2.IMREAD_UNCHANGED) if buf.size else None
+        except cv2.error:
+            img = None
     if img is None:
-        raise InputError(f"{where}: cannot decode the image (truncated, empty or not an image file)")
+        # libpng's own complaint ("IDAT: CRC error") goes into the message instead of above it
+        detail = f": {said[0]}" if said and said[0] else ""
+        raise InputError(f"{where}: cannot decode the image (truncated, empty or not an image file){detail}")
+    if said and said[0]:
+        print(said[0], file=sys.stderr)  # not ours to drop: another thread's output, or a warning
     # A colour image comes back (H, W, 3) and is refused later with a message saying so.
     return img
