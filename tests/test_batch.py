@@ -202,3 +202,18 @@ def test_batch_refuses_ids_a_16_bit_label_map_cannot_hold(tmp_path: Path, monkey
     (r,) = run_batch(["sim:table?frames=2"], tmp_path / "out", workers=1)
     assert r.status == "failed"
     assert r.error is not None and "above 65535" in r.error and "sim:table?frames=2 frame 0" in r.error
+
+
+def test_inputs_are_made_absolute_on_the_client(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    # issue 18.4: a Dask worker resolved relative paths in its own folder
+    from depthgram.batch import input_key
+
+    monkeypatch.chdir(tmp_path)
+    _stack(tmp_path / "rec" / "x.npy", 1)
+    assert input_key("rec/x.npy") == str(tmp_path / "rec" / "x.npy")
+    assert input_key("rec/x.npy?key=depth") == str(tmp_path / "rec" / "x.npy") + "?key=depth"
+    assert input_key("rec/*.png") == str(tmp_path / "rec" / "*.png")
+    assert input_key("sim:table?frames=2") == "sim:table?frames=2"
+    (r,) = run_batch(["rec/x.npy"], "out", workers=1)
+    summary = json.loads((tmp_path / "out" / r.name / "summary.json").read_text())
+    assert summary["input"] == str(tmp_path / "rec" / "x.npy")

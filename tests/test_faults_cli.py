@@ -90,3 +90,36 @@ def test_library_messages_go_into_the_error_line(tmp_path: Path) -> None:
         assert proc.returncode == 2
         lines = proc.stderr.strip().splitlines()
         assert len(lines) == 1 and lines[0].startswith(f"depthgram info: error: {tmp_path / name}"), proc.stderr
+
+
+def test_a_huge_frame_is_refused_before_it_is_decoded(tmp_path: Path) -> None:
+    # issue 18.6: a 20000 x 20000 frame was a MemoryError after 5 GB; a 0.9 MB PNG took 8.8 GB
+    import struct
+    import zlib
+
+    def chunk(kind: bytes, data: bytes) -> bytes:
+        return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data))
+
+    # a valid 16-bit grey PNG header of 20000 x 20000 px with a tiny (truncated) body
+    ihdr = struct.pack(">IIBBBBB", 20000, 20000, 16, 0, 0, 0, 0)
+    png = tmp_path / "huge.png"
+    png.write_bytes(b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", ihdr) + chunk(b"IDAT", zlib.compress(b"\0" * 1000)))
+    pgm = tmp_path / "huge.pgm"
+    pgm.write_bytes(b"P5\n# big\n20000 20000\n65535\n" + b"\0" * 100)
+    for path in (png, pgm):
+        proc = _depthgram(["info", str(path)])
+        assert proc.returncode == 2, proc.stderr
+        assert "20000 x 20000 px" in proc.stderr and "DEPTHGRAM_MAX_PIXELS" in proc.stderr
+        assert "Traceback" not in proc.stderr
+    env = {**_env(), "DEPTHGRAM_MAX_PIXELS": "100"}
+    proc = subprocess.run([sys.executable, "-m", "depthgram.cli", "info", "sim:table"], env=env, text=True,
+                          capture_output=True, timeout=300)
+    assert proc.returncode == 0  # simulated frames are made, not read: no limit there
+    small = tmp_path / "small.png"
+    import cv2
+    import numpy as np
+
+    cv2.imwrite(str(small), np.full((20, 10), 1000, np.uint16))
+    proc = subprocess.run([sys.executable, "-m", "depthgram.cli", "info", str(small)], env=env, text=True,
+                          capture_output=True, timeout=300)
+    assert proc.returncode == 2 and "10 x 20 px" in proc.stderr

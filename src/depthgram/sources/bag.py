@@ -19,6 +19,7 @@ from depthgram.frame import Frame, Intrinsics
 from depthgram.sources.base import Source
 from depthgram.sources.config import SourceConfig
 from depthgram.sources.decode import to_frame
+from depthgram.sources.images import check_size
 
 __all__ = ["BAG_SUFFIXES", "BagSource", "image_array"]
 
@@ -37,6 +38,7 @@ def image_array(msg: Any, where: str) -> np.ndarray:
         )
     dtype = np.dtype(_DTYPES[enc]).newbyteorder(">" if msg.is_bigendian else "<")
     h, w, step = int(msg.height), int(msg.width), int(msg.step)
+    check_size(h, w, where)
     data = np.asarray(msg.data, dtype=np.uint8)
     if step < w * dtype.itemsize or data.size < h * step:
         raise InputError(f"{where}: image data of {data.size} bytes is too short for {w}x{h} {msg.encoding}")
