@@ -217,3 +217,10 @@ def test_inputs_are_made_absolute_on_the_client(tmp_path: Path, monkeypatch: pyt
     (r,) = run_batch(["rec/x.npy"], "out", workers=1)
     summary = json.loads((tmp_path / "out" / r.name / "summary.json").read_text())
     assert summary["input"] == str(tmp_path / "rec" / "x.npy")
+
+
+def test_each_frame_of_a_stack_gets_its_own_label_map(tmp_path: Path) -> None:
+    # the frames of x.npy are named "x.npy#0", "x.npy#1", ...: all three were written to x.png
+    (r,) = run_batch([_stack(tmp_path / "x.npy", 3)], tmp_path / "out", workers=1)
+    maps = sorted(p.name for p in (tmp_path / "out" / r.name / "labels").iterdir())
+    assert maps == ["x-000000.png", "x-000001.png", "x-000002.png"]

@@ -43,6 +43,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 def label_file_name(frame_name: str, index: int) -> str:
     """Label map file name, after the input frame's file when it has one."""
     stem = Path(frame_name).stem if frame_name and ":" not in frame_name else ""
+    if stem and "#" in Path(frame_name).name:  # a frame of a stack ("st.npy#2"): every frame its own map
+        stem = f"{Path(frame_name.partition('#')[0]).stem}-{index:06d}"
     return f"{stem or f'{index:06d}'}.png"
 
 

@@ -88,6 +88,9 @@ _DEFAULT_FPS = 30.0
 #: scale only roughly, and the calibration says so in its distortion model name.
 _ASSUMED_FOV_DEG = 64.0
 
+#: Pixels of an object sampled for its 3-D box.
+_BOX_SAMPLE = 4000
+
 #: Object colours by id (Okabe-Ito, distinguishable with colour-blindness), RGB 0..1.
 _PALETTE = (
     (0.90, 0.62, 0.0), (0.34, 0.71, 0.91), (0.0, 0.62, 0.45), (0.94, 0.89, 0.26),
@@ -158,6 +161,11 @@ def object_box_m(frame: Frame, labels: NDArray[np.integer], object_id: int, box:
     rows, cols = np.nonzero(sel)
     if rows.size == 0:
         return None
+    if rows.size > _BOX_SAMPLE:
+        # every k-th pixel: the same percentiles to a few mm, and a wall of 100,000 pixels
+        # costs 0.1 ms instead of 3 (7-Scenes: 34 of 58 ms per frame went here)
+        step = rows.size // _BOX_SAMPLE
+        rows, cols = rows[::step], cols[::step]
     z = frame.depth[y0:y1, x0:x1][rows, cols].astype(np.float64) / 1000.0
     x = (cols + x0 - k.cx) * z / k.fx
     y = (rows + y0 - k.cy) * z / k.fy
