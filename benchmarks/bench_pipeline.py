@@ -69,6 +69,7 @@ def stage_rows(*, quick: bool = False) -> list[dict[str, Any]]:
                 lambda d=d, v=v, k=k: segment(d, valid=v, intrinsics=k, config=SegmentConfig(method="slices")),
                 budget_s=budget,
             ),
+            "segment (default)": _best_time(lambda d=d, v=v, k=k: segment(d, valid=v, intrinsics=k), budget_s=budget),
             "region growing": _best_time(lambda d=d, v=v, k=k: region_grow(d, valid=v, intrinsics=k), budget_s=budget),
             "tree + sentence": _best_time(
                 lambda seg=seg, w=w, h=h: to_sentence(build_tree(seg.objects, (w, h))), budget_s=budget
@@ -121,6 +122,33 @@ def memory_row(frames: int) -> dict[str, Any]:
             "rss_end_mb": after}
 
 
+def batch_scaling(recordings: int = 4, frames: int = 30, size: str = "320x240") -> list[dict[str, Any]]:
+    """Wall time of ``depthgram batch`` over ``recordings`` simulated recordings on 1, 2, ... cores.
+
+    One row per worker count (1 up to the cores visible, at most ``recordings``): seconds, and
+    the speed-up over one worker (ideal: the worker count). Each run writes into a fresh
+    temporary folder, so none is skipped as already done.
+    """
+    import os
+    import tempfile
+
+    from depthgram.batch import run_batch
+
+    inputs = [f"sim:crossing?frames={frames}&size={size}&seed={i}" for i in range(recordings)]
+    rows: list[dict[str, Any]] = []
+    base = float("nan")
+    for workers in range(1, min(os.cpu_count() or 1, recordings) + 1):
+        with tempfile.TemporaryDirectory(prefix="depthgram-bench-") as out:
+            t0 = time.perf_counter()
+            results = run_batch(inputs, out, workers=workers)
+            seconds = time.perf_counter() - t0
+        if workers == 1:
+            base = seconds
+        rows.append({"workers": workers, "seconds": seconds, "speedup": base / seconds,
+                     "done": sum(r.status == "done" for r in results)})
+    return rows
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--quick", action="store_true", help="shorter timing budget")
@@ -134,6 +162,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     for r in rows:
         print(f"{r['size']:>9} | {r['stage']:<20} | {r['ms']:9.3f} | {r['fps']:9.0f} | {r['x_bincount']:10.1f} | "
               f"{r['x_threshold']:11.2f}")
+    recs = 2 if a.quick else 4
+    print(f"\nbatch scaling ({recs} simulated recordings of 30 frames at 320x240; wall time, load included):")
+    for b in batch_scaling(recordings=recs):
+        print(f"  {b['workers']} worker(s): {b['seconds']:6.2f} s, speed-up {b['speedup']:.2f}x "
+              f"(ideal {b['workers']}x), {b['done']} done")
     m = memory_row(a.memory_frames or (60 if a.quick else 300))
     print(f"\nmemory: streamed {m['frames']} frames of 640x480 ({m['stream_gb_as_uint16']:.2f} GB as uint16) through "
           f"the pipeline; peak RSS {m['rss_start_mb']:.0f} MB at start, {m['rss_half_mb']:.0f} MB half-way, "

@@ -59,3 +59,22 @@ def test_real_sequence_velocities_stay_physical(shared_data: Path) -> None:
     assert np.median(v) < 100.0  # mm/s; the camera moves about 200 mm/s
     assert np.mean(v > 1000.0) < 0.02
     assert v.max() < 3000.0  # nothing explodes
+
+
+def test_radial_velocity_from_poses_hand_computed() -> None:
+    from depthgram.dynamics.evaluate import radial_velocity_from_poses
+
+    depth = np.full((4, 6), 2000.0)
+    labels = np.zeros((4, 6), np.int32)
+    labels[1:3, 1:4] = 5
+    eye = np.eye(4)
+    # The camera steps 10 mm forward per frame: the object comes 10 mm nearer per frame.
+    prev, nxt = eye.copy(), eye.copy()
+    prev[2, 3], nxt[2, 3] = -10.0, 10.0
+    v = radial_velocity_from_poses(depth, labels, [5, 7], (500.0, 500.0, 3.0, 2.0), prev, nxt, 2 / 30)
+    assert v == {5: pytest.approx(-300.0)}  # mm/s; object 7 has no pixel
+    # A turn about the optical axis changes no depth.
+    c, s = np.cos(0.1), np.sin(0.1)
+    rot = np.array([[c, -s, 0, 0], [s, c, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]])
+    v = radial_velocity_from_poses(depth, labels, [5], (500.0, 500.0, 3.0, 2.0), rot.T, rot, 2 / 30)
+    assert v[5] == pytest.approx(0.0, abs=1e-9)

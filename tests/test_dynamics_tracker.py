@@ -276,7 +276,7 @@ def test_motions_are_ordinary_motion_objects() -> None:
     tr = Tracker()
     for k, o in enumerate(approaching(-600.0, 2000.0, 3, noise=0.0)):
         m = tr.update([o], k / FPS, (W, H)).motions[3]
-    expected = Motion(track_id=1, v_radial=m.v_radial, ttc=m.ttc, status="visible")
+    expected = Motion(track_id=1, v_radial=m.v_radial, ttc=m.ttc, status="visible", v_sigma=m.v_sigma)
     assert m == expected and repr(m) == repr(expected) and hash(m) == hash(expected)
     with pytest.raises(dataclasses.FrozenInstanceError):
         m.ttc = 0.0  # type: ignore[misc]

@@ -27,10 +27,10 @@ def test_core_dependencies_leave_the_heavy_ones_to_extras() -> None:
     project = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]
     core = {d.split(">")[0].split("=")[0].strip() for d in project["dependencies"]}
     assert {"numpy", "scipy", "opencv-python-headless", "numba", "lark"} <= core
-    assert not core & {"rosbags", "matplotlib", "soundfile", "fastapi", "uvicorn", "dask", "distributed"}
+    assert not core & {"rosbags", "matplotlib", "soundfile", "fastapi", "uvicorn", "dask", "distributed", "mcap"}
     extras = project["optional-dependencies"]
-    for extra in ("bags", "report", "sound", "view", "dask"):
-        assert extra in extras and "depthgram[bags,report,sound,view,dask]" in extras["dev"]
+    for extra in ("bags", "report", "sound", "view", "dask", "mcap"):
+        assert extra in extras and "depthgram[bags,report,sound,view,dask,mcap]" in extras["dev"]
 
 
 @pytest.mark.parametrize(
@@ -40,6 +40,7 @@ def test_core_dependencies_leave_the_heavy_ones_to_extras() -> None:
         ("matplotlib", ["report", "sim:table?frames=2", "--out", "{tmp}/rep"], "report"),
         ("soundfile", ["demo", "--out", "{tmp}/demo"], "sound,report"),
         ("uvicorn", ["view", "sim:table", "--no-browser"], "view"),
+        ("mcap.writer", ["describe", "sim:table?frames=2", "--mcap", "{tmp}/a.mcap"], "mcap"),
     ],
 )
 def test_a_missing_extra_is_named_on_the_command_line(
@@ -47,7 +48,7 @@ def test_a_missing_extra_is_named_on_the_command_line(
     capsys: pytest.CaptureFixture[str],
 ) -> None:
     monkeypatch.setitem(sys.modules, module, None)  # import raises ModuleNotFoundError
-    for name in [m for m in sys.modules if m.startswith("depthgram.views.")]:
+    for name in [m for m in sys.modules if m.startswith(("depthgram.views.", "depthgram.export."))]:
         monkeypatch.delitem(sys.modules, name)  # imported afresh, as in a new process
     assert main([a.replace("{tmp}", str(tmp_path)) for a in argv]) == 2
     err = capsys.readouterr().err

@@ -168,3 +168,33 @@ def test_a_wall_nearly_facing_the_camera_is_no_floor_or_ceiling(pitch: float) ->
     seg = segment(depth, valid=depth > 0, intrinsics=cam)
     wall_seg = seg.objects[_best(seg.labels, truth, 1)[0] - 1]
     assert wall_seg.kind not in ("floor", "ceiling", "compound"), wall_seg.kind
+
+
+@pytest.mark.parametrize(
+    ("scene", "size", "wanted"),
+    [
+        ("ball_wall", (640, 480), {"ball": 0.95}),
+        ("touching", (640, 480), {"box": 0.9, "cylinder": 0.9}),
+        ("corridor", (176, 132), {"left_wall": 0.8, "right_wall": 0.8, "floor": 0.8, "ceiling": 0.8, "person": 0.9}),
+    ],
+)
+def test_the_simulated_structured_light_sensor(scene: str, size: tuple[int, int], wanted: dict[str, float]) -> None:
+    # the simulator's own structured-light model (disparity steps, projector shadows, holes)
+    from depthgram.sensor import simulate
+
+    sf = next(iter(simulate(scene, 1, size=size, seed=0, sensor="sl")))
+    f = sf.frame
+    seg = segment(f.depth, valid=f.valid, intrinsics=f.intrinsics)
+    scores = evaluate(seg.labels, np.where(f.valid, sf.instances, 0)).objects
+    iou = {t.name: o.iou for o in scores for t in sf.truth if t.id == o.truth_id}
+    assert all(iou[name] >= low for name, low in wanted.items()), iou
+
+
+def test_table1_targets_hold_on_the_structured_light_simulator() -> None:
+    from depthgram.sensor import simulate
+
+    sf = next(iter(simulate("table", 1, size=(640, 480), seed=0, sensor="sl")))
+    f = sf.frame
+    seg = segment(f.depth, valid=f.valid, intrinsics=f.intrinsics)
+    ev = evaluate(seg.labels, np.where(f.valid, sf.instances, 0))
+    assert ev.area_assigned >= 0.96 and ev.precision_assigned >= 0.95, (ev.area_assigned, ev.precision_assigned)

@@ -170,3 +170,29 @@ def test_bag_refuses_a_timestamps_file(tmp_path: Path) -> None:
     (tmp_path / "t.txt").write_text("0.0\n")
     with pytest.raises(InputError, match=r"d\.bag: a bag's frame times come from its message headers"):
         open_source(bag, timestamps=tmp_path / "t.txt")
+
+
+@pytest.mark.parametrize("storage", ["ros1", StoragePlugin.MCAP, StoragePlugin.SQLITE3])
+def test_a_damaged_bag_is_an_input_error_naming_the_file(tmp_path: Path, storage: object) -> None:
+    # issue 18.5: damage gave rosbags' ReaderError, an AssertionError or sqlite's CorruptError
+    arrays = [np.full((30, 40), 1000 + 10 * i, np.uint16) for i in range(12)]
+    if storage == "ros1":
+        bag = write_ros1(tmp_path / "d.bag", {"/depth": ("16UC1", arrays)})
+    else:
+        folder = write_ros2(tmp_path / "b", {"/depth": ("16UC1", arrays)}, storage)  # type: ignore[arg-type]
+        bag = next(p for p in folder.iterdir() if p.suffix in (".mcap", ".db3"))
+    data = bag.read_bytes()
+    rng = np.random.default_rng(0)
+    damaged = bag.with_name("damaged" + bag.suffix)
+    others = []
+    for offset in range(0, len(data) - 16, max(1, len(data) // 200)):
+        d = bytearray(data)
+        d[offset : offset + 16] = rng.integers(0, 256, 16, dtype=np.uint8).tobytes()
+        damaged.write_bytes(bytes(d))
+        try:
+            list(read(damaged))
+        except InputError as exc:
+            assert str(damaged) in str(exc)
+        except Exception as exc:  # the point: nothing else may escape
+            others.append((offset, f"{type(exc).__name__}: {exc}"))
+    assert others == []

@@ -26,6 +26,9 @@ EXTRAS = {
     "dask": "dask",
     "distributed": "dask",
     "pyrealsense2": "realsense",
+    "mcap": "mcap",
+    "mcap_protobuf": "mcap",
+    "foxglove_schemas_protobuf": "mcap",
 }
 
 

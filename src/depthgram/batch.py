@@ -2,25 +2,39 @@
 
 Each recording gets a folder ``OUT/<name>/`` with ``scenes.jsonl`` (the JSON lines of
 ``depthgram describe``), ``labels/`` (16-bit PNG label maps) and ``summary.json``, written last
-and atomically: a folder with a summary is finished, and a re-run skips it (resumable).
+and atomically: a folder with a summary is finished. The summary names the full input (an
+existing path made absolute) and a hash of the settings; a re-run skips a folder only when both
+match, so swapped inputs or changed settings are processed again (issue 18.1).
 A recording that fails leaves ``error.txt`` and its error in the returned summary; the
-others still finish.
+others still finish. A local worker process that dies (killed, out of memory) costs its
+recording one retry, in a process of its own; workers end when the parent does.
 """
 
 from __future__ import annotations
 
+import hashlib
 import json
 import os
 import re
+import shutil
+import threading
 import time
 import traceback
 from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import Future, ProcessPoolExecutor, as_completed
+from concurrent.futures.process import BrokenProcessPool
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
-__all__ = ["BatchResult", "output_names", "process_recording", "run_batch"]
+from depthgram.atomic import atomic_open
+from depthgram.errors import InputError
+
+__all__ = ["BatchResult", "input_key", "output_names", "process_recording", "run_batch", "settings_hash"]
+
+#: Marker a worker leaves in a recording's folder while it works on it (its process id).
+_RUNNING = ".running"
+_GLOB_CHARS = re.compile(r"[*?\[]")
 
 
 @dataclass(frozen=True)
@@ -36,15 +50,54 @@ class BatchResult:
     error: str | None = None
 
 
+def input_key(spec: str) -> str:
+    """The input as every machine must read it: an existing path (or a relative glob) made absolute.
+
+    Other specs (``sim:``, ``realsense:``, a scene name) are returned as they are. A Dask worker
+    runs in another folder, so a relative path would name another file there (issue 18.4).
+    """
+    text = str(spec)
+    if text.startswith(("sim:", "realsense:")):
+        return text
+    base, sep, query = text.partition("?")
+    for cand, rest in ((text, ""), (base, sep + query)):
+        if cand and Path(cand).exists():
+            return str(Path(cand).resolve()) + rest
+    if _GLOB_CHARS.search(text) and not os.path.isabs(text):
+        return os.path.join(os.getcwd(), text)
+    return text
+
+
+def settings_hash(config: Mapping[str, Any] | None, source_options: Mapping[str, Any] | None, track: bool) -> str:
+    """Short hash (hex) of everything besides the input that changes a recording's outputs."""
+    text = json.dumps(
+        {"config": dict(config or {}), "source": dict(source_options or {}), "track": bool(track)},
+        sort_keys=True, default=repr,
+    )
+    return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
 def output_names(inputs: Sequence[str]) -> list[str]:
-    """One distinct, file-system-safe folder name per input (``a``, ``a-2``, ... for repeats)."""
-    seen: dict[str, int] = {}
-    names = []
+    """One distinct, file-system-safe folder name per input.
+
+    The base name when it is unique; inputs sharing a base name each get a short hash of their
+    full input added (``x-1a2b3c4d``), so a name does not depend on the order of the inputs.
+    """
+    bases = []
     for spec in inputs:
         base = Path(str(spec).rstrip("/")).name or str(spec)
-        base = re.sub(r"[^A-Za-z0-9._-]+", "_", base).strip("._") or "recording"
-        seen[base] = seen.get(base, 0) + 1
-        names.append(base if seen[base] == 1 else f"{base}-{seen[base]}")
+        bases.append(re.sub(r"[^A-Za-z0-9._-]+", "_", base).strip("._") or "recording")
+    names = []
+    for spec, base in zip(inputs, bases, strict=True):
+        if bases.count(base) == 1:
+            names.append(base)
+        else:
+            names.append(f"{base}-{hashlib.sha256(input_key(spec).encode()).hexdigest()[:8]}")
+    seen: dict[str, int] = {}
+    for i, name in enumerate(names):  # the same input twice: a counter keeps them apart
+        seen[name] = seen.get(name, 0) + 1
+        if seen[name] > 1:
+            names[i] = f"{name}-{seen[name]}"
     return names
 
 
@@ -57,39 +110,45 @@ def process_recording(
 ) -> dict[str, Any]:
     """Describe one recording into ``out_dir``; return its summary (also written to summary.json).
 
-    Runs in a worker process or on a Dask worker, so it takes and returns plain data.
+    Runs in a worker process or on a Dask worker, so it takes and returns plain data. Outputs
+    of an earlier run in ``out_dir`` are replaced; nothing of it is left that could pass for
+    this run's (the summary and an old ``error.txt`` go first, label maps are swapped in whole).
     """
     from depthgram.commands.describe import label_file_name, write_label_map
     from depthgram.pipeline import Config, Pipeline
     from depthgram.sources import open_source
 
     out = Path(out_dir)
-    labels_dir = out / "labels"
-    labels_dir.mkdir(parents=True, exist_ok=True)
+    out.mkdir(parents=True, exist_ok=True)
+    for stale in ("summary.json", "error.txt"):
+        (out / stale).unlink(missing_ok=True)
+    labels_part = out / ".labels.part"
+    shutil.rmtree(labels_part, ignore_errors=True)
+    labels_part.mkdir()
     t0 = time.perf_counter()
     pipe = Pipeline(Config.from_dict(config or {}), track=track)
     src = open_source(spec, **dict(source_options or {}))
     frames = objects = 0
-    tmp = out / "scenes.jsonl.part"
-    with open(tmp, "w", encoding="utf-8") as fh:
+    with atomic_open(out / "scenes.jsonl") as fh:
         for result in pipe.run(src):
             fh.write(json.dumps(result.to_record()) + "\n")
             name = label_file_name(result.frame.name, result.frame.index)
             # the check describe makes: track ids above 65535 would wrap in a 16-bit PNG
-            write_label_map(labels_dir / name, result.segmentation.labels, f"{spec} frame {result.frame.index}")
+            write_label_map(labels_part / name, result.segmentation.labels, f"{spec} frame {result.frame.index}")
             frames += 1
             objects += len(result.segmentation.objects)
-    os.replace(tmp, out / "scenes.jsonl")
+    shutil.rmtree(out / "labels", ignore_errors=True)
+    os.replace(labels_part, out / "labels")
     summary = {
         "input": spec,
+        "settings": settings_hash(config, source_options, track),
         "frames": frames,
         "objects": objects,
         "seconds": round(time.perf_counter() - t0, 3),
         "frames_per_s": round(frames / max(time.perf_counter() - t0, 1e-9), 2),
     }
-    part = out / "summary.json.part"
-    part.write_text(json.dumps(summary, indent=1), encoding="utf-8")
-    os.replace(part, out / "summary.json")  # the marker of a finished recording: written last
+    with atomic_open(out / "summary.json") as fh:  # the marker of a finished recording: written last
+        fh.write(json.dumps(summary, indent=1))
     return summary
 
 
@@ -97,13 +156,81 @@ def _guarded(
     spec: str, out_dir: str, config: Mapping[str, Any], opts: Mapping[str, Any], track: bool
 ) -> dict[str, Any]:
     """process_recording that turns any failure into a record instead of losing the batch."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    running = out / _RUNNING
+    running.write_text(str(os.getpid()), encoding="utf-8")
     try:
         return {"ok": True, **process_recording(spec, out_dir, config, opts, track)}
     except Exception as exc:  # a bad recording must not stop the others
         msg = f"{type(exc).__name__}: {exc}"
-        Path(out_dir).mkdir(parents=True, exist_ok=True)
-        (Path(out_dir) / "error.txt").write_text(msg + "\n\n" + traceback.format_exc(), encoding="utf-8")
+        with atomic_open(out / "error.txt") as fh:
+            fh.write(msg + "\n\n" + traceback.format_exc())
         return {"ok": False, "input": spec, "error": msg}
+    finally:
+        running.unlink(missing_ok=True)
+
+
+def _watch_parent(parent: int) -> None:
+    """Worker initialiser: end this worker when the batch's process is gone.
+
+    A worker of a killed parent would otherwise wait for work forever (issue 18.3); polling
+    the parent id works wherever ``fork`` or ``spawn`` does, unlike Linux's PR_SET_PDEATHSIG.
+    """
+
+    def watch() -> None:
+        while os.getppid() == parent:
+            time.sleep(0.5)
+        os._exit(1)
+
+    threading.Thread(target=watch, name="depthgram-parent-watch", daemon=True).start()
+
+
+def _run_local(
+    args: list[tuple[str, str, dict[str, Any], dict[str, Any], bool]],
+    workers: int,
+    record: Callable[[int, Mapping[str, Any]], None],
+) -> None:
+    """Run ``args[i]`` on local processes, calling ``record(i, outcome)`` for each.
+
+    A worker that dies breaks the whole pool: the recordings it was running (their folder holds
+    the ``.running`` marker) are retried once, each alone in a fresh process so that a second
+    death names its recording; the others go back into a new pool untouched.
+    """
+    queue = list(range(len(args)))
+    suspects: list[int] = []
+    while queue:
+        pending = list(queue)
+        queue = []
+        before = len(suspects)
+        with ProcessPoolExecutor(max_workers=min(workers, len(pending)), initializer=_watch_parent,
+                                 initargs=(os.getpid(),)) as pool:
+            futs: dict[Future[dict[str, Any]], int] = {pool.submit(_guarded, *args[i]): i for i in pending}
+            for fut in as_completed(futs):
+                i = futs[fut]
+                try:
+                    outcome = fut.result()
+                except BrokenProcessPool:
+                    marker = Path(args[i][1]) / _RUNNING
+                    (suspects if marker.is_file() else queue).append(i)
+                    marker.unlink(missing_ok=True)
+                    continue
+                record(i, outcome)
+        if len(queue) == len(pending) and len(suspects) == before:  # the pool broke before any work
+            for i in queue:
+                record(i, {"ok": False, "error": "could not start a worker process"})
+            queue = []
+    for i in suspects:
+        with ProcessPoolExecutor(max_workers=1, initializer=_watch_parent, initargs=(os.getpid(),)) as pool:
+            try:
+                outcome = pool.submit(_guarded, *args[i]).result()
+            except BrokenProcessPool:
+                (Path(args[i][1]) / _RUNNING).unlink(missing_ok=True)
+                outcome = {"ok": False, "error": "the worker process died twice on this recording "
+                                                 "(killed, or out of memory?)"}
+                with atomic_open(Path(args[i][1]) / "error.txt") as fh:
+                    fh.write(str(outcome["error"]) + "\n")
+        record(i, outcome)
 
 
 def run_batch(
@@ -135,17 +262,18 @@ def run_batch(
     on_done : callable, optional
         Called with each result as it finishes (progress display).
     """
-    root = Path(out_dir)
+    root = Path(out_dir).resolve()  # absolute: a Dask worker runs in another folder
     root.mkdir(parents=True, exist_ok=True)
     names = output_names(inputs)
+    keys = [input_key(spec) for spec in inputs]
     cfg = dict(config or {})
     opts = dict(source_options or {})
+    settings = settings_hash(cfg, opts, track)
     results: dict[int, BatchResult] = {}
     todo: list[int] = []
     for i, (spec, name) in enumerate(zip(inputs, names, strict=True)):
-        summary = root / name / "summary.json"
-        if summary.is_file():
-            done = json.loads(summary.read_text(encoding="utf-8"))
+        done = _finished(root / name)
+        if done is not None and done.get("input") == keys[i] and done.get("settings") == settings:
             results[i] = BatchResult(spec, name, "skipped", done.get("frames", 0), done.get("objects", 0))
             if on_done:
                 on_done(results[i])
@@ -161,30 +289,45 @@ def run_batch(
         if on_done:
             on_done(r)
 
-    args = [(inputs[i], str(root / names[i]), cfg, opts, track) for i in todo]
+    args = [(keys[i], str(root / names[i]), cfg, opts, track) for i in todo]
     if todo and scheduler:
         from depthgram._optional import needs_extra
 
         with needs_extra("dask", "--scheduler (a Dask cluster)"):
             from distributed import Client
             from distributed import as_completed as dask_completed
-        # distributed has no type hints: its calls are untyped
-        with Client(scheduler) as client:  # type: ignore[no-untyped-call]
+        try:
+            # distributed has no type hints: its calls are untyped
+            client = Client(scheduler, timeout="20s")  # type: ignore[no-untyped-call]
+        except (OSError, ValueError, TypeError) as exc:
+            raise InputError(f"--scheduler {scheduler}: cannot reach a Dask scheduler there ({exc})") from None
+        with client:
             futs = {client.submit(_guarded, *a, pure=False): i for a, i in zip(args, todo, strict=True)}
             for fut in dask_completed(list(futs)):  # type: ignore[no-untyped-call]
-                record(futs[fut], fut.result())
+                i = futs[fut]
+                out = fut.result()
+                if out.get("ok") and _finished(root / names[i]) is None:
+                    # the worker wrote on a disk this machine does not see
+                    out = {"ok": False, "error": f"the worker finished, but its outputs are not in {root / names[i]}: "
+                                                 "--out must be a folder every worker and this machine share"}
+                record(i, out)
     elif todo:
         n = workers or os.cpu_count() or 1
         if n == 1 or len(todo) == 1:
             for a, i in zip(args, todo, strict=True):
                 record(i, _guarded(*a))
         else:
-            with ProcessPoolExecutor(max_workers=min(n, len(todo))) as pool:
-                pfuts: dict[Future[dict[str, Any]], int] = {
-                    pool.submit(_guarded, *a): i for a, i in zip(args, todo, strict=True)
-                }
-                for pf in as_completed(pfuts):
-                    record(pfuts[pf], pf.result())
+            _run_local(args, n, lambda k, out: record(todo[k], out))
     ordered = [results[i] for i in range(len(inputs))]
-    (root / "batch.json").write_text(json.dumps([asdict(r) for r in ordered], indent=1), encoding="utf-8")
+    with atomic_open(root / "batch.json") as fh:
+        fh.write(json.dumps([asdict(r) for r in ordered], indent=1))
     return ordered
+
+
+def _finished(folder: Path) -> dict[str, Any] | None:
+    """The summary of a finished recording's folder, or None."""
+    try:
+        done = json.loads((folder / "summary.json").read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    return done if isinstance(done, dict) else None

@@ -3,18 +3,25 @@
 from __future__ import annotations
 
 import argparse
+import errno
 import importlib
+import io
+import os
 import pkgutil
 import sys
 import warnings
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
+from pathlib import Path
 from typing import TextIO
 
 from depthgram import __version__, commands
 from depthgram.errors import DepthgramError
 
 __all__ = ["build_parser", "main"]
+
+#: Warnings raised from inside the package are printed for people, as one line.
+_PACKAGE = Path(__file__).resolve().parent
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -37,6 +44,9 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line; return the exit status (0 success, 2 bad input, 1 other failure)."""
+    # OpenCV's own warnings ("PNG input buffer is incomplete") would print above our message
+    os.environ.setdefault("OPENCV_LOG_LEVEL", "ERROR")
+    _closed_streams()
     parser = build_parser()
     args = parser.parse_args(argv)
     if not getattr(args, "_run", None):
@@ -44,7 +54,13 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 2
     try:
         with _plain_warnings(args.command):
-            return int(args._run(args) or 0)
+            status = int(args._run(args) or 0)
+        sys.stdout.flush()  # a closed pipe shows here for output still buffered
+        return status
+    except BrokenPipeError:
+        # the reader stopped (``| head``): stop quietly as other Unix tools do
+        _silence_stdout()
+        return 141  # 128 + SIGPIPE, the status a shell shows for them
     except DepthgramError as exc:
         print(f"depthgram {args.command}: error: {exc}", file=sys.stderr)
         return 2
@@ -64,6 +80,41 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 130
 
 
+class _ClosedStream(io.TextIOBase):
+    """Stands in for a standard stream the caller closed (``>&-``, ``<&-``): Python leaves None,
+    which turned writes into tracebacks and ``print`` into silently lost output (issue 18.10)."""
+
+    def __init__(self, name: str) -> None:
+        self._name = name
+
+    def _closed(self) -> OSError:
+        return OSError(errno.EBADF, f"standard {self._name} is closed")
+
+    def write(self, text: str) -> int:
+        raise self._closed()
+
+    def read(self, size: int | None = -1) -> str:
+        raise self._closed()
+
+
+def _closed_streams() -> None:
+    if sys.stdin is None:
+        sys.stdin = _ClosedStream("input")
+    if sys.stdout is None:
+        sys.stdout = _ClosedStream("output")
+
+
+def _silence_stdout() -> None:
+    """Point standard output at /dev/null, so the interpreter's last flush of what is still
+    buffered finds nowhere to fail ("Exception ignored ... Broken pipe")."""
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        os.close(devnull)
+    except (OSError, ValueError):  # no real file descriptor behind it (tests, closed)
+        pass
+
+
 @contextmanager
 def _plain_warnings(command: str) -> Iterator[None]:
     """depthgram's own warnings (wrong units ...) as one line for people, without the source line."""
@@ -71,7 +122,7 @@ def _plain_warnings(command: str) -> Iterator[None]:
 
     def show(message: Warning | str, category: type[Warning], filename: str, lineno: int,
              file: TextIO | None = None, line: str | None = None) -> None:
-        if category.__module__.startswith("depthgram"):
+        if category.__module__.startswith("depthgram") or Path(filename).resolve().is_relative_to(_PACKAGE):
             print(f"depthgram {command}: warning: {message}", file=sys.stderr)
         else:
             shown(message, category, filename, lineno, file, line)

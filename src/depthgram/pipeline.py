@@ -31,6 +31,7 @@ from depthgram.segmentation.objects import SceneObject, Segmentation
 from depthgram.segmentation.sensor import SensorModel, estimate_sensor
 from depthgram.sound import SoundMapping
 from depthgram.sources.prefetch import prefetch
+from depthgram.stills import kinship
 
 __all__ = ["Config", "Pipeline", "SceneResult", "describe"]
 
@@ -50,6 +51,11 @@ class Config:
     Sections: ``segment`` (:class:`depthgram.segmentation.SegmentConfig`), ``tree``
     (:class:`depthgram.scene.TreeConfig`), ``tracker`` (:class:`depthgram.dynamics.TrackerConfig`),
     ``act`` (:class:`depthgram.act.ActConfig`), ``sound`` (:class:`depthgram.sound.SoundMapping`).
+
+    ``stills`` (top-level key) says whether the frames are unrelated still images: ``true``
+    (never read motion between frames), ``false`` (one recording: always track) or ``"auto"``
+    (the default: track, but not across two frames with nothing in common, see
+    :func:`depthgram.stills.kinship`).
     """
 
     segment: SegmentConfig = field(default_factory=SegmentConfig)
@@ -57,10 +63,15 @@ class Config:
     tracker: TrackerConfig = field(default_factory=TrackerConfig)
     act: ActConfig = field(default_factory=ActConfig)
     sound: SoundMapping = field(default_factory=SoundMapping)
+    stills: bool | str = "auto"
 
-    def to_dict(self) -> dict[str, dict[str, Any]]:
+    def __post_init__(self) -> None:
+        if self.stills not in (True, False, "auto"):
+            raise InputError(f"config: stills must be true, false or \"auto\", got {self.stills!r}")
+
+    def to_dict(self) -> dict[str, Any]:
         """Plain nested dict (TOML-ready: no None values)."""
-        out: dict[str, dict[str, Any]] = {}
+        out: dict[str, Any] = {"stills": self.stills}
         for name in _SECTIONS:
             section = dataclasses.asdict(getattr(self, name))
             out[name] = {k: _toml_value(v) for k, v in section.items() if v is not None}
@@ -69,6 +80,8 @@ class Config:
     @classmethod
     def from_dict(cls, data: Mapping[str, Any], *, where: str = "config") -> Config:
         """Build from a nested dict; unknown sections or keys are errors, not silently dropped."""
+        data = dict(data)
+        stills = data.pop("stills", "auto")
         unknown = set(data) - set(_SECTIONS)
         if unknown:
             raise InputError(f"{where}: unknown section(s) {sorted(unknown)}; expected {sorted(_SECTIONS)}")
@@ -78,7 +91,10 @@ class Config:
             if not isinstance(values, Mapping):
                 raise InputError(f"{where}: [{name}] must be a table of settings")
             kwargs[name] = _build_section(klass, values, f"{where} [{name}]")
-        return cls(**kwargs)
+        try:
+            return cls(**kwargs, stills=stills)
+        except InputError as exc:
+            raise InputError(f"{where}: {exc}") from None
 
     @classmethod
     def load(cls, path: str | Path) -> Config:
@@ -111,6 +127,10 @@ class Config:
             data[name] = {**data[name], **dict(values)}
         return Config.from_dict(data)
 
+    def with_stills(self, stills: bool | str) -> Config:
+        """A copy with the ``stills`` setting changed."""
+        return dataclasses.replace(self, stills=stills)
+
 
 def _toml_value(v: Any) -> Any:
     if isinstance(v, tuple):
@@ -133,6 +153,8 @@ def _build_section(klass: type, values: Mapping[str, Any], where: str) -> Any:
         # TOML has arrays, not tuples: give tuple-typed fields their tuple back.
         if isinstance(v, list) and isinstance(getattr(default, k, None), tuple):
             v = tuple(tuple(x) if isinstance(x, list) else x for x in v)
+        if k in fields:
+            _check_type(k, v, getattr(default, k), where)
         kwargs[k] = v
     try:
         return own(kwargs) if own is not None else klass(**kwargs)
@@ -140,6 +162,29 @@ def _build_section(klass: type, values: Mapping[str, Any], where: str) -> Any:
         raise InputError(f"{where}: {exc}") from None
     except (TypeError, ValueError) as exc:
         raise InputError(f"{where}: {exc}") from None
+
+
+def _check_type(name: str, value: Any, default: Any, where: str) -> None:
+    """Refuse a setting whose kind differs from its default's (issue 18.9).
+
+    Python's truth rules made ``relations = "false"`` true, ``bin_mm = true`` a width of 1 and
+    a string in a numeric field a raw TypeError deep in a stage; the stages' own checks see
+    only the values. A field whose default is None (optional) is left to its stage.
+    """
+    if isinstance(default, bool):
+        ok, expected = isinstance(value, bool), "true or false"
+    elif isinstance(default, int):
+        ok, expected = isinstance(value, int) and not isinstance(value, bool), "an integer"
+    elif isinstance(default, float):
+        ok, expected = isinstance(value, (int, float)) and not isinstance(value, bool), "a number"
+    elif isinstance(default, str):
+        ok, expected = isinstance(value, str), "a string"
+    elif isinstance(default, tuple):
+        ok, expected = isinstance(value, tuple), "an array"
+    else:
+        return
+    if not ok:
+        raise InputError(f"{where}: {name} = {value!r} ({type(value).__name__}), expected {expected}")
 
 
 @dataclass(frozen=True, eq=False)
@@ -157,6 +202,9 @@ class SceneResult:
     occluded: tuple[tuple[SceneObject, Motion], ...]
     plan: Plan
     latency_s: float
+    #: Why this frame was taken as a still unrelated to the previous one (no motion read into
+    #: it; ids start again): the ``stills`` setting or what the data showed. Empty otherwise.
+    still: str = ""
 
     @property
     def sentence(self) -> str:
@@ -239,8 +287,12 @@ class Pipeline:
     config : Config, optional
         All stage settings; defaults when omitted.
     track : bool
-        Track objects across frames (range flow). Off for unrelated still images, so that
-        ids restart at 1 and no velocity is read between different scenes.
+        Track objects across frames (range flow). False is the same as the config's
+        ``stills = true``: unrelated still images, ids restart at 1 and no velocity is read
+        between different scenes. With ``stills = "auto"`` (the default) the tracks are
+        dropped wherever two successive frames have nothing in common
+        (:func:`depthgram.stills.kinship`); a source without timestamps that shows such a pair
+        once is taken for a folder of stills from then on.
 
     Examples
     --------
@@ -256,11 +308,33 @@ class Pipeline:
         self._tracker = Tracker(self.config.tracker)
         self._sensor: SensorModel | None = None
         self._sensor_age = 0
+        self._prev: Frame | None = None
+        self._untimed_stills = ""  # the reason, once an untimed source showed unrelated frames
 
     def reset(self) -> None:
         """Forget all tracks and the sensor estimate (start of a new recording)."""
         self._tracker = Tracker(self.config.tracker)
         self._sensor = None
+        self._prev = None
+        self._untimed_stills = ""
+
+    def _still_reason(self, frame: Frame) -> str:
+        """Why ``frame`` must not be tracked from the previous one ("" when it may)."""
+        prev, self._prev = self._prev, frame
+        stills = self.config.stills
+        if not self.track or stills is True:
+            return "stills setting"
+        if stills is False or prev is None:
+            return ""
+        if self._untimed_stills and frame.time_s is None:
+            return self._untimed_stills
+        kin = kinship(prev, frame)
+        if kin.related:
+            return ""
+        reason = f"{prev.name} and {frame.name} have nothing in common: {kin.reason}"
+        if frame.time_s is None:
+            self._untimed_stills = f"a folder of stills (seen first at {reason})"
+        return reason
 
     def _sensor_model(self, frame: Frame) -> SensorModel | None:
         """The camera's sensor model, estimated from the stream every ``_SENSOR_EVERY`` frames.
@@ -304,7 +378,10 @@ class Pipeline:
         )
         motions: dict[int, Motion] = {}
         occluded: tuple[tuple[SceneObject, Motion], ...] = ()
-        if self.track:
+        still = self._still_reason(frame)
+        if still and self.track and self.config.stills is not True:
+            self._tracker = Tracker(self.config.tracker)  # nothing carries over to the next frames
+        if not still:
             update = self._tracker.update(seg.objects, frame.time_s, frame.size)
             seg = _relabel(seg, {oid: m.track_id for oid, m in update.motions.items()})
             motions = {m.track_id: m for m in update.motions.values()}
@@ -321,6 +398,7 @@ class Pipeline:
             occluded=occluded,
             plan=action_plan,
             latency_s=time.perf_counter() - t0,
+            still=still,
         )
 
     def run(self, frames: Iterable[Frame], *, read_ahead: int = 2) -> Iterator[SceneResult]:

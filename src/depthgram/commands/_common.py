@@ -13,15 +13,16 @@ if TYPE_CHECKING:
 
 
 def add_pipeline_arguments(p: argparse.ArgumentParser, *, stills: bool = False, input_optional: bool = False) -> None:
-    """INPUT, how to read it, the settings, --quiet, and with ``stills`` the --no-track switch.
+    """INPUT, how to read it (--stills among the reading options), the settings and --quiet.
+
+    ``stills`` is kept for callers of the time when only some commands had --no-track; every
+    command now has --stills (alias --no-track).
 
     ``input_optional`` only for commands whose output switch took a file in this release
     (``plan --json INPUT`` of the last release parses INPUT as the file: :func:`output_target`).
     """
     add_source_arguments(p, input_optional=input_optional)
     add_config_arguments(p)
-    if stills:
-        p.add_argument("--no-track", action="store_true", help="treat frames as unrelated stills (no range flow)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
@@ -30,7 +31,7 @@ def pipeline_results(args: argparse.Namespace, desc: str) -> tuple[Source, Itera
     from depthgram.pipeline import Pipeline
 
     src = open_input(args)
-    pipe = Pipeline(load_config(args), track=not getattr(args, "no_track", False))
+    pipe = Pipeline(load_config(args))
     return src, progress(pipe.run(src), total=source_len(src), desc=desc, quiet=args.quiet)
 
 
@@ -49,7 +50,7 @@ def add_source_arguments(p: argparse.ArgumentParser, *, input_optional: bool = F
         metavar="INPUT",
         nargs="?" if input_optional else None,
         help="file, folder or glob of depth frames, .npy/.npz stack, ROS bag / MCAP, realsense:[SERIAL], "
-             "or sim:SCENE (table, corridor, approach, crossing)",
+             "or sim:SCENE (table, corridor, approach, crossing, ball_wall, touching; ?sensor=sl: structured light)",
     )
     add_reading_arguments(p)
 
@@ -73,6 +74,11 @@ def add_reading_arguments(p: argparse.ArgumentParser) -> None:
     g.add_argument("--encoding", default="auto", choices=ENCODINGS,
                    help="sample encoding: auto; mm / m (units whatever the dtype); 8bit (the paper's 0-255, "
                         "with --range); sun (SUN RGB-D bit shift); kinect-disparity (NYU raw PGM)")
+    g.add_argument("--stills", "--no-track", dest="stills", default=None, nargs="?", const="yes",
+                   choices=["yes", "no", "auto"],
+                   help="the frames are unrelated still images: no motion (velocity, time to collision, approach "
+                        "alarm) is read between them. 'no': one recording, always track; default 'auto' (or the "
+                        "config's 'stills'): tracks are dropped between frames with nothing in common")
     g.add_argument("--range", type=float, nargs=2, default=None, metavar=("NEAR_MM", "FAR_MM"),
                    dest="depth_range", help="depth range in mm: of the 8-bit codes 1..255, else the valid range")
     g.add_argument("--topic", default=None, help="depth Image topic of a ROS bag (when it has several)")
@@ -119,6 +125,9 @@ def load_config(args: argparse.Namespace) -> Config:
     cfg = Config.load(args.config) if getattr(args, "config", None) else Config()
     if getattr(args, "method", None):
         cfg = cfg.replace(segment={"method": args.method})
+    stills = getattr(args, "stills", None)
+    if stills is not None:
+        cfg = cfg.with_stills({"yes": True, "no": False}.get(stills, "auto"))
     return cfg
 
 
@@ -205,8 +214,13 @@ class Output:
         if target == STDOUT:
             self.stream: Any = sys.stdout
         else:
+            from depthgram.atomic import atomic_open
+
+            # under a temporary name until __exit__ without an error: a failure leaves no file
+            # that looks complete (issue 18.7)
+            self._atomic = atomic_open(target)
             try:
-                self.stream = open(target, "w", encoding="utf-8")  # closed in __exit__
+                self.stream = self._atomic.__enter__()
             except OSError as exc:
                 raise InputError(f"{option} {target}: cannot write ({exc.strerror or exc})") from None
 
@@ -217,8 +231,8 @@ class Output:
     def __enter__(self) -> Output:
         return self
 
-    def __exit__(self, *exc: object) -> None:
+    def __exit__(self, *exc: Any) -> None:
         if self.stream is sys.stdout:
             self.stream.flush()
         else:
-            self.stream.close()
+            self._atomic.__exit__(*exc)

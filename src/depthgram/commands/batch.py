@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from depthgram.commands._common import add_reading_arguments, reading_options
+from depthgram.commands._common import add_reading_arguments, load_config, reading_options
 
 NAME = "batch"
 HELP = "process many recordings (local cores, or a Dask cluster with --scheduler); resumable"
@@ -19,18 +19,16 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="Dask distributed scheduler address, e.g. tcp://10.0.0.5:8786")
     p.add_argument("--config", default=None, metavar="TOML", help="pipeline settings")
     add_reading_arguments(p)  # the same reading options as every command, applied to each recording
-    p.add_argument("--no-track", action="store_true", help="treat frames as unrelated stills")
     p.add_argument("--quiet", action="store_true", help="no per-recording lines")
 
 
 def run(args: argparse.Namespace) -> int:
     from depthgram.batch import BatchResult, run_batch
     from depthgram.errors import InputError
-    from depthgram.pipeline import Config
 
     if args.workers is not None and args.workers < 1:
         raise InputError(f"--workers must be at least 1, got {args.workers}")
-    cfg = Config.load(args.config) if args.config else Config()
+    cfg = load_config(args)  # with --stills
     opts = reading_options(args)
 
     def show(r: BatchResult) -> None:
@@ -40,7 +38,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"{r.status:8s} {r.input}: {detail}", file=sys.stderr)
 
     results = run_batch(args.inputs, args.out, config=cfg.to_dict(), source_options=opts, workers=args.workers,
-                        scheduler=args.scheduler, track=not args.no_track, on_done=show)
+                        scheduler=args.scheduler, track=True, on_done=show)
     failed = [r for r in results if r.status == "failed"]
     print(f"{len(results)} recordings: {sum(r.status == 'done' for r in results)} done, "
           f"{sum(r.status == 'skipped' for r in results)} skipped (finished before), {len(failed)} failed")

@@ -43,6 +43,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 def label_file_name(frame_name: str, index: int) -> str:
     """Label map file name, after the input frame's file when it has one."""
     stem = Path(frame_name).stem if frame_name and ":" not in frame_name else ""
+    if stem and "#" in Path(frame_name).name:  # a frame of a stack ("st.npy#2"): every frame its own map
+        stem = f"{Path(frame_name.partition('#')[0]).stem}-{index:06d}"
     return f"{stem or f'{index:06d}'}.png"
 
 
@@ -62,8 +64,11 @@ def write_label_map(path: Path, labels: NDArray[np.integer], frame_name: str) ->
     top = int(labels.max(initial=0))
     if top > 65535:
         raise InputError(f"{frame_name}: object id {top} is above 65535; cannot write a 16-bit PNG label map ({path})")
-    if not cv2.imwrite(str(path), labels.astype("uint16")):
-        raise InputError(f"{path}: could not write the label map")
+    from depthgram.atomic import atomic_path
+
+    with atomic_path(path) as tmp:
+        if not cv2.imwrite(str(tmp), labels.astype("uint16")):
+            raise InputError(f"{path}: could not write the label map")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -93,7 +98,7 @@ def run(args: argparse.Namespace) -> int:
         src, results = pipeline_results(args, NAME)
         mcap = None
         if args.mcap is not None:
-            from depthgram.export.mcap import McapWriter
+            from depthgram.export.mcap_file import McapWriter
 
             mcap = stack.enter_context(McapWriter(args.mcap, source=str(args.input), fps=getattr(src, "fps", None)))
         for result in results:

@@ -13,7 +13,8 @@ HELP = "write pictures (objects, histogram, tree, tracks) and an index.html for 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     add_pipeline_arguments(p, stills=True)
     p.add_argument("--out", required=True, metavar="DIR", help="folder to write the report into")
-    p.add_argument("--pictures", type=int, default=6, help="how many frames to picture (spread over the input)")
+    p.add_argument("--pictures", type=int, default=6,
+                   help="how many frames to picture, spread evenly from the first to the last (default 6)")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -29,7 +30,8 @@ def run(args: argparse.Namespace) -> int:
     src, results = pipeline_results(args, NAME)
     n = source_len(src)
     every = max(1, (n or args.pictures) // args.pictures)
-    writer = ReportWriter(args.out, every=every, max_pictures=args.pictures)
+    # with a known length the pictured frames are spread from the first to the last
+    writer = ReportWriter(args.out, every=every, max_pictures=args.pictures, frames=n)
     writer.add_all(results)
     index = writer.finish()
     print(f"report written: {index}")

@@ -1,4 +1,4 @@
-"""``depthgram simulate``: write simulated ToF frames and their ground truth to a folder.
+"""``depthgram simulate``: write simulated ToF or structured-light frames and their ground truth to a folder.
 
 Layout of ``--out DIR`` for frame k (six digits, zero-padded):
 
@@ -15,7 +15,7 @@ import re
 import sys
 
 NAME = "simulate"
-HELP = "Simulate ToF depth frames of a named scene with ground truth (depth PNGs, instances, truth JSON)."
+HELP = "Simulate depth frames (ToF or structured light) of a named scene with ground truth (PNGs, truth JSON)."
 
 #: Largest image side accepted on the command line (px).
 MAX_SIDE = 4096
@@ -23,7 +23,7 @@ MAX_SIDE = 4096
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Declare the sub-command's arguments."""
-    parser.add_argument("scene", help="scene name: table, corridor, approach, crossing")
+    parser.add_argument("scene", help="scene name: table, corridor, approach, crossing, ball_wall, touching")
     parser.add_argument("--frames", type=int, default=1, help="number of frames (default 1)")
     parser.add_argument("--size", default="176x132", help="image size WxH in pixels (default 176x132)")
     parser.add_argument("--out", required=True, help="output folder (created when missing)")
@@ -31,7 +31,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--fps", type=float, default=30.0, help="frame rate in frames per second (default 30)")
     parser.add_argument("--bits", type=int, choices=(8, 16), default=16,
                         help="sensor quantization: 16 (mm) or 8 (the paper's 0-255 over 3 m); PNGs stay mm")
-    parser.add_argument("--no-noise", action="store_true", help="no shot or read noise")
+    parser.add_argument("--no-noise", action="store_true", help="no shot or read noise (no disparity noise)")
+    parser.add_argument("--sensor", default="tof", choices=("tof", "structured-light", "sl"),
+                        help="tof (default) or structured-light / sl: a Kinect v1 / Xtion-like camera "
+                             "(1/8 px disparity steps, projector shadows, registration holes)")
 
 
 def parse_size(text: str) -> tuple[int, int]:
@@ -72,9 +75,12 @@ def run(args: argparse.Namespace) -> int:
     if args.frames < 1:
         raise InputError(f"--frames must be >= 1, got {args.frames}")
     size = parse_size(args.size)
-    tof = dataclasses.replace(build_scene(args.scene, size).tof, bits=args.bits)
+    structured = args.sensor != "tof"
+    if structured and args.bits != 16:
+        raise InputError("--bits applies to the tof sensor only (structured light is read in mm)")
+    tof = None if structured else dataclasses.replace(build_scene(args.scene, size).tof, bits=args.bits)
     frames = simulate(args.scene, args.frames, size=size, fps=args.fps, seed=args.seed, tof=tof,
-                      noise=not args.no_noise)
+                      noise=not args.no_noise, sensor=args.sensor)
 
     out = Path(args.out)
     dirs = {name: out / name for name in ("depth", "instances", "truth")}
@@ -104,7 +110,7 @@ def run(args: argparse.Namespace) -> int:
             k = f.intrinsics
             assert k is not None  # the simulator always knows its camera
             camera = {"fx": k.fx, "fy": k.fy, "cx": k.cx, "cy": k.cy, "fps": float(args.fps), "unit": "mm",
-                      "scene": args.scene, "seed": args.seed, "bits": args.bits,
+                      "scene": args.scene, "seed": args.seed, "bits": args.bits, "sensor": f.meta.get("sensor", "tof"),
                       "width": size[0], "height": size[1]}
             write_text(dirs["depth"] / "camera.json", json.dumps(camera, indent=2) + "\n")
             camera_written = True

@@ -89,6 +89,26 @@ class TrackerConfig:
     area_tau_s : float
         Time constant of the running depth-compensated area against which splits and merges
         are judged (s; 0.094 s weighs a new reading by 0.3 at 30 frames/s).
+    estimator : str
+        How the radial velocity is read: ``kalman``, a constant-velocity Kalman filter on depth
+        and radial velocity with an innovation gate, or ``queue``, the paper's slope over the
+        last ``queue_length`` depths. Both report ``v_sigma``.
+    depth_sigma_mm : float
+        Sensor noise of an object's depth reading at 1 m (mm); it grows with the square of
+        the depth (ToF and structured light). A sensor estimate can set it.
+    depth_sigma_floor_mm : float
+        Depth noise that does not shrink with nearness (mm), added to the above.
+    accel_sigma : float
+        Standard deviation of the unmodelled radial acceleration of a tracked object
+        (mm/s^2), the filter's process noise: how fast it follows a change of speed.
+    innovation_gate : float
+        A depth reading further from the filter's prediction than this many standard
+        deviations is an outlier and is not followed (dimensionless); three outliers in a row
+        restart the filter there (the object did change).
+    ttc_min_sigmas : float
+        A time to collision (and the warnings built on it) is given only when the closing
+        speed is at least this many ``v_sigma`` (dimensionless): otherwise the velocity is
+        not known well enough and ttc is None.
     """
 
     queue_length: int = 4
@@ -113,6 +133,12 @@ class TrackerConfig:
     min_speed: float = 50.0
     center_tau_s: float = 0.048
     area_tau_s: float = 0.094
+    estimator: str = "queue"
+    depth_sigma_mm: float = 1.0
+    depth_sigma_floor_mm: float = 0.5
+    accel_sigma: float = 3000.0
+    innovation_gate: float = 4.0
+    ttc_min_sigmas: float = 1.5
 
     def __post_init__(self) -> None:
         for name in ("queue_length", "min_hits", "max_missed", "border_px"):
@@ -126,7 +152,8 @@ class TrackerConfig:
         floats = (
             "max_center_rate", "max_depth_rate", "max_area_ratio", "min_iou", "gate_growth",
             "w_center", "w_depth", "w_area", "w_iou", "w_label", "border_area_rate",
-            "max_area_jump", "min_speed", "center_tau_s", "area_tau_s",
+            "max_area_jump", "min_speed", "center_tau_s", "area_tau_s", "depth_sigma_mm",
+            "depth_sigma_floor_mm", "accel_sigma", "innovation_gate", "ttc_min_sigmas",
         )  # fmt: skip
         for name in floats:
             v = getattr(self, name)
@@ -135,6 +162,10 @@ class TrackerConfig:
         _check(self.max_center_rate > 0, "max_center_rate", self.max_center_rate, "> 0 (1/s)")
         _check(self.max_depth_rate > 0, "max_depth_rate", self.max_depth_rate, "> 0 (1/s)")
         _check(self.center_tau_s > 0, "center_tau_s", self.center_tau_s, "> 0 s")
+        _check(self.estimator in ("kalman", "queue"), "estimator", self.estimator, "'kalman' or 'queue'")
+        _check(self.innovation_gate > 0, "innovation_gate", self.innovation_gate, "> 0")
+        _check(self.depth_sigma_mm + self.depth_sigma_floor_mm > 0, "depth_sigma_mm", self.depth_sigma_mm,
+               "a positive noise (with depth_sigma_floor_mm)")
         _check(self.area_tau_s > 0, "area_tau_s", self.area_tau_s, "> 0 s")
         f = self.fps
         ok = f is None or (

@@ -20,7 +20,14 @@ from depthgram.dynamics.config import TrackerConfig
 from depthgram.dynamics.tracker import Tracker
 from depthgram.segmentation.objects import SceneObject
 
-__all__ = ["BodyScore", "TrackingScore", "evaluate_tracking", "objects_from_labels", "primary_segments"]
+__all__ = [
+    "BodyScore",
+    "TrackingScore",
+    "evaluate_tracking",
+    "objects_from_labels",
+    "primary_segments",
+    "radial_velocity_from_poses",
+]
 
 
 @dataclass(frozen=True)
@@ -288,3 +295,59 @@ class _Record:
             v_truth=tuple(self.tru),
             id_by_frame=tuple(zip(self.frames, self.ids, strict=True)),
         )
+
+
+def radial_velocity_from_poses(
+    depth_mm: NDArray[np.floating],
+    labels: NDArray[np.integer],
+    ids: Iterable[int],
+    intrinsics: tuple[float, float, float, float],
+    pose_prev: NDArray[np.floating],
+    pose_next: NDArray[np.floating],
+    dt_s: float,
+) -> dict[int, float]:
+    """True radial velocity of static objects seen by a moving camera, from its poses.
+
+    Each valid pixel of an object is carried to 3-D with the intrinsics, into the world with
+    the camera pose of this frame's neighbours, and into the camera of the previous and the
+    next frame; the object's true radial velocity is the mean change of those points' depth
+    per second (a central difference, ``(z_next - z_prev) / dt_s``): the rate of change of
+    its mean depth, which is what the tracker reads, with the scene held still.
+
+    Parameters
+    ----------
+    depth_mm : ndarray of float, shape (H, W)
+        This frame's depth (mm), 0 or NaN where invalid.
+    labels : ndarray of int, shape (H, W)
+        Object id per pixel.
+    ids : iterable of int
+        The objects to score.
+    intrinsics : tuple of float
+        (fx, fy, cx, cy) in px.
+    pose_prev, pose_next : ndarray, shape (4, 4)
+        Camera-to-world poses of the previous and next frames, each relative to this frame's
+        camera (``inv(T_this) @ T_other`` for world poses); translation in mm.
+    dt_s : float
+        Time between the previous and the next frame (s).
+
+    Returns
+    -------
+    dict of int to float
+        Object id to true radial velocity (mm/s); objects without a valid pixel are left out.
+    """
+    fx, fy, cx, cy = intrinsics
+    z = np.asarray(depth_mm, dtype=np.float64)
+    lab = np.asarray(labels)
+    to_prev = np.linalg.inv(np.asarray(pose_prev, dtype=np.float64))
+    to_next = np.linalg.inv(np.asarray(pose_next, dtype=np.float64))
+    out: dict[int, float] = {}
+    for oid in ids:
+        ys, xs = np.nonzero((lab == oid) & (z > 0) & np.isfinite(z))
+        if xs.size == 0:
+            continue
+        zz = z[ys, xs]
+        pts = np.stack([(xs - cx) * zz / fx, (ys - cy) * zz / fy, zz, np.ones_like(zz)])
+        z_prev = (to_prev[2] @ pts).mean()
+        z_next = (to_next[2] @ pts).mean()
+        out[int(oid)] = float((z_next - z_prev) / dt_s)
+    return out

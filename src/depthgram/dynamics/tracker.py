@@ -28,6 +28,7 @@ from depthgram.dynamics.kernels import (
     NFEAT,
     OCCLUDED,
     STATUS,
+    estimate,
     mark_behind,
     predict_cost,
     step,
@@ -147,13 +148,17 @@ def _features(objects: Sequence[SceneObject]) -> NDArray[np.float64]:
 _NO_PAIRS = np.zeros(0, np.intp)
 
 
-def _motion(track_id: int, v: float, ttc: float, status: str, fps_assumed: float | None) -> Motion:
-    """A Motion; NaN velocity or time to collision become None."""
+def _motion(
+    track_id: int, v: float, ttc: float, status: str, fps_assumed: float | None, v_sigma: float = math.nan
+) -> Motion:
+    """A Motion; NaN velocity, time to collision or v_sigma become None."""
+    known = not math.isnan(v)
     return Motion(
         track_id=track_id,
-        v_radial=None if math.isnan(v) else v,
+        v_radial=v if known else None,
         ttc=None if math.isnan(ttc) else ttc,
         status=status,
+        v_sigma=v_sigma if known and math.isfinite(v_sigma) else None,
         fps_assumed=fps_assumed,
     )
 
@@ -188,6 +193,15 @@ class Tracker:
              c.min_hits, c.max_missed, c.max_depth_jump_rate, c.center_tau_s, c.area_tau_s],
             dtype=np.float64,
         )  # fmt: skip
+        self._estimate_params = np.array(
+            [float(c.estimator == "kalman"), c.depth_sigma_mm, c.depth_sigma_floor_mm, c.accel_sigma,
+             c.innovation_gate, c.ttc_min_sigmas, c.min_speed, 3000.0],
+            dtype=np.float64,
+        )  # fmt: skip
+        if c.estimator == "kalman":
+            # The filter's innovation gate judges jumps against its own uncertainty (and three
+            # in a row restart it): the queue's fixed jump test would restart it on one outlier.
+            self._step_params[7] = math.inf
         self.reset()
 
     def reset(self) -> None:
@@ -203,6 +217,10 @@ class Tracker:
         self._s = np.zeros((16, NCOL))
         self._qt = np.zeros((16, n))
         self._qz = np.zeros((16, n))
+        self._kx = np.full((16, 2), np.nan)  # filter state: depth (mm), radial velocity (mm/s)
+        self._kp = np.zeros((16, 2, 2))  # its covariance
+        self._kn = np.zeros(16, np.int64)  # readings folded in since the filter (re)started
+        self._krej = np.zeros(16, np.int64)  # outliers rejected in a row
         self._last: list[SceneObject] = []
         self._motion: list[Motion] = []
 
@@ -315,6 +333,11 @@ class Tracker:
             self._s = np.concatenate([self._s, np.zeros((grow - len(self._s), NCOL))])
             self._qt = np.concatenate([self._qt, np.zeros((grow - len(self._qt), self._qt.shape[1]))])
             self._qz = np.concatenate([self._qz, np.zeros((grow - len(self._qz), self._qz.shape[1]))])
+            more = grow - len(self._kx)
+            self._kx = np.concatenate([self._kx, np.full((more, 2), np.nan)])
+            self._kp = np.concatenate([self._kp, np.zeros((more, 2, 2))])
+            self._kn = np.concatenate([self._kn, np.zeros(more, np.int64)])
+            self._krej = np.concatenate([self._krej, np.zeros(more, np.int64)])
         s = self._s
         cost = predict_cost(s, n, f, math.hypot(width, height), t_now, self._dt, self._cost_params)
         if n and m:
@@ -322,7 +345,7 @@ class Tracker:
         else:
             rows = cols = _NO_PAIRS
         params = self._step_params
-        obj_row, v_out, ttc, dead, k = step(
+        obj_row, v_out, ttc, dead, restarted, k = step(
             s, self._qt, self._qz, n, f, rows, cols, cost, t_now, self._dt,
             float(width), float(height), self._frame == 0, self._next_id, params,
         )  # fmt: skip
@@ -331,21 +354,23 @@ class Tracker:
         if k:  # placeholders, filled below
             self._last.extend([objects[0]] * k)
             self._motion.extend([Motion(0)] * k)
+        v_out, ttc, v_sig = self._estimate(n, restarted, v_out, ttc)
 
         # Python objects only for what is returned.
         ids_l = s[: self._n, ID].astype(np.int64).tolist()
         st_l = s[: self._n, STATUS].astype(np.int64).tolist()
         v_l = v_out.tolist()
         ttc_l = ttc.tolist()
+        sig_l = v_sig.tolist()
         motions: dict[int, Motion] = {}
         for o, i in zip(objects, obj_row.tolist(), strict=True):
-            mo = _motion(ids_l[i], v_l[i], ttc_l[i], STATUSES[st_l[i]], fps_assumed)
+            mo = _motion(ids_l[i], v_l[i], ttc_l[i], STATUSES[st_l[i]], fps_assumed, sig_l[i])
             motions[o.id] = mo
             self._motion[i] = mo
             self._last[i] = o
         missed = [i for i in range(n) if st_l[i] == OCCLUDED]
         for i in missed:
-            self._motion[i] = _motion(ids_l[i], v_l[i], ttc_l[i], "occluded", fps_assumed)
+            self._motion[i] = _motion(ids_l[i], v_l[i], ttc_l[i], "occluded", fps_assumed, sig_l[i])
         min_hits = cfg.min_hits
         hits = s[: self._n, HITS]
         ended = tuple(self._snapshot(i) for i in missed if dead[i] and hits[i] >= min_hits)
@@ -354,10 +379,25 @@ class Tracker:
             self._drop(~dead)
         return TrackUpdate(motions=motions, occluded=occluded, ended=ended)
 
+    def _estimate(
+        self, n: int, restarted: NDArray[np.bool_], v_queue: NDArray[np.float64], ttc_queue: NDArray[np.float64]
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+        """Radial velocity, time to collision and v_sigma of every live row (mm/s, s, mm/s);
+        see :func:`depthgram.dynamics.kernels.estimate`."""
+        nn = self._n
+        return estimate(
+            self._s[:nn], self._qt[:nn], self._qz[:nn], n, restarted, v_queue, ttc_queue,
+            self._kx[:nn], self._kp[:nn], self._kn[:nn], self._krej[:nn], self._dt, self._estimate_params,
+        )  # fmt: skip
+
     def _drop(self, keep: NDArray[np.bool_]) -> None:
         """Keep only the live rows where ``keep`` is True."""
         n = self._n
         k = int(keep.sum())
+        self._kx[:k] = self._kx[:n][keep]
+        self._kp[:k] = self._kp[:n][keep]
+        self._kn[:k] = self._kn[:n][keep]
+        self._krej[:k] = self._krej[:n][keep]
         self._s[:k] = self._s[:n][keep]
         self._qt[:k] = self._qt[:n][keep]
         self._qz[:k] = self._qz[:n][keep]

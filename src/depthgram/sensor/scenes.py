@@ -113,7 +113,60 @@ def _crossing(w: int, h: int) -> SceneSpec:
     return SceneSpec("crossing", cam, bodies, ToFConfig())
 
 
-_BUILDERS = {"table": _table, "corridor": _corridor, "approach": _approach, "crossing": _crossing}
+#: Sphere of ``ball_wall``: centre depth (mm) and radius (mm). Its image covers 0.5 % of the
+#: frame at any size of aspect 4:3 (the 40 degree camera's focal length scales with the width):
+#: pi * (f r / z)**2 = 0.005 * w * h with f = (w / 2) / tan(20 deg) gives r = 40.4 mm at 1600 mm.
+BALL_DEPTH_MM = 1600.0
+BALL_RADIUS_MM = 40.4
+#: Distance (mm) from the ball's centre to the wall behind it, along the optical axis.
+BALL_WALL_GAP_MM = 400.0
+
+
+def _ball_wall(w: int, h: int) -> SceneSpec:
+    # A small ball hanging 0.4 m in front of a wall (issue 12): its pixels make no histogram
+    # peak of their own, so a band-per-peak segmentation hands them to the wall.
+    cam = Camera(w, h, position=(0.0, 1000.0, 0.0), pitch_deg=0.0)
+    centre = (150.0, 1080.0, BALL_DEPTH_MM)
+    bodies = (
+        Body(1, "floor", "floor", (FLOOR,), 0.5),
+        Body(2, "back_wall", "wall", (_back_wall(BALL_DEPTH_MM + BALL_WALL_GAP_MM),), 0.7),
+        Body(3, "ball", "object", (Ellipsoid(centre, (BALL_RADIUS_MM,) * 3),), 0.7),
+    )
+    return SceneSpec("ball_wall", cam, bodies, ToFConfig())
+
+
+def _touching(w: int, h: int) -> SceneSpec:
+    # A cylinder standing against the side of a box on a table, their fronts 15 mm apart in
+    # depth (issue 12): only the surface orientation and a thin depth crease separate them.
+    cam = Camera(w, h, position=(0.0, 1000.0, 0.0), pitch_deg=14.0)
+    top_y = 750.0
+    legs = tuple(
+        Box((x - 25.0, 0.0, z - 25.0), (x + 25.0, top_y - 40.0, z + 25.0))
+        for x in (-600.0, 600.0)
+        for z in (750.0, 1450.0)
+    )
+    box = Box((-140.0, top_y, 1050.0), (40.0, top_y + 160.0, 1170.0))
+    radius = 45.0
+    cylinder = Cylinder((40.0 + radius, top_y, 1110.0), radius, 200.0)  # touches the box's +x face
+    bodies = (
+        Body(1, "floor", "floor", (FLOOR,), 0.4),
+        Body(2, "back_wall", "wall", (_back_wall(2300.0),), 0.7),
+        Body(3, "table", "object", (Box((-650.0, top_y - 40.0, 700.0), (650.0, top_y, 1500.0)), *legs), 0.5,
+             parent=1),
+        Body(4, "box", "object", (box,), 0.6, parent=3),
+        Body(5, "cylinder", "object", (cylinder,), 0.6, parent=3),
+    )
+    return SceneSpec("touching", cam, bodies, ToFConfig())
+
+
+_BUILDERS = {
+    "table": _table,
+    "corridor": _corridor,
+    "approach": _approach,
+    "crossing": _crossing,
+    "ball_wall": _ball_wall,
+    "touching": _touching,
+}
 
 #: Names of the scenes :func:`depthgram.sensor.simulate` knows.
 SCENES: tuple[str, ...] = tuple(_BUILDERS)

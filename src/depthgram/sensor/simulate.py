@@ -1,4 +1,4 @@
-"""Simulated ToF frames of named scenes, with per-pixel and per-object ground truth."""
+"""Simulated ToF and structured-light frames of named scenes, with per-pixel and per-object ground truth."""
 
 from __future__ import annotations
 
@@ -10,8 +10,10 @@ from numpy.typing import NDArray
 
 from depthgram.errors import InputError
 from depthgram.frame import Frame
+from depthgram.sensor import structured
 from depthgram.sensor.geometry import cast_times, static_hits
 from depthgram.sensor.scenes import SceneSpec, build_scene
+from depthgram.sensor.structured import StructuredLightConfig
 from depthgram.sensor.tof import (
     REFERENCE_INTEGRATION_S,
     ToFConfig,
@@ -22,7 +24,15 @@ from depthgram.sensor.tof import (
     sample_noise,
 )
 
-__all__ = ["MAX_PIXELS", "SimFrame", "TruthObject", "simulate"]
+__all__ = ["MAX_PIXELS", "SENSORS", "SimFrame", "TruthObject", "sensor_name", "simulate"]
+
+#: Sensor names :func:`simulate` takes, with their aliases.
+SENSORS: dict[str, str] = {
+    "tof": "tof",
+    "structured-light": "structured-light",
+    "structured_light": "structured-light",
+    "sl": "structured-light",
+}
 
 #: Largest image simulated (pixels): 4096 x 4096.
 MAX_PIXELS = 4096 * 4096
@@ -87,7 +97,11 @@ class SimFrame:
     truth : tuple of TruthObject
         The bodies with at least one visible pixel, by id.
     amplitude : ndarray of float32, shape (H, W) or None
-        Demodulated amplitude (electrons), the sensor's confidence image.
+        Demodulated amplitude (electrons), the ToF sensor's confidence image; None for
+        structured light.
+    shadow : ndarray of bool, shape (H, W) or None
+        Structured light: pixels with a surface that the projector cannot light (read
+        invalid). None for ToF.
     """
 
     frame: Frame
@@ -95,6 +109,21 @@ class SimFrame:
     instances: NDArray[np.int32]
     truth: tuple[TruthObject, ...]
     amplitude: NDArray[np.float32] | None = None
+    shadow: NDArray[np.bool_] | None = None
+
+
+def sensor_name(sensor: str) -> str:
+    """The canonical name of a sensor spelling (``tof``, ``structured-light``; ``sl`` too).
+
+    Raises
+    ------
+    InputError
+        For an unknown sensor; the message lists the known ones.
+    """
+    try:
+        return SENSORS[sensor.strip().lower()]
+    except KeyError:
+        raise InputError(f"unknown sensor {sensor!r}; known sensors: tof, structured-light (or sl)") from None
 
 
 def _check(scene: str, frames: int, size: tuple[int, int], fps: float) -> None:
@@ -120,8 +149,10 @@ def simulate(
     seed: int = 0,
     tof: ToFConfig | None = None,
     noise: bool = True,
+    sensor: str = "tof",
+    structured_light: StructuredLightConfig | None = None,
 ) -> Iterator[SimFrame]:
-    """Simulate ``frames`` ToF frames of a named scene with ground truth.
+    """Simulate ``frames`` depth frames of a named scene with ground truth.
 
     Parameters
     ----------
@@ -140,7 +171,13 @@ def simulate(
         Sensor model; default the scene's own (:class:`ToFConfig` defaults, plus a 40 MHz
         second frequency for ``corridor``).
     noise : bool
-        False: no shot or read noise (mixed pixels, wrap-around, quantization remain).
+        False: no shot or read noise (mixed pixels, wrap-around, quantization remain); for
+        structured light, no disparity noise (quantisation, shadows and holes remain).
+    sensor : str
+        ``tof`` (default) or ``structured-light`` (``sl``): a Kinect v1 / Xtion-like camera,
+        see :mod:`depthgram.sensor.structured`. Ground truth is the same for both.
+    structured_light : StructuredLightConfig, optional
+        The structured-light model (Kinect v1 defaults when omitted); only with that sensor.
 
     Returns
     -------
@@ -149,21 +186,86 @@ def simulate(
     Raises
     ------
     InputError
-        Unknown scene (the message lists the known ones), frames < 1, absurd size or fps.
-        Raised at the call, not at the first frame.
+        Unknown scene or sensor (the message lists the known ones), frames < 1, absurd size
+        or fps. Raised at the call, not at the first frame.
     """
     _check(scene, frames, size, fps)
+    kind = sensor_name(sensor)
     spec = build_scene(scene, size)
-    cfg = spec.tof if tof is None else tof
+    cfg: ToFConfig | StructuredLightConfig
+    if kind == "structured-light":
+        cfg = structured_light or StructuredLightConfig()
+    else:
+        if structured_light is not None:
+            raise InputError(f"simulate {scene!r}: structured_light config given for the {kind} sensor")
+        cfg = spec.tof if tof is None else tof
     return _frames(spec, cfg, frames, float(fps), seed, noise)
 
 
-def _frames(spec: SceneSpec, cfg: ToFConfig, frames: int, fps: float, seed: int, noise: bool) -> Iterator[SimFrame]:
+def _frames(
+    spec: SceneSpec, cfg: ToFConfig | StructuredLightConfig, frames: int, fps: float, seed: int, noise: bool
+) -> Iterator[SimFrame]:
     still = static_hits(spec.camera, spec.bodies)
     for k in range(frames):
-        sim = render(spec, cfg, k, fps, np.random.default_rng([seed, k]) if noise else None, still)
+        rng = np.random.default_rng([seed, k]) if noise else None
+        if isinstance(cfg, StructuredLightConfig):
+            sim = render_structured(spec, cfg, k, fps, rng, still)
+        else:
+            sim = render(spec, cfg, k, fps, rng, still)
         sim.frame.meta["seed"] = seed if noise else None
         yield sim
+
+
+def render_structured(
+    spec: SceneSpec,
+    cfg: StructuredLightConfig,
+    index: int,
+    fps: float,
+    rng: np.random.Generator | None,
+    still: list[NDArray[np.float64]] | None = None,
+) -> SimFrame:
+    """Render frame ``index`` of ``spec`` through a structured-light camera; ``rng`` None: noise-free.
+
+    The camera casts its rays as for ToF (exact truth); then every surface point is joined to
+    the projector, ``baseline_mm`` beside the optical centre along the image x axis, and is in
+    shadow when a body lies between them. Measured depth: disparity noise and quantisation
+    (:func:`depthgram.sensor.structured.measure`), invalid in shadow and in the registration
+    holes.
+    """
+    cam = spec.camera
+    t = index / fps
+    (nominal,) = cast_times(cam, spec.bodies, (t,), still)
+    h, w = nominal.depth.shape
+    dirs, _ = cam.rays()
+    origin = np.asarray(cam.position, dtype=np.float64)
+    hit = nominal.depth.ravel() > 0
+    shadow = np.zeros(h * w, bool)
+    if cfg.shadow and hit.any():
+        points = origin + dirs[hit] * nominal.depth.ravel()[hit, None]
+        # The camera's x axis is world +x (the camera only pitches), so the projector is there.
+        projector = origin + np.array([cfg.projector_side * cfg.baseline_mm, 0.0, 0.0])
+        to_point = points - projector
+        nearest = np.full(len(points), np.inf)
+        for b in spec.bodies:
+            nearest = np.minimum(nearest, b.intersect(projector, to_point, t))
+        # Parameter 1 is the point itself; anything clearly before it blocks the light.
+        shadow[np.flatnonzero(hit)[nearest < 1.0 - 1e-6]] = True
+    shadow = shadow.reshape(h, w)
+    true_depth = nominal.depth.astype(np.float32)
+    depth = structured.measure(true_depth, cfg, rng)
+    depth[shadow | structured.registration_holes((h, w), cfg.registration_scale)] = 0.0
+    valid = depth > 0
+    instances = np.where(valid, nominal.instances, 0).astype(np.int32)
+    frame = Frame(
+        depth=depth,
+        valid=valid,
+        index=index,
+        time_s=t,
+        intrinsics=cam.intrinsics,
+        name=f"sim:{spec.name}#{index}",
+        meta={"scene": spec.name, "fps": fps, "sensor": "structured-light"},
+    )
+    return SimFrame(frame, true_depth, instances, _truth(spec, instances, true_depth, t), None, shadow)
 
 
 def render(

@@ -71,7 +71,8 @@ class SoundMapping:
     max_glides : int
         Most oblique surfaces that sound at once (the nearest ones).
     master_gain : float
-        Linear gain of one full voice before the soft limiter (headroom for several voices).
+        Linear gain of one full voice before the soft limiter (headroom for several voices), in
+        (0, 1]: above full scale the limiter turns every voice into a loud square wave.
     ramp_s : float
         Time (s) over which a voice's parameters move to a new frame's values, and a new or
         vanishing voice fades; keeps the stream free of clicks.
@@ -118,6 +119,9 @@ class SoundMapping:
                      "beep_min_s", "area_full", "glide_period_s", "master_gain", "ramp_s"):
             if getattr(self, name) <= 0:
                 raise bad(f"{name} must be > 0, got {getattr(self, name)!r}")
+        if self.master_gain > 1.0:
+            # above full scale every voice is clipped into a square wave at full level: a hearing risk
+            raise bad(f"master_gain must be at most 1 (full scale), got {self.master_gain!r}")
         if self.far_mm <= self.near_mm:
             raise bad(f"far_mm ({self.far_mm}) must exceed near_mm ({self.near_mm})")
         if self.pitch_high_hz <= self.pitch_low_hz or self.pitch_high_hz > 8000:

@@ -49,5 +49,8 @@ def write_wav(path: str | Path, audio: ArrayLike, samplerate: int) -> Path:
         raise InputError(f"{p}: samplerate must be a positive integer (Hz), got {samplerate!r}")
     if not p.parent.is_dir():
         raise InputError(f"{p}: folder {p.parent} does not exist")
-    sf.write(str(p), np.clip(a, -1.0, 1.0), int(samplerate), subtype="PCM_16")
+    from depthgram.atomic import atomic_path
+
+    with atomic_path(p) as tmp:
+        sf.write(str(tmp), np.clip(a, -1.0, 1.0), int(samplerate), subtype="PCM_16")
     return p

@@ -14,11 +14,12 @@ from typing import Any
 import numpy as np
 
 from depthgram._optional import needs_extra
-from depthgram.errors import InputError
+from depthgram.errors import DepthgramError, InputError
 from depthgram.frame import Frame, Intrinsics
 from depthgram.sources.base import Source
 from depthgram.sources.config import SourceConfig
 from depthgram.sources.decode import to_frame
+from depthgram.sources.images import check_size
 
 __all__ = ["BAG_SUFFIXES", "BagSource", "image_array"]
 
@@ -37,6 +38,7 @@ def image_array(msg: Any, where: str) -> np.ndarray:
         )
     dtype = np.dtype(_DTYPES[enc]).newbyteorder(">" if msg.is_bigendian else "<")
     h, w, step = int(msg.height), int(msg.width), int(msg.step)
+    check_size(h, w, where)
     data = np.asarray(msg.data, dtype=np.uint8)
     if step < w * dtype.itemsize or data.size < h * step:
         raise InputError(f"{where}: image data of {data.size} bytes is too short for {w}x{h} {msg.encoding}")
@@ -53,11 +55,25 @@ def _reader(path: Path) -> Any:
     return AnyReader([path], default_typestore=get_typestore(Stores.ROS2_HUMBLE))
 
 
-def _open_errors() -> tuple[type[BaseException], ...]:
-    with needs_extra("bags", "reading ROS bags"):
-        from rosbags.highlevel import AnyReaderError
-
-    return (AnyReaderError, OSError, ValueError, KeyError, EOFError)
+def _messages(reader: Any, conns: list[Any], path: Path, topic: str) -> Iterator[tuple[Any, int, bytes]]:
+    """``reader.messages`` with a damaged file's error (rosbags' ReaderError, AssertionError,
+    sqlite's CorruptError, a decompressor's) turned into an InputError naming the message."""
+    it = iter(reader.messages(connections=conns))
+    i = 0
+    last: int | None = None
+    while True:
+        try:
+            item = next(it)
+        except StopIteration:
+            return
+        except Exception as exc:
+            after = f", after log time {last} ns" if last is not None else ""
+            raise InputError(
+                f"{path}: the bag is damaged at message {i} of topic {topic}{after} ({type(exc).__name__}: {exc})"
+            ) from None
+        last = item[1]
+        i += 1
+        yield item
 
 
 class BagSource(Source):
@@ -96,8 +112,12 @@ class BagSource(Source):
                 mine = [c for c in conns if c.topic == self.topic]
                 self.n = sum(int(c.msgcount) for c in mine)
                 self.intrinsics = intrinsics or self._camera_info(reader, conns)
-        except _open_errors() as exc:
-            raise InputError(f"{path}: cannot read the bag ({type(exc).__name__}: {exc})") from None
+        except DepthgramError:  # ours already (a missing extra, a bad topic): as it is
+            raise
+        except Exception as exc:
+            raise InputError(
+                f"{path}: cannot read the bag, damaged or not a bag ({type(exc).__name__}: {exc})"
+            ) from None
 
     def _choose(self, topics: list[str], images: list[str]) -> str:
         listing = ", ".join(topics) or "no topics"
@@ -140,17 +160,22 @@ class BagSource(Source):
         try:
             reader = _reader(self.path)
             reader.open()
-        except _open_errors() as exc:
-            raise InputError(f"{self.path}: cannot read the bag ({exc})") from None
+        except DepthgramError:  # ours already (a missing extra, a bad topic): as it is
+            raise
+        except Exception as exc:
+            raise InputError(f"{self.path}: cannot read the bag, damaged or not a bag ({exc})") from None
         try:
             conns = [c for c in reader.connections if c.topic == self.topic]
             first: tuple[int, int] | None = None
-            for i, (conn, log_ns, raw) in enumerate(reader.messages(connections=conns)):
+            for i, (conn, log_ns, raw) in enumerate(_messages(reader, conns, self.path, self.topic)):
                 where = f"{self.path} topic {self.topic} (frame {i})"
                 try:
                     msg = reader.deserialize(raw, conn.msgtype)
-                except _open_errors() as exc:
-                    raise InputError(f"{where}: cannot decode the message ({exc})") from None
+                except Exception as exc:
+                    raise InputError(
+                        f"{where}: cannot decode the message at log time {log_ns} ns, the bag is damaged "
+                        f"({type(exc).__name__}: {exc})"
+                    ) from None
                 stamp = msg.header.stamp
                 t = stamp.sec + stamp.nanosec * 1e-9
                 frame = to_frame(

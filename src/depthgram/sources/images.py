@@ -2,8 +2,17 @@
 
 from __future__ import annotations
 
+import os
+import re
+import struct
+import sys
+import tempfile
+import threading
 import zipfile
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
+from typing import IO
 
 import numpy as np
 from numpy.typing import NDArray
@@ -39,6 +48,80 @@ def _read_npz(path: Path, key: str | None, where: str) -> NDArray[np.generic]:
         raise InputError(f"{where}: cannot read the .npz ({exc})") from None
 
 
+_CAPTURE_LOCK = threading.Lock()
+_CAPTURE_FILE: list[IO[bytes]] = []  # one file, made on first use and reused (a new one per frame costs)
+
+
+@contextmanager
+def _stderr_captured() -> Iterator[list[str]]:
+    """What C libraries (libpng) write to file descriptor 2 inside the block, as one stripped
+    string in the yielded list once the block ends."""
+    said: list[str] = []
+    with _CAPTURE_LOCK:
+        if not _CAPTURE_FILE:
+            _CAPTURE_FILE.append(tempfile.TemporaryFile())
+        tmp = _CAPTURE_FILE[0]
+        tmp.seek(0)
+        tmp.truncate()
+        try:
+            sys.stderr.flush()
+            saved = os.dup(2)
+        except (OSError, ValueError):  # no descriptor 2 to borrow: leave it alone
+            yield said
+            return
+        os.dup2(tmp.fileno(), 2)
+        try:
+            yield said
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+            tmp.seek(0)
+            said.append(tmp.read(4096).decode(errors="replace").strip())
+
+
+#: Largest frame read (pixels) unless the environment variable ``DEPTHGRAM_MAX_PIXELS`` says
+#: otherwise: 25 million (5000 x 5000) is 20x a 1280 x 720 depth camera, and processing one
+#: frame takes about 40 bytes per pixel, 1 GB here. A 20000 x 20000 frame used to end in a
+#: MemoryError after 5 GB, a 0.9 MB PNG of such size took 8.8 GB (issue 18.6).
+MAX_PIXELS = 25_000_000
+
+
+def max_pixels() -> int:
+    """The frame size limit (pixels): ``DEPTHGRAM_MAX_PIXELS`` when set, else :data:`MAX_PIXELS`."""
+    text = os.environ.get("DEPTHGRAM_MAX_PIXELS", "").strip()
+    if not text:
+        return MAX_PIXELS
+    try:
+        value = int(float(text))
+    except ValueError:
+        raise InputError(f"DEPTHGRAM_MAX_PIXELS={text!r}: expected a number of pixels") from None
+    if value < 1:
+        raise InputError(f"DEPTHGRAM_MAX_PIXELS={text!r}: expected a number of pixels >= 1")
+    return value
+
+
+def check_size(height: int, width: int, where: str) -> None:
+    """Refuse a frame above :func:`max_pixels` before it is decoded or allocated."""
+    limit = max_pixels()
+    if height * width > limit:
+        raise InputError(
+            f"{where}: the frame is {width} x {height} px ({height * width:,} pixels), above the limit of "
+            f"{limit:,}; set DEPTHGRAM_MAX_PIXELS to read it anyway"
+        )
+
+
+def _header_size(buf: NDArray[np.uint8]) -> tuple[int, int] | None:
+    """(height, width) from a PNG or PGM header, read before decoding; None for other files."""
+    head = buf[:1024].tobytes()
+    if head[:8] == b"\x89PNG\r\n\x1a\n" and head[12:16] == b"IHDR":
+        w, h = struct.unpack(">II", head[16:24])
+        return int(h), int(w)
+    m = re.match(rb"P[1-6]((?:\s+|#[^\n]*\n)+)(\d+)((?:\s+|#[^\n]*\n)+)(\d+)", head)
+    if m:
+        return int(m.group(4)), int(m.group(2))
+    return None
+
+
 def read_image(path: Path, *, key: str | None = None, where: str | None = None) -> NDArray[np.generic]:
     """Raw samples of one image file, exactly as stored (no unit conversion).
 
@@ -63,16 +146,24 @@ def read_image(path: Path, *, key: str | None = None, where: str | None = None) 
     if suffix == ".npy":
         try:
             arr: NDArray[np.generic] = np.load(path, mmap_mode="r", allow_pickle=False)
-            return arr
         except (ValueError, OSError, EOFError) as exc:
             raise InputError(f"{where}: cannot read the .npy ({exc})") from None
+        if arr.ndim >= 2:
+            check_size(int(arr.shape[0]), int(arr.shape[1]), where)
+        return arr
     if suffix == ".npz":
         return _read_npz(path, key, where)
     if suffix in (".tif", ".tiff"):
         import tifffile
 
         try:
-            return np.asarray(tifffile.imread(path))
+            with tifffile.TiffFile(path) as tif:
+                shape = tif.pages[0].shape
+                if len(shape) >= 2:
+                    check_size(int(shape[0]), int(shape[1]), where)
+                return np.asarray(tif.asarray())
+        except InputError:
+            raise
         except Exception as exc:  # tifffile raises many unrelated types for bad files
             raise InputError(f"{where}: cannot read the TIFF (truncated or not a TIFF?): {exc}") from None
     import cv2
@@ -83,11 +174,19 @@ def read_image(path: Path, *, key: str | None = None, where: str | None = None) 
         buf = np.fromfile(path, dtype=np.uint8)
     except OSError as exc:
         raise InputError(f"{where}: cannot read the file ({exc.strerror or exc})") from None
-    try:
-        img = cv2.imdecode(buf, cv2.IMREAD_UNCHANGED) if buf.size else None
-    except cv2.error:
-        img = None
+    size = _header_size(buf)
+    if size is not None:
+        check_size(*size, where)
+    with _stderr_captured() as said:
+        try:
+            img = cv2.imdecode(buf, cv2.IMREAD_UNCHANGED) if buf.size else None
+        except cv2.error:
+            img = None
     if img is None:
-        raise InputError(f"{where}: cannot decode the image (truncated, empty or not an image file)")
+        # libpng's own complaint ("IDAT: CRC error") goes into the message instead of above it
+        detail = f": {said[0]}" if said and said[0] else ""
+        raise InputError(f"{where}: cannot decode the image (truncated, empty or not an image file){detail}")
+    if said and said[0]:
+        print(said[0], file=sys.stderr)  # not ours to drop: another thread's output, or a warning
     # A colour image comes back (H, W, 3) and is refused later with a message saying so.
     return img

@@ -1,6 +1,7 @@
-"""The simulator as a source: ``sim:SCENE?frames=30&size=176x132&seed=0&fps=30``.
+"""The simulator as a source: ``sim:SCENE?frames=30&size=176x132&seed=0&fps=30&sensor=tof``.
 
-Defaults follow the paper's camera: 176 x 132 pixels; 30 frames at 30 frames/s, seed 0.
+Defaults follow the paper's camera: 176 x 132 pixels; 30 frames at 30 frames/s, seed 0, a ToF
+sensor (``sensor=sl`` or ``sensor=structured-light``: a Kinect v1 / Xtion-like camera).
 """
 
 from __future__ import annotations
@@ -33,6 +34,8 @@ class SimSpec:
         Noise seed.
     fps : float
         Frame rate (frames/s).
+    sensor : str
+        ``tof`` or ``structured-light`` (``sl``).
     """
 
     scene: str
@@ -40,6 +43,7 @@ class SimSpec:
     size: tuple[int, int] = (176, 132)
     seed: int = 0
     fps: float = 30.0
+    sensor: str = "tof"
 
     def __post_init__(self) -> None:
         if not self.scene:
@@ -50,17 +54,19 @@ class SimSpec:
             raise InputError(f"sim:{self.scene}: size must be WxH between 2 and 8192 px, got {self.size}")
         if not (0 < self.fps <= 100_000):
             raise InputError(f"sim:{self.scene}: fps must be positive, got {self.fps}")
+        if self.sensor.lower() not in ("tof", "structured-light", "structured_light", "sl"):
+            raise InputError(f"sim:{self.scene}: unknown sensor {self.sensor!r}; expected tof or structured-light (sl)")
 
 
 def parse_sim_spec(spec: str, fps: float | None = None) -> SimSpec:
-    """Parse ``sim:SCENE?frames=N&size=WxH&seed=S&fps=F`` (every query key optional).
+    """Parse ``sim:SCENE?frames=N&size=WxH&seed=S&fps=F&sensor=tof|sl`` (every query key optional).
 
     ``fps`` (the ``fps=`` option of :func:`open_source`) wins over the query's.
     """
     body = spec[4:] if spec.startswith("sim:") else spec
     scene, _, query = body.partition("?")
     kw: dict[str, object] = {"scene": scene}
-    allowed = {"frames", "size", "seed", "fps"}
+    allowed = {"frames", "size", "seed", "fps", "sensor"}
     for key, values in parse_qs(query, keep_blank_values=True, strict_parsing=False).items():
         if key not in allowed:
             raise InputError(f"{spec}: unknown sim option {key!r}; expected {', '.join(sorted(allowed))}")
@@ -71,6 +77,8 @@ def parse_sim_spec(spec: str, fps: float | None = None) -> SimSpec:
                 kw["size"] = (int(w), int(h))
             elif key == "fps":
                 kw["fps"] = float(v)
+            elif key == "sensor":
+                kw["sensor"] = v
             else:
                 kw[key] = int(v)
         except ValueError:
@@ -126,7 +134,7 @@ class SimSource(Source):
         self.fps = spec.fps
         # One rendered frame (a few ms at the paper's size) checks the scene name at open time
         # and gives the intrinsics before iteration, through the simulator's public API only.
-        first = next(iter(simulator()(spec.scene, 1, size=spec.size, fps=spec.fps, seed=spec.seed)))
+        first = next(iter(simulator()(spec.scene, 1, **self._options())))
         self.intrinsics = intrinsics or first.frame.intrinsics
 
     def __len__(self) -> int:
@@ -135,5 +143,12 @@ class SimSource(Source):
     def __iter__(self) -> Iterator[Frame]:
         simulate = simulator()
         s = self.spec
-        for sim_frame in simulate(s.scene, s.frames, size=s.size, fps=s.fps, seed=s.seed):
+        for sim_frame in simulate(s.scene, s.frames, **self._options()):
             yield sim_frame.frame
+
+    def _options(self) -> dict[str, Any]:
+        s = self.spec
+        opts: dict[str, Any] = {"size": s.size, "fps": s.fps, "seed": s.seed}
+        if s.sensor.lower() != "tof":  # a simulator without the option still serves ToF specs
+            opts["sensor"] = s.sensor
+        return opts

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import html
 import json
+import re
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -16,7 +17,7 @@ from depthgram.segmentation.objects import Histogram
 if TYPE_CHECKING:
     from depthgram.pipeline import SceneResult
 
-__all__ = ["ReportWriter"]
+__all__ = ["ReportWriter", "picture_stem", "spread"]
 
 
 @dataclass
@@ -52,6 +53,25 @@ def _slice_histograms(result: SceneResult) -> list[tuple[str, str, Histogram]]:
     return out
 
 
+def spread(frames: int, count: int) -> frozenset[int]:
+    """``count`` frame positions spread evenly over ``frames``, the first and the last included."""
+    if frames <= 0 or count <= 0:
+        return frozenset()
+    return frozenset(int(i) for i in np.unique(np.rint(np.linspace(0, frames - 1, min(count, frames)))))
+
+
+def picture_stem(frame_name: str, index: int, taken: Iterable[str] = ()) -> str:
+    """File stem of a frame's pictures, after its input frame (``000123-depth`` for ``000123-depth.png``).
+
+    Frames without a file of their own (``sim:table#3``, ``bag:topic#12``) are ``frame000003``;
+    a stem already ``taken`` (two files of one name in different folders) gets the index added.
+    """
+    base = Path(frame_name).stem if frame_name and ":" not in frame_name and "#" not in frame_name else ""
+    base = re.sub(r"[^\w.-]+", "_", base).strip("._")
+    stem = base or f"frame{index:06d}"
+    return f"{stem}_{index:06d}" if stem in set(taken) else stem
+
+
 class ReportWriter:
     """Collects results frame by frame and writes ``index.html`` with its pictures.
 
@@ -63,16 +83,23 @@ class ReportWriter:
     out_dir : Path
         Folder to write into (created).
     every : int
-        Picture every ``every``-th frame (frame 0 always).
+        Picture every ``every``-th frame (frame 0 always), when ``frames`` is not known.
     max_pictures : int
         At most this many pictured frames.
+    frames : int, optional
+        How many frames the recording has: the pictured ones are then ``max_pictures`` spread
+        evenly from the first to the last (:func:`spread`).
     """
 
-    def __init__(self, out_dir: str | Path, *, every: int = 1, max_pictures: int = 8) -> None:
+    def __init__(
+        self, out_dir: str | Path, *, every: int = 1, max_pictures: int = 8, frames: int | None = None
+    ) -> None:
         self.out = Path(out_dir)
         self.out.mkdir(parents=True, exist_ok=True)
         self.every = max(1, every)
         self.max_pictures = max_pictures
+        self._chosen = spread(frames, max_pictures) if frames else None
+        self._stems: set[str] = set()
         self._sections: list[str] = []
         self._series = _Series()
         self._n = 0
@@ -88,9 +115,11 @@ class ReportWriter:
         k = self._n
         self._n += 1
         self._extend_series(result)
-        if k % self.every or len(self._sections) >= self.max_pictures:
+        chosen = (k in self._chosen) if self._chosen is not None else k % self.every == 0
+        if not chosen or len(self._sections) >= self.max_pictures:
             return
-        stem = f"frame{f.index:06d}"
+        stem = picture_stem(f.name, f.index, self._stems)
+        self._stems.add(stem)
         draw_overlay(f, result.segmentation, self.out / f"{stem}_objects.png", motions=result.motions)
         pics = [f"{stem}_objects.png"]
         if result.segmentation.histogram is not None:

@@ -1,0 +1,1 @@
+"""Results in the tools robotics engineers already use: MCAP for Foxglove (:mod:`depthgram.export.mcap_file`)."""
