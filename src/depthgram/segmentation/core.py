@@ -172,15 +172,6 @@ def frame_sensor(depth: NDArray[np.float32], ok: NDArray[np.bool_], cfg: Segment
     return sensor_model(cfg.sensor)
 
 
-def _band_of_labels(labels: NDArray[np.int32], band: NDArray[np.int32], n: int) -> NDArray[np.int64]:
-    """Band index of each label (constant inside a label)."""
-    flat = labels.ravel()
-    first = np.zeros(n + 1, np.int64)
-    # the last write wins, and every pixel of a label has the same band
-    first[flat] = band.ravel()
-    return first
-
-
 def _facing_objects(
     depth: NDArray[np.float32],
     ok: NDArray[np.bool_],
@@ -233,7 +224,7 @@ def _surface_objects(
     bands = depth_bands(counts, edges, bin_cfg)
     r = crease_scale_px(depth.shape[1])
     creases = concave_creases(depth, ok, sensor, scale_px=r, min_angle_deg=cfg.crease_deg, focal_px=cam.fx)
-    t0, t2 = sensor.tolerance(0.0, cfg.join_resolutions)
+    t0, t2 = sensor.tolerance(cfg.join_resolutions)
     slope = math.tan(math.radians(cfg.max_slope_deg)) / cam.fx
     state = surface_state(ok, facing, creases)
     labels, n = label_surfaces(depth, state, tol_0=t0, tol_2=t2, slope_per_px=slope, bridge_px=cfg.fill_holes_px)
@@ -243,14 +234,13 @@ def _surface_objects(
     loose = loosen_small(labels, n, facing, min_px)
     labels = reattach(labels, depth, loose, tol_0=t0, tol_2=t2, slope_per_px=slope, max_px=4 * r + 1)
     labels, n, sums, boxes = keep_large(labels, n, min_px, depth)
-    no_key = np.zeros(depth.shape, np.float32)
     mean = sums[:, 1] / np.maximum(sums[:, 0], 1.0)
     step = t0 + t2 * float(np.median(mean[1:])) ** 2 if n else t0
     joined = merge_openings(labels, depth, boxes, mean, focal_px=cam.fx, ring_px=2 * r, jump_mm=4.0 * step)
     if joined is not None:
         labels = relabel(labels, joined)
         n = int(joined.max())
-        sums, boxes = label_stats_fused(labels, n, depth, no_key)
+        sums, boxes = label_stats_fused(labels, n, depth, np.zeros(depth.shape, np.float32))
         mean = sums[:, 1] / np.maximum(sums[:, 0], 1.0)
     sums[:, 7] = bands.depth_label(mean)
     stats = Stats.from_sums(sums, boxes, metric=intrinsics is not None)
@@ -456,8 +446,8 @@ def _add_support_planes(
         # the pixels it left facing (a table top seen at a slant), which also keeps it cheap
         search=classes == FACING,
     )
-    # a support runs away from the camera: its normal leans at least 90 - oblique_deg degrees off
-    # the optical axis toward the image's vertical (floor, table) or horizontal (wall) axis. A
+    # a support runs away from the camera: its normal leans at least oblique_deg degrees off the
+    # optical axis toward the image's vertical (floor, table) or horizontal (wall) axis. A
     # wall facing a camera that looks slightly down has a normal mostly along the axis, with
     # more y than x in what remains: without this test it became a 2 m "floor" (Azure Kinect)
     lean = math.sin(math.radians(cfg.oblique_deg))

@@ -68,8 +68,11 @@ class SensorModel:
         of one quantisation step and two noise deviations (a difference of two readings)."""
         return np.maximum(self.step(z_mm), 2.0 * self.sigma(z_mm))
 
-    def tolerance(self, z_mm: float, k: float) -> tuple[float, float]:
-        """``(a, b)`` of the join tolerance ``a + b * z**2`` (mm): ``k`` resolutions."""
+    def tolerance(self, k: float) -> tuple[float, float]:
+        """``(a, b)`` of the join tolerance ``a + b * z**2`` (mm): ``k`` resolutions.
+
+        Each term takes the larger of its step and noise parts, so the tolerance is at least
+        ``k * resolution(z)`` at every depth."""
         return k * max(self.step_0, 2.0 * self.sigma_0), k * max(self.step_2, 2.0 * self.sigma_2)
 
     def describe(self) -> str:
