@@ -81,23 +81,32 @@ def stage_rows(*, quick: bool = False) -> list[dict[str, Any]]:
                 budget_s=budget,
             ),
             "plan": _best_time(lambda tree=tree, f=f: plan(tree, f), budget_s=budget),
-            "sound (1 frame)": _best_time(
-                lambda tree=tree, s=sonifier: s.push(tree, 1 / 30.0), budget_s=budget
-            ),
+            "sound (1 frame)": _best_time(lambda tree=tree, s=sonifier: s.push(tree, 1 / 30.0), budget_s=budget),
         }
         base = timings["segment (threshold)"]
         for stage, t in timings.items():
-            rows.append({
+            rows.append(
+                {
+                    "size": f"{w}x{h}",
+                    "stage": stage,
+                    "ms": t * 1e3,
+                    "fps": 1.0 / t,
+                    "x_bincount": t / floor,
+                    "x_threshold": t / base,
+                    "objects": len(seg.objects),
+                }
+            )
+        rows.append(
+            {
                 "size": f"{w}x{h}",
-                "stage": stage,
-                "ms": t * 1e3,
-                "fps": 1.0 / t,
-                "x_bincount": t / floor,
-                "x_threshold": t / base,
+                "stage": "bincount floor",
+                "ms": floor * 1e3,
+                "fps": 1 / floor,
+                "x_bincount": 1.0,
+                "x_threshold": floor / base,
                 "objects": len(seg.objects),
-            })
-        rows.append({"size": f"{w}x{h}", "stage": "bincount floor", "ms": floor * 1e3, "fps": 1 / floor,
-                     "x_bincount": 1.0, "x_threshold": floor / base, "objects": len(seg.objects)})
+            }
+        )
     return rows
 
 
@@ -118,8 +127,13 @@ def memory_row(frames: int) -> dict[str, Any]:
             half_rss = _rss_mb()
     after = _rss_mb()
     stream_gb = frames * 640 * 480 * 2 / 1e9
-    return {"frames": n, "stream_gb_as_uint16": stream_gb, "rss_start_mb": before, "rss_half_mb": half_rss,
-            "rss_end_mb": after}
+    return {
+        "frames": n,
+        "stream_gb_as_uint16": stream_gb,
+        "rss_start_mb": before,
+        "rss_half_mb": half_rss,
+        "rss_end_mb": after,
+    }
 
 
 def batch_scaling(recordings: int = 4, frames: int = 30, size: str = "320x240") -> list[dict[str, Any]]:
@@ -144,8 +158,14 @@ def batch_scaling(recordings: int = 4, frames: int = 30, size: str = "320x240") 
             seconds = time.perf_counter() - t0
         if workers == 1:
             base = seconds
-        rows.append({"workers": workers, "seconds": seconds, "speedup": base / seconds,
-                     "done": sum(r.status == "done" for r in results)})
+        rows.append(
+            {
+                "workers": workers,
+                "seconds": seconds,
+                "speedup": base / seconds,
+                "done": sum(r.status == "done" for r in results),
+            }
+        )
     return rows
 
 
@@ -154,23 +174,31 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--quick", action="store_true", help="shorter timing budget")
     ap.add_argument("--memory-frames", type=int, default=None, help="frames for the memory check")
     a = ap.parse_args(argv)
-    print(f"machine: {platform.machine()} {platform.processor() or ''}, Python {platform.python_version()}, "
-          f"numpy {np.__version__}; one process, best of repeated runs")
+    print(
+        f"machine: {platform.machine()} {platform.processor() or ''}, Python {platform.python_version()}, "
+        f"numpy {np.__version__}; one process, best of repeated runs"
+    )
     rows = stage_rows(quick=a.quick)
     print(f"{'size':>9} | {'stage':<20} | {'ms/frame':>9} | {'frames/s':>9} | {'x bincount':>10} | {'x threshold':>11}")
     print("-" * 84)
     for r in rows:
-        print(f"{r['size']:>9} | {r['stage']:<20} | {r['ms']:9.3f} | {r['fps']:9.0f} | {r['x_bincount']:10.1f} | "
-              f"{r['x_threshold']:11.2f}")
+        print(
+            f"{r['size']:>9} | {r['stage']:<20} | {r['ms']:9.3f} | {r['fps']:9.0f} | {r['x_bincount']:10.1f} | "
+            f"{r['x_threshold']:11.2f}"
+        )
     recs = 2 if a.quick else 4
     print(f"\nbatch scaling ({recs} simulated recordings of 30 frames at 320x240; wall time, load included):")
     for b in batch_scaling(recordings=recs):
-        print(f"  {b['workers']} worker(s): {b['seconds']:6.2f} s, speed-up {b['speedup']:.2f}x "
-              f"(ideal {b['workers']}x), {b['done']} done")
+        print(
+            f"  {b['workers']} worker(s): {b['seconds']:6.2f} s, speed-up {b['speedup']:.2f}x "
+            f"(ideal {b['workers']}x), {b['done']} done"
+        )
     m = memory_row(a.memory_frames or (60 if a.quick else 300))
-    print(f"\nmemory: streamed {m['frames']} frames of 640x480 ({m['stream_gb_as_uint16']:.2f} GB as uint16) through "
-          f"the pipeline; peak RSS {m['rss_start_mb']:.0f} MB at start, {m['rss_half_mb']:.0f} MB half-way, "
-          f"{m['rss_end_mb']:.0f} MB at the end")
+    print(
+        f"\nmemory: streamed {m['frames']} frames of 640x480 ({m['stream_gb_as_uint16']:.2f} GB as uint16) through "
+        f"the pipeline; peak RSS {m['rss_start_mb']:.0f} MB at start, {m['rss_half_mb']:.0f} MB half-way, "
+        f"{m['rss_end_mb']:.0f} MB at the end"
+    )
     return 0
 
 

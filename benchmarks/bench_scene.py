@@ -39,9 +39,19 @@ def synthetic_scene(n_objects: int = 20, seed: int = 0) -> tuple[np.ndarray, np.
     for i in np.unique(lab[lab > 0]).tolist():
         ys, xs = np.nonzero(lab == i)
         d = depth[ys, xs]
-        objs.append(SceneObject(int(i), "floor" if i == 1 else "object", int(i) - 1, float(d.mean()),
-                                float(d.std()), int(d.size), d.size / (W * H), (float(xs.mean()), float(ys.mean())),
-                                (int(xs.min()), int(ys.min()), int(xs.max()) + 1, int(ys.max()) + 1)))
+        objs.append(
+            SceneObject(
+                int(i),
+                "floor" if i == 1 else "object",
+                int(i) - 1,
+                float(d.mean()),
+                float(d.std()),
+                int(d.size),
+                d.size / (W * H),
+                (float(xs.mean()), float(ys.mean())),
+                (int(xs.min()), int(ys.min()), int(xs.max()) + 1, int(ys.max()) + 1),
+            )
+        )
     return depth, lab, objs
 
 
@@ -79,8 +89,15 @@ def rows(n_objects: int = 20, repeats: int = 50) -> list[dict[str, object]]:
     budget = 0.1 * seg_ms if seg_ms is not None else BUDGET_FALLBACK_MS
     for name, fn in steps:
         ms = _best_ms(fn, repeats)
-        out.append({"step": name, "objects": len(objs), "ms": ms,
-                    "share_of_segment": None if seg_ms is None else ms / seg_ms, "budget_ms": budget})
+        out.append(
+            {
+                "step": name,
+                "objects": len(objs),
+                "ms": ms,
+                "share_of_segment": None if seg_ms is None else ms / seg_ms,
+                "budget_ms": budget,
+            }
+        )
     return out
 
 

@@ -33,8 +33,16 @@ def _scene(n_objects: int = 10) -> Any:
 
     rng = np.random.default_rng(0)
     nodes = [
-        Node(i + 1, "object", i, float(500 + 300 * i), int(rng.integers(50, 2000)),
-             (float(rng.uniform(0, W - 1)), float(rng.uniform(0, H - 1))), v_radial=-300.0, ttc=2.0 + i)
+        Node(
+            i + 1,
+            "object",
+            i,
+            float(500 + 300 * i),
+            int(rng.integers(50, 2000)),
+            (float(rng.uniform(0, W - 1)), float(rng.uniform(0, H - 1))),
+            v_radial=-300.0,
+            ttc=2.0 + i,
+        )
         for i in range(n_objects)
     ]
     nodes += [Node(50, "wall", 2, 1500.0, 3000, (10.0, 60.0)), Node(51, "floor", 3, 1800.0, 4000, (88.0, 120.0))]
@@ -55,8 +63,9 @@ def rows(*, quick: bool = False, samplerate: int = 22050) -> list[dict[str, Any]
         s = Sonifier(m, samplerate, (W, H))
         med, best = _median_ms(lambda s=s: s.push(tree, 1 / 30), reps)
         out.append({"case": f"Sonifier.push 1/30 s ({preset})", "audio_s": 1 / 30, "median_ms": med, "best_ms": best})
-        med, best = _median_ms(lambda m=m: render_scene(tree, (W, H), mapping=m, samplerate=samplerate),
-                               max(reps // 4, 5))
+        med, best = _median_ms(
+            lambda m=m: render_scene(tree, (W, H), mapping=m, samplerate=samplerate), max(reps // 4, 5)
+        )
         out.append({"case": f"render_scene 0.5 s ({preset})", "audio_s": 0.5, "median_ms": med, "best_ms": best})
     depth = np.full((H, W), 3000.0, np.float32)
     depth[30:100, 40:90] = 800.0

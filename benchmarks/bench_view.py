@@ -54,8 +54,12 @@ async def _ws_page(url: str, sound: bool) -> dict[str, Any]:
             shown += 1
             latencies.append(msg["latency_ms"])
             last = msg
-    return {"shown": shown, "server_dropped": last.get("server_dropped", 0),
-            "page_dropped": last.get("page_dropped", 0), "latency_ms": statistics.median(latencies)}
+    return {
+        "shown": shown,
+        "server_dropped": last.get("server_dropped", 0),
+        "page_dropped": last.get("page_dropped", 0),
+        "latency_ms": statistics.median(latencies),
+    }
 
 
 def _chromium_page(url: str, sound: bool) -> dict[str, Any]:
@@ -68,16 +72,22 @@ def _chromium_page(url: str, sound: bool) -> dict[str, Any]:
             page = browser.new_page(viewport={"width": 1280, "height": 900})
             page.add_init_script("window.__shown = 0;")
             page.goto(url)
-            page.wait_for_function("document.getElementById('view').dataset.ended === 'true'", timeout=600_000,
-                                   polling=200)
-            got = page.evaluate("() => ({shown: window.__depthgramShown || 0,"
-                                " dropped: Number(document.getElementById('view').dataset.dropped),"
-                                " page_ms: window.__depthgramDrawMs || []})")
+            page.wait_for_function(
+                "document.getElementById('view').dataset.ended === 'true'", timeout=600_000, polling=200
+            )
+            got = page.evaluate(
+                "() => ({shown: window.__depthgramShown || 0,"
+                " dropped: Number(document.getElementById('view').dataset.dropped),"
+                " page_ms: window.__depthgramDrawMs || []})"
+            )
         finally:
             browser.close()
     ms = got["page_ms"]
-    return {"shown": got["shown"], "dropped": got["dropped"],
-            "page_draw_ms": statistics.median(ms) if ms else float("nan")}
+    return {
+        "shown": got["shown"],
+        "dropped": got["dropped"],
+        "page_draw_ms": statistics.median(ms) if ms else float("nan"),
+    }
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -93,8 +103,9 @@ def main(argv: list[str] | None = None) -> None:
     src = open_source(args.spec)
     n = len(src)  # type: ignore[arg-type]
     viewer = ViewerConfig(fps=args.fps, loop=False, playing=True, compress=args.compress)
-    player = Player(lambda: iter(src), recording_name(args.spec), Config(), viewer, frames=n,
-                    fps=getattr(src, "fps", None))
+    player = Player(
+        lambda: iter(src), recording_name(args.spec), Config(), viewer, frames=n, fps=getattr(src, "fps", None)
+    )
     sock = socket.socket()
     sock.bind(("127.0.0.1", 0))
     port = sock.getsockname()[1]
@@ -114,8 +125,10 @@ def main(argv: list[str] | None = None) -> None:
     finally:
         server.should_exit = True
         thread.join(10)
-    print(f"{args.spec}: {n} frames at {args.fps:g} frames/s, page {args.page}, "
-          f"{'compressed' if args.compress else 'raw'}{', sound' if args.sound else ''}")
+    print(
+        f"{args.spec}: {n} frames at {args.fps:g} frames/s, page {args.page}, "
+        f"{'compressed' if args.compress else 'raw'}{', sound' if args.sound else ''}"
+    )
     print(f"  {r['shown']} shown, {dropped} dropped (server {player.dropped}); processed {player.processed}")
     print("  server per frame (median ms): " + ", ".join(f"{k} {v:.1f}" for k, v in stages.items()))
     print("  server total (s): " + ", ".join(f"{k} {sum(v):.2f}" for k, v in player._stage_s.items()))

@@ -272,9 +272,7 @@ def score_frame(labels: NDArray[np.integer], f: LabelledFrame) -> Scores:
     """Per-object IoU, recall and precision of ``labels`` on one frame (pixels with a reading)."""
     ev = evaluate(labels, f.truth, valid=f.valid, truth_ids=list(OBJECT_IDS), iou_found=IOU_FOUND)
     o = ev.objects
-    return Scores(
-        np.array([s.iou for s in o]), np.array([s.coverage for s in o]), np.array([s.precision for s in o])
-    )
+    return Scores(np.array([s.iou for s in o]), np.array([s.coverage for s in o]), np.array([s.precision for s in o]))
 
 
 def tune(method: Method, frames: Sequence[LabelledFrame], progress: bool = True) -> dict[str, Any]:

@@ -29,8 +29,12 @@ def listen(audio: np.ndarray, sr: int, hz: float, *, window_s: float = 0.06) -> 
     loudest = float(np.abs(z).sum(axis=0).max(initial=0.0))
     # A beep is a peak standing well above what sounds at that pitch between beeps, and not a
     # leak of another voice's spectrum (at least 10 % of the loudest component of the signal).
-    peaks, _ = find_peaks(env, prominence=0.5 * env.max() if env.max() > 0 else 1.0, height=0.1 * loudest,
-                          distance=max(1, int(0.04 * sr / hop)))
+    peaks, _ = find_peaks(
+        env,
+        prominence=0.5 * env.max() if env.max() > 0 else 1.0,
+        height=0.1 * loudest,
+        distance=max(1, int(0.04 * sr / hop)),
+    )
     times = t[peaks]
     rate = float(1.0 / np.median(np.diff(times))) if times.size >= 2 else 0.0
     left, right = band[0, peaks].sum(), band[1, peaks].sum()
@@ -42,4 +46,3 @@ def listen(audio: np.ndarray, sr: int, hz: float, *, window_s: float = 0.06) -> 
         a, b, c = np.log(spec[j - 1 : j + 2] + 1e-12)
         pitch = float(f[j] + 0.5 * (a - c) / (a - 2 * b + c) * (f[1] - f[0]))  # parabolic peak
     return Heard(times, rate, pitch, float(np.arctan2(right, left)))
-

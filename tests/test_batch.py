@@ -123,8 +123,9 @@ def test_workers_end_with_the_parent(tmp_path: Path) -> None:
 
     env = {**os.environ, "PYTHONPATH": str(Path(depthgram.__file__).resolve().parents[1])}
     parent = subprocess.Popen([sys.executable, "-c", code, str(tmp_path / "out")], env=env)
-    markers = [tmp_path / "out" / n / ".running" for n in output_names(["sim:crossing?frames=400",
-                                                                        "sim:approach?frames=400"])]
+    markers = [
+        tmp_path / "out" / n / ".running" for n in output_names(["sim:crossing?frames=400", "sim:approach?frames=400"])
+    ]
     try:
         deadline = time.monotonic() + 120
         while not all(m.is_file() and m.read_text() for m in markers):
@@ -179,8 +180,9 @@ def test_dask_cluster_gives_the_serial_result(tmp_path: Path) -> None:
     distributed = pytest.importorskip("distributed")
     inputs = ["sim:crossing?frames=4", "sim:table?frames=1"]
     serial = run_batch(inputs, tmp_path / "serial", workers=1)
-    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1",
-                                  dashboard_address=None) as cluster:
+    with distributed.LocalCluster(
+        n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1", dashboard_address=None
+    ) as cluster:
         remote = run_batch(inputs, tmp_path / "dask", scheduler=cluster.scheduler_address)
     assert [r.status for r in remote] == ["done", "done"]
     for a, b in zip(serial, remote, strict=True):

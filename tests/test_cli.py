@@ -18,8 +18,25 @@ from depthgram.cli import main
 @pytest.fixture(scope="module")
 def sim_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
     out = tmp_path_factory.mktemp("sim") / "crossing"
-    assert main(["simulate", "crossing", "--frames", "6", "--size", "176x132", "--out", str(out), "--seed", "2",
-                 "--fps", "15"]) == 0
+    assert (
+        main(
+            [
+                "simulate",
+                "crossing",
+                "--frames",
+                "6",
+                "--size",
+                "176x132",
+                "--out",
+                str(out),
+                "--seed",
+                "2",
+                "--fps",
+                "15",
+            ]
+        )
+        == 0
+    )
     return out
 
 

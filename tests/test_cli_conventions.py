@@ -31,8 +31,16 @@ def test_every_command_that_reads_recordings_takes_the_same_reading_options() ->
     subs = _subparsers()
     readers = ["info", "describe", "plan", "report", "run", "sonify", "view", "batch"]
     options = {name: _reading_options(subs[name]) for name in readers}
-    assert options["info"] >= {"--scale", "--invalid", "--fps", "--timestamps", "--encoding", "--range",
-                               "--topic", "--key"}
+    assert options["info"] >= {
+        "--scale",
+        "--invalid",
+        "--fps",
+        "--timestamps",
+        "--encoding",
+        "--range",
+        "--topic",
+        "--key",
+    }
     assert all(o == options["info"] for o in options.values()), options
 
 
@@ -74,10 +82,13 @@ def test_plan_json_takes_a_file_and_dash_is_stdout(tmp_path: Path, capsys: pytes
     assert [json.loads(x) for x in cap.out.splitlines()] == recs and cap.err == ""
 
 
-@pytest.mark.parametrize("argv", [
-    ["plan", "sim:table?frames=2", "--json", "--quiet"],
-    ["plan", "--json", "sim:table?frames=2", "--quiet"],  # the switch before INPUT: INPUT was taken as its file
-])
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["plan", "sim:table?frames=2", "--json", "--quiet"],
+        ["plan", "--json", "sim:table?frames=2", "--quiet"],  # the switch before INPUT: INPUT was taken as its file
+    ],
+)
 def test_plan_bare_json_still_works_with_a_deprecation(argv: list[str], capsys: pytest.CaptureFixture[str]) -> None:
     assert main(argv) == 0
     cap = capsys.readouterr()
@@ -121,8 +132,20 @@ def test_describe_outputs_and_the_old_format_switch(tmp_path: Path, capsys: pyte
 
 def test_parse_json_file(tmp_path: Path) -> None:
     sentences = tmp_path / "s.txt"
-    assert main(["describe", "sim:approach?frames=2", "--text", str(sentences), "--json", str(tmp_path / "d.jsonl"),
-                 "--quiet"]) == 0
+    assert (
+        main(
+            [
+                "describe",
+                "sim:approach?frames=2",
+                "--text",
+                str(sentences),
+                "--json",
+                str(tmp_path / "d.jsonl"),
+                "--quiet",
+            ]
+        )
+        == 0
+    )
     out = tmp_path / "trees.jsonl"
     assert main(["parse", str(sentences), "--json", str(out)]) == 0
     trees = [json.loads(x) for x in out.read_text().splitlines()]
@@ -159,8 +182,9 @@ def test_view_on_a_port_in_use(capsys: pytest.CaptureFixture[str]) -> None:
     assert f"port {port} on 127.0.0.1 is already in use" in err and "--port 0" in err
 
 
-def test_info_on_a_camera_without_the_extra(monkeypatch: pytest.MonkeyPatch,
-                                            capsys: pytest.CaptureFixture[str]) -> None:
+def test_info_on_a_camera_without_the_extra(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
     monkeypatch.setitem(sys.modules, "pyrealsense2", None)
     assert main(["info", "realsense:"]) == 2  # it died with "a live camera has no length"
     err = capsys.readouterr().err

@@ -46,14 +46,20 @@ def test_write_wav_replaces_nothing_on_failure(tmp_path: Path) -> None:
 
 
 def _depthgram(args: list[str], **kw: object) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([sys.executable, "-m", "depthgram.cli", *args], env=_env(), text=True,
-                          capture_output=True, timeout=300, **kw)  # type: ignore[call-overload,no-any-return]
+    return subprocess.run(
+        [sys.executable, "-m", "depthgram.cli", *args], env=_env(), text=True, capture_output=True, timeout=300, **kw
+    )  # type: ignore[call-overload,no-any-return]
 
 
 def test_a_closed_pipe_ends_quietly(tmp_path: Path) -> None:
     # issue 16.4: `depthgram describe ... | head` printed "Broken pipe" (and a traceback)
-    proc = subprocess.Popen([sys.executable, "-m", "depthgram.cli", "describe", "sim:crossing?frames=300"],
-                            env=_env(), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "depthgram.cli", "describe", "sim:crossing?frames=300"],
+        env=_env(),
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     assert proc.stdout is not None and proc.stderr is not None
     first = proc.stdout.readline()
     proc.stdout.close()  # what `head -1` does
@@ -62,13 +68,22 @@ def test_a_closed_pipe_ends_quietly(tmp_path: Path) -> None:
     assert first.strip() and err == ""
 
 
-@pytest.mark.parametrize(("args", "stream"), [(["info", "sim:table"], "output"), (["describe", "sim:table"], "output"),
-                                               (["parse", "-"], "input")])
+@pytest.mark.parametrize(
+    ("args", "stream"),
+    [(["info", "sim:table"], "output"), (["describe", "sim:table"], "output"), (["parse", "-"], "input")],
+)
 def test_a_closed_standard_stream_is_an_error_not_a_traceback_or_lost_output(args: list[str], stream: str) -> None:
     # issue 18.10: `info >&-` lost its output with exit 0, `parse - <&-` and `describe >&-` were tracebacks
     fd = 1 if stream == "output" else 0
-    proc = subprocess.run([sys.executable, "-m", "depthgram.cli", *args], env=_env(), stderr=subprocess.PIPE,
-                          text=True, timeout=300, pass_fds=(), preexec_fn=lambda: os.close(fd))
+    proc = subprocess.run(
+        [sys.executable, "-m", "depthgram.cli", *args],
+        env=_env(),
+        stderr=subprocess.PIPE,
+        text=True,
+        timeout=300,
+        pass_fds=(),
+        preexec_fn=lambda: os.close(fd),
+    )
     assert proc.returncode == 1
     assert f"standard {stream} is closed" in proc.stderr and "Traceback" not in proc.stderr
 
@@ -112,14 +127,24 @@ def test_a_huge_frame_is_refused_before_it_is_decoded(tmp_path: Path) -> None:
         assert "20000 x 20000 px" in proc.stderr and "DEPTHGRAM_MAX_PIXELS" in proc.stderr
         assert "Traceback" not in proc.stderr
     env = {**_env(), "DEPTHGRAM_MAX_PIXELS": "100"}
-    proc = subprocess.run([sys.executable, "-m", "depthgram.cli", "info", "sim:table"], env=env, text=True,
-                          capture_output=True, timeout=300)
+    proc = subprocess.run(
+        [sys.executable, "-m", "depthgram.cli", "info", "sim:table"],
+        env=env,
+        text=True,
+        capture_output=True,
+        timeout=300,
+    )
     assert proc.returncode == 0  # simulated frames are made, not read: no limit there
     small = tmp_path / "small.png"
     import cv2
     import numpy as np
 
     cv2.imwrite(str(small), np.full((20, 10), 1000, np.uint16))
-    proc = subprocess.run([sys.executable, "-m", "depthgram.cli", "info", str(small)], env=env, text=True,
-                          capture_output=True, timeout=300)
+    proc = subprocess.run(
+        [sys.executable, "-m", "depthgram.cli", "info", str(small)],
+        env=env,
+        text=True,
+        capture_output=True,
+        timeout=300,
+    )
     assert proc.returncode == 2 and "10 x 20 px" in proc.stderr

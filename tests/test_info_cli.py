@@ -61,8 +61,9 @@ def test_info_encoding_and_range(tmp_path: Path, capsys: pytest.CaptureFixture[s
         (lambda p: p.write_bytes(b"\x89PNG\r\n"), "cannot decode the image"),
     ],
 )
-def test_info_bad_input_exit_2(tmp_path: Path, capsys: pytest.CaptureFixture[str],
-                               make: Callable[[Path], object], match: str) -> None:
+def test_info_bad_input_exit_2(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], make: Callable[[Path], object], match: str
+) -> None:
     target = tmp_path / "x.png"
     make(target)
     assert main(["info", str(target)]) == 2

@@ -36,8 +36,10 @@ def _read(path: Path) -> tuple[dict[str, tuple[str, int]], dict[str, list[tuple[
         reader = make_reader(f, decoder_factories=[DecoderFactory(), _JsonDecoder()])
         summary = reader.get_summary()
         assert summary is not None and summary.statistics is not None
-        counts = {c.topic: (summary.schemas[c.schema_id].name, summary.statistics.channel_message_counts[c.id])
-                  for c in summary.channels.values()}
+        counts = {
+            c.topic: (summary.schemas[c.schema_id].name, summary.statistics.channel_message_counts[c.id])
+            for c in summary.channels.values()
+        }
         decoded: dict[str, list[tuple[int, Any]]] = {}
         for _, channel, message, proto in reader.iter_decoded_messages():
             decoded.setdefault(channel.topic, []).append((message.log_time, proto))

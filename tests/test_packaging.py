@@ -44,7 +44,11 @@ def test_core_dependencies_leave_the_heavy_ones_to_extras() -> None:
     ],
 )
 def test_a_missing_extra_is_named_on_the_command_line(
-    module: str, argv: list[str], extra: str, tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+    module: str,
+    argv: list[str],
+    extra: str,
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
     capsys: pytest.CaptureFixture[str],
 ) -> None:
     monkeypatch.setitem(sys.modules, module, None)  # import raises ModuleNotFoundError

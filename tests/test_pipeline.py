@@ -54,8 +54,10 @@ def test_table_scene_objects_match_ground_truth_and_record_is_complete() -> None
     for t in sim.truth:
         if t.kind != "object" or t.area < 0.01 * total:
             continue
-        best = max((_iou(result.segmentation.labels == o.id, sim.instances == t.id)
-                    for o in result.segmentation.objects), default=0.0)
+        best = max(
+            (_iou(result.segmentation.labels == o.id, sim.instances == t.id) for o in result.segmentation.objects),
+            default=0.0,
+        )
         assert best >= 0.5, f"{t.name} not found (best IoU {best:.2f})"
 
 

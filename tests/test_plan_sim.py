@@ -31,8 +31,7 @@ def _plan(spec: SceneSpec):
     sim = render(spec, spec.tof, 0, 30.0, np.random.default_rng(0))
     result = Pipeline(track=False).process(sim.frame)
     box = sim.instances == 3
-    best = max(result.segmentation.objects,
-               key=lambda o: np.count_nonzero((result.segmentation.labels == o.id) & box))
+    best = max(result.segmentation.objects, key=lambda o: np.count_nonzero((result.segmentation.labels == o.id) & box))
     return result.plan, best.id
 
 
@@ -74,8 +73,9 @@ def test_small_near_object_is_grasped(z: float) -> None:
     assert next(a for a in plan.actions if a.object_id == cup_id).action == "grasp"
 
 
-@pytest.mark.parametrize(("sensor", "margin", "body"), [(1000.0, 100.0, 1800.0), (300.0, 100.0, 1800.0),
-                                                       (1500.0, 50.0, 1200.0)])
+@pytest.mark.parametrize(
+    ("sensor", "margin", "body"), [(1000.0, 100.0, 1800.0), (300.0, 100.0, 1800.0), (1500.0, 50.0, 1200.0)]
+)
 def test_body_band_equals_the_height_formula(sensor: float, margin: float, body: float) -> None:
     from depthgram.act import ActConfig
     from depthgram.act.channel import column_clearance

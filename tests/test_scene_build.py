@@ -59,10 +59,12 @@ def _render() -> tuple[np.ndarray, np.ndarray]:
             # Slab method: depth along the axis is the ray parameter, since the ray's z is 1.
             tx = np.sort(np.stack([x0 / dx, x1 / dx]), axis=0)
             ty = np.sort(np.stack([y0 / dy, y1 / dy]), axis=0)
-            near = np.maximum.reduce([np.nan_to_num(tx[0], nan=-np.inf), np.nan_to_num(ty[0], nan=-np.inf),
-                                      np.full_like(dx, z0)])
-            far = np.minimum.reduce([np.nan_to_num(tx[1], nan=np.inf), np.nan_to_num(ty[1], nan=np.inf),
-                                     np.full_like(dx, z1)])
+            near = np.maximum.reduce(
+                [np.nan_to_num(tx[0], nan=-np.inf), np.nan_to_num(ty[0], nan=-np.inf), np.full_like(dx, z0)]
+            )
+            far = np.minimum.reduce(
+                [np.nan_to_num(tx[1], nan=np.inf), np.nan_to_num(ty[1], nan=np.inf), np.full_like(dx, z1)]
+            )
             put(np.where((near <= far) & (near > 0), near, np.inf), i)
     return np.where(np.isfinite(best), best * 1000.0, 0.0), lab
 
@@ -75,12 +77,19 @@ def _objects(depth: np.ndarray, lab: np.ndarray) -> list[SceneObject]:
     for i in ids:
         ys, xs = np.nonzero(lab == i)
         d = depth[ys, xs]
-        out.append(SceneObject(
-            id=i, kind=kinds.get(i, "object"), depth_label=order.index(i), depth=float(d.mean()),
-            depth_std=float(d.std()), area=int(d.size), area_fraction=d.size / depth.size,
-            center_xy=(float(xs.mean()), float(ys.mean())),
-            bbox_xy=(int(xs.min()), int(ys.min()), int(xs.max()) + 1, int(ys.max()) + 1),
-        ))
+        out.append(
+            SceneObject(
+                id=i,
+                kind=kinds.get(i, "object"),
+                depth_label=order.index(i),
+                depth=float(d.mean()),
+                depth_std=float(d.std()),
+                area=int(d.size),
+                area_fraction=d.size / depth.size,
+                center_xy=(float(xs.mean()), float(ys.mean())),
+                bbox_xy=(int(xs.min()), int(ys.min()), int(xs.max()) + 1, int(ys.max()) + 1),
+            )
+        )
     return out
 
 
@@ -168,8 +177,18 @@ def test_motion_attributes_are_attached():
 
 def test_compound_parts_become_labels():
     part = lambda i, lab: _obj(i, "part", lab, 2000.0 + lab, 5.0, (0, 0, 6, 6))  # noqa: E731
-    wall = SceneObject(1, "wall", 3, 2500.0, 400.0, 100, 0.01, (20.0, 200.0), (0, 0, 41, 480),
-                       parts=(part(10, 3), part(11, 4), part(12, 4), part(13, 5)))
+    wall = SceneObject(
+        1,
+        "wall",
+        3,
+        2500.0,
+        400.0,
+        100,
+        0.01,
+        (20.0, 200.0),
+        (0, 0, 41, 480),
+        parts=(part(10, 3), part(11, 4), part(12, 4), part(13, 5)),
+    )
     tree = build_tree([wall], (W, H))
     (node,) = tree.root.children
     assert node.parts == (3, 4, 5)
@@ -191,8 +210,15 @@ def test_relations_by_priority():
 
 
 @pytest.mark.parametrize(
-    "kwargs", [{"depth_tolerance_mm": -1.0}, {"depth_tolerance_rel": 2.0}, {"contact_px": -3},
-               {"min_contact": 1.5}, {"relation_gap_mm": float("nan")}, {"floor_reach": -0.1}],
+    "kwargs",
+    [
+        {"depth_tolerance_mm": -1.0},
+        {"depth_tolerance_rel": 2.0},
+        {"contact_px": -3},
+        {"min_contact": 1.5},
+        {"relation_gap_mm": float("nan")},
+        {"floor_reach": -0.1},
+    ],
 )
 def test_config_rejects_absurd_values(kwargs):
     with pytest.raises(InputError, match="TreeConfig"):
@@ -241,11 +267,24 @@ def painted_segmentation(draw: st.DrawFn) -> tuple[np.ndarray, list[SceneObject]
         parts = ()
         if kind == "compound":
             k = draw(st.integers(2, 4))
-            parts = tuple(SceneObject(100 + j, "part", label + j, float(d.mean()), 0.0, 1, 0.0, (0.0, 0.0),
-                                      (0, 0, 1, 1)) for j in range(k))
-        objs.append(SceneObject(i, kind, label, float(d.mean()), float(d.std()), int(d.size), d.size / (h * w),
-                                (float(xs.mean()), float(ys.mean())),
-                                (int(xs.min()), int(ys.min()), int(xs.max()) + 1, int(ys.max()) + 1), parts=parts))
+            parts = tuple(
+                SceneObject(100 + j, "part", label + j, float(d.mean()), 0.0, 1, 0.0, (0.0, 0.0), (0, 0, 1, 1))
+                for j in range(k)
+            )
+        objs.append(
+            SceneObject(
+                i,
+                kind,
+                label,
+                float(d.mean()),
+                float(d.std()),
+                int(d.size),
+                d.size / (h * w),
+                (float(xs.mean()), float(ys.mean())),
+                (int(xs.min()), int(ys.min()), int(xs.max()) + 1, int(ys.max()) + 1),
+                parts=parts,
+            )
+        )
     return lab, objs
 
 
@@ -310,8 +349,9 @@ def test_simulated_table_supports_match_truth(simulated_table, use_labels):
     kinds = {o.id: o.kind for o in seg.objects}
     floor_id = next(t.id for t in sf.truth if t.kind == "floor")
     floor_px = np.count_nonzero(sf.instances == floor_id)
-    found_floor = np.count_nonzero(np.isin(seg.labels, [i for i, k in kinds.items() if k == "floor"])
-                                   & (sf.instances == floor_id))
+    found_floor = np.count_nonzero(
+        np.isin(seg.labels, [i for i, k in kinds.items() if k == "floor"]) & (sf.instances == floor_id)
+    )
     checked = 0
     for t in sf.truth:
         if t.parent is None:
@@ -320,8 +360,10 @@ def test_simulated_table_supports_match_truth(simulated_table, use_labels):
             # The tree can only hang the table on a floor the segmentation found as a floor.
             continue
         mask = sf.instances == t.id
-        ious = {o.id: np.count_nonzero(mask & (seg.labels == o.id)) / np.count_nonzero(mask | (seg.labels == o.id))
-                for o in seg.objects}
+        ious = {
+            o.id: np.count_nonzero(mask & (seg.labels == o.id)) / np.count_nonzero(mask | (seg.labels == o.id))
+            for o in seg.objects
+        }
         sid = max(ious, key=ious.__getitem__)
         if ious[sid] < 0.3:
             continue

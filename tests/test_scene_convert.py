@@ -19,8 +19,18 @@ def test_dict_layout_of_example():
     assert root["parent"] is None and root["children"] == [1, 4] and root["kind"] == "Bkg"
     assert floor["parts"] == [4, 5, 6] and floor["parent"] == 0 and floor["children"] == [2]
     assert cup == {
-        "id": 3, "kind": "object", "depth_label": 1, "depth": 1420.0, "area": 300, "center_xy": [290.0, 180.5],
-        "parent": 2, "children": [], "parts": [], "v_radial": -120.0, "ttc": 11.8, "status": "visible",
+        "id": 3,
+        "kind": "object",
+        "depth_label": 1,
+        "depth": 1420.0,
+        "area": 300,
+        "center_xy": [290.0, 180.5],
+        "parent": 2,
+        "children": [],
+        "parts": [],
+        "v_radial": -120.0,
+        "ttc": 11.8,
+        "status": "visible",
     }
     assert wall["parts"] == [3, 5, 6]
     assert d["relations"] == [[2, "left_of", 4], [3, "occludes", 2]]

@@ -107,30 +107,43 @@ def scene_trees(draw: st.DrawFn) -> SceneTree:
             parts = tuple(draw(st.lists(st.integers(0, 60), min_size=1, max_size=5)))
         else:
             parts = ()
-        fields.append(dict(
-            kind=draw(st.sampled_from(["object", "floor", "wall", "ceiling", "compound", "part", "table"])),
-            depth_label=label,
-            depth=draw(st.floats(0.0, 20_000.0)),
-            area=draw(st.integers(0, 10**7)),
-            center_xy=(draw(finite), draw(finite)),
-            v_radial=draw(st.none() | finite),
-            ttc=draw(st.none() | st.floats(0.0, 1e5) | st.just(math.inf)),
-            status=draw(st.none() | st.sampled_from(["visible", "entering", "leaving", "occluded"])),
-            parts=parts,
-        ))
+        fields.append(
+            dict(
+                kind=draw(st.sampled_from(["object", "floor", "wall", "ceiling", "compound", "part", "table"])),
+                depth_label=label,
+                depth=draw(st.floats(0.0, 20_000.0)),
+                area=draw(st.integers(0, 10**7)),
+                center_xy=(draw(finite), draw(finite)),
+                v_radial=draw(st.none() | finite),
+                ttc=draw(st.none() | st.floats(0.0, 1e5) | st.just(math.inf)),
+                status=draw(st.none() | st.sampled_from(["visible", "entering", "leaving", "occluded"])),
+                parts=parts,
+            )
+        )
 
     def make(k: int) -> Node:
         kids = tuple(make(j) for j in range(n) if parent_index[j] == k)
         return Node(id=ids[k], children=kids, **fields[k])
 
-    root = Node(0, "Bkg", draw(st.sampled_from([-1, 0, 3])), draw(st.floats(0.0, 1e4)),
-                draw(st.integers(0, 10**7)), (draw(finite), draw(finite)),
-                children=tuple(make(j) for j in range(n) if parent_index[j] == -1))
+    root = Node(
+        0,
+        "Bkg",
+        draw(st.sampled_from([-1, 0, 3])),
+        draw(st.floats(0.0, 1e4)),
+        draw(st.integers(0, 10**7)),
+        (draw(finite), draw(finite)),
+        children=tuple(make(j) for j in range(n) if parent_index[j] == -1),
+    )
     rels: tuple[Relation, ...] = ()
     if n >= 2:
-        rels = tuple(draw(st.lists(
-            st.builds(Relation, st.sampled_from(ids), st.sampled_from(RELATIONS), st.sampled_from(ids)),
-            max_size=8)))
+        rels = tuple(
+            draw(
+                st.lists(
+                    st.builds(Relation, st.sampled_from(ids), st.sampled_from(RELATIONS), st.sampled_from(ids)),
+                    max_size=8,
+                )
+            )
+        )
     return SceneTree(root=root, relations=rels)
 
 

@@ -135,8 +135,9 @@ def test_sixteen_bit_is_whole_millimetres() -> None:
 
 def test_mixing_two_equal_surfaces_gives_the_depth_in_between() -> None:
     # Equal amplitudes: the phasor sum points half-way, so 1000 and 1500 mm read 1250 mm.
-    s = 0.5 * (correlation_samples(np.array([1000.0]), 800.0, 50e6)
-               + correlation_samples(np.array([1500.0]), 800.0, 50e6))
+    s = 0.5 * (
+        correlation_samples(np.array([1000.0]), 800.0, 50e6) + correlation_samples(np.array([1500.0]), 800.0, 50e6)
+    )
     phase, amp = demodulate(s)
     assert phase_to_depth_mm(phase, 50e6)[0] == pytest.approx(1250.0, abs=1e-6)
     assert amp[0] < 800.0  # partial cancellation
@@ -144,8 +145,15 @@ def test_mixing_two_equal_surfaces_gives_the_depth_in_between() -> None:
 
 @pytest.mark.parametrize(
     "kwargs",
-    [{"bits": 12}, {"f_mod_hz": 0.0}, {"f_mod2_hz": 50e6}, {"integration_s": 0.0},
-     {"amplitude_at_1m_e": -1.0}, {"motion_substeps": 0}, {"far_8bit_mm": -5.0}],
+    [
+        {"bits": 12},
+        {"f_mod_hz": 0.0},
+        {"f_mod2_hz": 50e6},
+        {"integration_s": 0.0},
+        {"amplitude_at_1m_e": -1.0},
+        {"motion_substeps": 0},
+        {"far_8bit_mm": -5.0},
+    ],
 )
 def test_config_rejects_absurd_values(kwargs: dict[str, float]) -> None:
     with pytest.raises(InputError, match="ToFConfig"):

@@ -15,8 +15,25 @@ from depthgram.sensor import ToFConfig, simulate
 
 def test_writes_depth_instances_truth_and_camera_that_read_back(tmp_path: Path) -> None:
     out = tmp_path / "sim"
-    assert main(["simulate", "crossing", "--frames", "3", "--size", "88x66", "--out", str(out),
-                 "--seed", "4", "--fps", "15"]) == 0
+    assert (
+        main(
+            [
+                "simulate",
+                "crossing",
+                "--frames",
+                "3",
+                "--size",
+                "88x66",
+                "--out",
+                str(out),
+                "--seed",
+                "4",
+                "--fps",
+                "15",
+            ]
+        )
+        == 0
+    )
     sims = list(simulate("crossing", 3, size=(88, 66), fps=15.0, seed=4))
     cam = json.loads((out / "depth" / "camera.json").read_text())
     k = sims[0].frame.intrinsics
@@ -43,8 +60,7 @@ def test_writes_depth_instances_truth_and_camera_that_read_back(tmp_path: Path) 
 
 
 def test_eight_bit_and_no_noise_options(tmp_path: Path) -> None:
-    assert main(["simulate", "table", "--size", "44x33", "--out", str(tmp_path), "--bits", "8",
-                 "--no-noise"]) == 0
+    assert main(["simulate", "table", "--size", "44x33", "--out", str(tmp_path), "--bits", "8", "--no-noise"]) == 0
     (sim,) = simulate("table", 1, size=(44, 33), noise=False, tof=ToFConfig(bits=8))
     depth = cv2.imread(str(tmp_path / "depth" / "000000.png"), cv2.IMREAD_UNCHANGED)
     np.testing.assert_array_equal(depth, np.rint(sim.frame.depth).astype(np.uint16))

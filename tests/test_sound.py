@@ -121,8 +121,7 @@ def test_sequence_audio_lasts_as_long_as_the_sequence() -> None:
 
 
 def test_stream_has_no_clicks_when_objects_move_appear_and_vanish() -> None:
-    m = SoundMapping.from_dict({"pitch_low_hz": 55.0, "pitch_high_hz": 110.0, "harmonics_max": 1,
-                                "glide_octaves": 0.5})
+    m = SoundMapping.from_dict({"pitch_low_hz": 55.0, "pitch_high_hz": 110.0, "harmonics_max": 1, "glide_octaves": 0.5})
     s = Sonifier(m, SR, (W, H))
     chunks = []
     for i in range(40):
@@ -167,8 +166,7 @@ def test_surface_glides_between_its_near_and_far_ends() -> None:
     fc = m.pitch(60.0, H)
     span = m.glide_octaves * (m.nearness(500.0) - m.nearness(3500.0))
     assert v.freq_a == pytest.approx(fc * 2 ** (span / 2)) and v.freq_b == pytest.approx(fc * 2 ** (-span / 2))
-    mono = render_scene(tree_of(wall), (W, H), mapping=m, duration_s=1.2, samplerate=SR,
-                        objects=[wall_obj]).sum(axis=1)
+    mono = render_scene(tree_of(wall), (W, H), mapping=m, duration_s=1.2, samplerate=SR, objects=[wall_obj]).sum(axis=1)
 
     def zc_hz(t: float) -> float:
         seg = mono[int((t - 0.02) * SR) : int((t + 0.02) * SR)]

@@ -30,8 +30,10 @@ def test_lesson_writes_each_cue_with_its_line(tmp_path: Path, capsys: pytest.Cap
 
     pan = listen(wav("01-left-right"), sr, m.pitch(239.5, 480))
     # Left, centre, right in turn: the pan angle of the beeps rises over the file.
-    angles = [math.atan2(*reversed(wav("01-left-right")[round(t * sr) - 200 : round(t * sr) + 200].std(axis=0)))
-              for t in pan.times]
+    angles = [
+        math.atan2(*reversed(wav("01-left-right")[round(t * sr) - 200 : round(t * sr) + 200].std(axis=0)))
+        for t in pan.times
+    ]
     assert angles[0] < 0.3 and angles[-1] > math.pi / 2 - 0.3
     near_far = wav("02-near-far")
     assert f"{m.rate(m.near_mm):.1f}" in lines[1] and f"{m.rate(m.far_mm):.1f}" in lines[1]

@@ -89,15 +89,15 @@ def test_every_object_of_the_simulated_table_is_heard(tmp_path: Path) -> None:
     assert len(objects) >= 4 and on_table, "the table scene has objects standing on its compound table"
     sel = select(result.tree, DECODE)
     assert {n.id for n in sel.beeps} == {n.id for n in objects}  # up to max_voices = 6: all of them
-    audio = written(tmp_path, render_scene(result.tree, mapping=DECODE, samplerate=SR,
-                                           objects=result.segmentation.objects))
+    audio = written(
+        tmp_path, render_scene(result.tree, mapping=DECODE, samplerate=SR, objects=result.segmentation.objects)
+    )
     assert_every_beep_heard(audio, DECODE, result.tree, result.segmentation.objects)
 
 
 def test_still_is_long_enough_to_hear_each_object_twice() -> None:
     tree = table_tree()
-    slow = SoundMapping.from_dict({**DECODE.to_dict(), "rate_near_hz": 1.0, "rate_far_hz": 0.5,
-                                   "max_glides": 0})
+    slow = SoundMapping.from_dict({**DECODE.to_dict(), "rate_near_hz": 1.0, "rate_far_hz": 0.5, "max_glides": 0})
     vs = voices(tree, (W, H), slow)
     seconds = still_seconds(vs, slow)
     # The last object of the scan starts at scan_s and beeps every 2.x s: two beeps need over 2 s.

@@ -39,8 +39,12 @@ def test_kinship_tells_a_recording_from_unrelated_scenes() -> None:
 
 
 def motion_read(results: list) -> list[tuple[int, int]]:
-    return [(r.frame.index, oid) for r in results for oid, m in r.motions.items()
-            if m.v_radial is not None or m.ttc is not None]
+    return [
+        (r.frame.index, oid)
+        for r in results
+        for oid, m in r.motions.items()
+        if m.v_radial is not None or m.ttc is not None
+    ]
 
 
 def test_no_motion_between_unrelated_untimed_frames_but_a_recording_is_tracked() -> None:

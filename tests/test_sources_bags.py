@@ -39,8 +39,9 @@ def image_msg(ts: Typestore, arr: np.ndarray, i: int, encoding: str, pad: int = 
     Image = ts.types["sensor_msgs/msg/Image"]
     extra = {"seq": i} if "seq" in Header.__dataclass_fields__ else {}  # ROS 1 headers carry seq
     header = Header(stamp=Time(sec=T0, nanosec=i * 100_000_000), frame_id="depth", **extra)
-    return Image(header=header, height=h, width=w, encoding=encoding, is_bigendian=0,
-                 step=row.shape[1] + pad, data=data)
+    return Image(
+        header=header, height=h, width=w, encoding=encoding, is_bigendian=0, step=row.shape[1] + pad, data=data
+    )
 
 
 def camera_info(ts: Typestore) -> object:
@@ -49,13 +50,24 @@ def camera_info(ts: Typestore) -> object:
     Time = ts.types["builtin_interfaces/msg/Time"]
     roi = ts.types["sensor_msgs/msg/RegionOfInterest"](x_offset=0, y_offset=0, height=0, width=0, do_rectify=False)
     k = np.array([300.0, 0, 4.5, 0, 310.0, 2.5, 0, 0, 1])
-    return info(header=Header(stamp=Time(sec=T0, nanosec=0), frame_id="depth"), height=6, width=10,
-                distortion_model="plumb_bob", d=np.zeros(5), k=k, r=np.eye(3).ravel(), p=np.zeros(12),
-                binning_x=0, binning_y=0, roi=roi)
+    return info(
+        header=Header(stamp=Time(sec=T0, nanosec=0), frame_id="depth"),
+        height=6,
+        width=10,
+        distortion_model="plumb_bob",
+        d=np.zeros(5),
+        k=k,
+        r=np.eye(3).ravel(),
+        p=np.zeros(12),
+        binning_x=0,
+        binning_y=0,
+        roi=roi,
+    )
 
 
-def write_ros2(path: Path, topics: dict[str, tuple[str, list[np.ndarray]]], storage: StoragePlugin,
-               with_info: bool = False) -> Path:
+def write_ros2(
+    path: Path, topics: dict[str, tuple[str, list[np.ndarray]]], storage: StoragePlugin, with_info: bool = False
+) -> Path:
     ts = get_typestore(Stores.ROS2_HUMBLE)
     with Writer2(path, version=9, storage_plugin=storage) as w:
         for topic, (enc, arrays) in topics.items():
@@ -105,8 +117,9 @@ def test_ros1_bag_32fc1_metres(tmp_path: Path) -> None:
 
 def test_ros2_sqlite_bag_folder_16uc1_with_camera_info(tmp_path: Path) -> None:
     arrays = frames_u16()
-    bag = write_ros2(tmp_path / "bag2", {"/cam/depth/image_rect_raw": ("16UC1", arrays)},
-                     StoragePlugin.SQLITE3, with_info=True)
+    bag = write_ros2(
+        tmp_path / "bag2", {"/cam/depth/image_rect_raw": ("16UC1", arrays)}, StoragePlugin.SQLITE3, with_info=True
+    )
     assert (bag / "metadata.yaml").is_file()
     check_round_trip(bag, arrays)
     assert open_source(bag).intrinsics == Intrinsics(300.0, 310.0, 4.5, 2.5)

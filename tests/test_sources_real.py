@@ -61,8 +61,7 @@ def test_tum_with_scale(shared_data: Path) -> None:
 
 
 def test_nyu_kinect_disparity(shared_data: Path) -> None:
-    info = open_source(shared_data / "open3d_tum_nyu_sun_singles" / "NYU_depth.pgm",
-                       encoding="kinect-disparity").info()
+    info = open_source(shared_data / "open3d_tum_nyu_sun_singles" / "NYU_depth.pgm", encoding="kinect-disparity").info()
     assert info.depth_min_mm == pytest.approx(1390, abs=5) and info.depth_max_mm == pytest.approx(6690, abs=5)
     assert info.depth_median_mm == pytest.approx(3270, abs=5)
     assert info.invalid_fraction == pytest.approx(0.072, abs=5e-4)

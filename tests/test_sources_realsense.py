@@ -41,9 +41,11 @@ def _fake_rs(frames: list[np.ndarray], scale_m: float = 0.001, fail_start: bool 
     intr = types.SimpleNamespace(fx=385.0, fy=386.0, ppx=321.5, ppy=239.5)
     profile = types.SimpleNamespace(
         get_device=lambda: types.SimpleNamespace(
-            first_depth_sensor=lambda: types.SimpleNamespace(get_depth_scale=lambda: scale_m)),
+            first_depth_sensor=lambda: types.SimpleNamespace(get_depth_scale=lambda: scale_m)
+        ),
         get_stream=lambda s: types.SimpleNamespace(
-            as_video_stream_profile=lambda: types.SimpleNamespace(get_intrinsics=lambda: intr)),
+            as_video_stream_profile=lambda: types.SimpleNamespace(get_intrinsics=lambda: intr)
+        ),
     )
 
     class Pipeline:

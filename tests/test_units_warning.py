@@ -109,8 +109,9 @@ def test_a_folder_in_wrong_units_warns_once_naming_the_scale(tmp_path: Path) -> 
         ("NYU_depth.pgm", "--encoding kinect-disparity", {"encoding": "kinect-disparity"}),
     ],
 )
-def test_real_frames_in_the_wrong_units_name_their_flag(shared_data: Path, name: str, hint: str,
-                                                        fix: dict[str, object]) -> None:
+def test_real_frames_in_the_wrong_units_name_their_flag(
+    shared_data: Path, name: str, hint: str, fix: dict[str, object]
+) -> None:
     path = shared_data / "open3d_tum_nyu_sun_singles" / name
     with warnings.catch_warnings(record=True) as rec:
         warnings.simplefilter("always")

@@ -33,8 +33,9 @@ WS = "ws://127.0.0.1:8765"  # full URL: the test client's WebSocket otherwise sa
 
 def _sim_player(**viewer: Any) -> Player:
     src = open_source(SPEC)
-    return Player(lambda: iter(src), recording_name(SPEC), Config(), ViewerConfig(**viewer),
-                  frames=len(src), fps=src.fps)
+    return Player(
+        lambda: iter(src), recording_name(SPEC), Config(), ViewerConfig(**viewer), frames=len(src), fps=src.fps
+    )
 
 
 def _client(app: Any) -> TestClient:
@@ -70,17 +71,20 @@ def test_recording_name_and_tree_lines() -> None:
     assert recording_name("sim:table?frames=4") == "sim-table"
     assert recording_name("../shared/data/7scenes_redkitchen_seq/") == "7scenes_redkitchen_seq"
     assert recording_name("C:\\rec\\a b.bag") == "a-b.bag"
-    tree = {"nodes": [
-        {"id": 0, "kind": "scene", "parent": None, "depth": None, "area": 100},
-        {"id": 1, "kind": "object", "parent": 0, "depth": 900.0, "area": 40},
-        {"id": 3, "kind": "object", "parent": 1, "depth": 950.0, "area": 5},
-        {"id": 2, "kind": "floor", "parent": 0, "depth": 2000.0, "area": 30},
-    ]}
+    tree = {
+        "nodes": [
+            {"id": 0, "kind": "scene", "parent": None, "depth": None, "area": 100},
+            {"id": 1, "kind": "object", "parent": 0, "depth": 900.0, "area": 40},
+            {"id": 3, "kind": "object", "parent": 1, "depth": 950.0, "area": 5},
+            {"id": 2, "kind": "floor", "parent": 0, "depth": 2000.0, "area": 30},
+        ]
+    }
     assert [(n["id"], n["level"]) for n in tree_lines(tree)] == [(0, 0), (1, 1), (3, 2), (2, 1)]
 
 
-@pytest.mark.parametrize("kwargs", [{"speed": 0}, {"speed": 17}, {"fps": -1}, {"seek_history": -1},
-                                    {"samplerate": 10}, {"min_width_px": 0}])
+@pytest.mark.parametrize(
+    "kwargs", [{"speed": 0}, {"speed": 17}, {"fps": -1}, {"seek_history": -1}, {"samplerate": 10}, {"min_width_px": 0}]
+)
 def test_viewer_config_refuses_absurd_values(kwargs: dict[str, Any]) -> None:
     with pytest.raises(InputError):
         ViewerConfig(**kwargs)
@@ -98,16 +102,19 @@ def test_index_page_and_static_files() -> None:
         assert client.get("/static/nothing.js").status_code == 404
 
 
-@pytest.mark.parametrize("path", [
-    "/static/../../pyproject.toml",
-    "/static/..%2F..%2Fpyproject.toml",
-    "/static/%2e%2e/%2e%2e/pyproject.toml",
-    "/static/%2e%2e%2f%2e%2e%2fpyproject.toml",
-    "/static/%252e%252e%252fpyproject.toml",
-    "/static/viewer.js/../../../../pyproject.toml",
-    "/static/..\\..\\pyproject.toml",
-    "/static//etc/passwd",
-])
+@pytest.mark.parametrize(
+    "path",
+    [
+        "/static/../../pyproject.toml",
+        "/static/..%2F..%2Fpyproject.toml",
+        "/static/%2e%2e/%2e%2e/pyproject.toml",
+        "/static/%2e%2e%2f%2e%2e%2fpyproject.toml",
+        "/static/%252e%252e%252fpyproject.toml",
+        "/static/viewer.js/../../../../pyproject.toml",
+        "/static/..\\..\\pyproject.toml",
+        "/static//etc/passwd",
+    ],
+)
 def test_static_never_leaves_its_folder(path: str) -> None:
     with _client(create_app(_sim_player(playing=False))) as client:
         r = client.get(path)
@@ -143,8 +150,11 @@ def test_stream_delivers_the_table_scene_with_its_true_objects() -> None:
         if t.kind != "object" or t.area > 0.1 * 176 * 132:
             continue
         tx, ty = t.center_xy
-        near = [o for o in objects if np.hypot(o["center_xy"][0] - tx, o["center_xy"][1] - ty) < 6
-                and abs(o["area"] - t.area) < 0.4 * t.area]
+        near = [
+            o
+            for o in objects
+            if np.hypot(o["center_xy"][0] - tx, o["center_xy"][1] - ty) < 6 and abs(o["area"] - t.area) < 0.4 * t.area
+        ]
         assert len(near) == 1, (t.name, t.center_xy, t.area)
     assert {"actions", "channel", "warnings"} <= set(msg["plan"])
     assert msg["tree"][0]["level"] == 0 and all(n["level"] >= 1 for n in msg["tree"][1:])
@@ -184,8 +194,10 @@ def test_parameter_change_takes_effect_on_the_next_frame() -> None:
             _recv(ws)
             client.post("/api/recordings/sim-table/step")
             before = _frame(ws)
-            r = client.put("/api/recordings/sim-table/params",
-                           json={"method": "threshold", "min_area": 50, "fraction": 0.2, "bin_mm": 20})
+            r = client.put(
+                "/api/recordings/sim-table/params",
+                json={"method": "threshold", "min_area": 50, "fraction": 0.2, "bin_mm": 20},
+            )
             assert r.status_code == 200
             assert r.json()["params"] == {"method": "threshold", "min_area": 50, "fraction": 0.2, "bin_mm": 20}
             client.post("/api/recordings/sim-table/step")
@@ -218,8 +230,9 @@ def _cheap_frames(n: int) -> Iterator[Any]:
 
 def test_server_skips_frames_when_behind_and_counts_every_one() -> None:
     # 1000 frames/s: processing a frame takes longer than its 1 ms period, reading one does not.
-    player = Player(lambda: _cheap_frames(120), "cheap", Config(),
-                    ViewerConfig(fps=1000.0, loop=False, min_width_px=40), frames=120)
+    player = Player(
+        lambda: _cheap_frames(120), "cheap", Config(), ViewerConfig(fps=1000.0, loop=False, min_width_px=40), frames=120
+    )
     seen = []
     with _client(create_app(player)) as client:
         with client.websocket_connect(WS + "/ws/cheap") as ws:
@@ -243,8 +256,9 @@ def test_a_pause_while_behind_ends_on_the_newest_frame_read_and_a_step_shows_the
     # waits until the test has asked for a pause, so the pause arrives with a skipped frame
     # behind it and a fresh one in hand (what a CI run on a slow spell hit in the browser).
     reading, release = threading.Event(), threading.Event()
-    player = Player(lambda: frames(), "cheap", Config(), ViewerConfig(fps=1000.0, loop=False, min_width_px=40),
-                    frames=120)
+    player = Player(
+        lambda: frames(), "cheap", Config(), ViewerConfig(fps=1000.0, loop=False, min_width_px=40), frames=120
+    )
 
     def frames() -> Iterator[Any]:
         for f in _cheap_frames(120):
@@ -321,27 +335,35 @@ def test_a_broken_frame_pauses_playback_and_tells_the_page_which_frame() -> None
     assert state["playing"] is False and state["error"] == msg["message"]
 
 
-@pytest.mark.parametrize(("method", "path", "body", "status", "needle"), [
-    ("get", "/api/recordings/nope", None, 404, "unknown recording"),
-    ("post", "/api/recordings/nope/play", None, 404, "unknown recording"),
-    ("post", "/api/recordings/sim-table/rewind", None, 404, "unknown action"),
-    ("put", "/api/recordings/sim-table/params", {"min_area": -1}, 422, "min_area"),
-    ("put", "/api/recordings/sim-table/params", {"method": "x"}, 422, "method"),
-    ("put", "/api/recordings/sim-table/params", {"no_such": 1}, 422, "unknown setting"),
-    ("put", "/api/recordings/sim-table/params", {}, 422, "params"),
-    ("put", "/api/recordings/sim-table/speed", {"value": 0}, 422, "speed"),
-    ("put", "/api/recordings/sim-table/speed", {"value": "fast"}, 422, "speed"),
-    ("put", "/api/recordings/sim-table/speed", b"{not json", 400, "JSON"),
-    # issue 18.8: nesting past the parser's recursion limit is the sender's error, not a 500
-    ("put", "/api/recordings/sim-table/params", b"[" * 30000 + b"]" * 30000, 400, "nested too deeply"),
-    ("put", "/api/recordings/sim-table/speed", b'{"value": ' + b"[" * 30000 + b"]" * 30000 + b"}", 400,
-     "nested too deeply"),
-    # ... and bodies far larger than any control needs are refused before they are read
-    ("put", "/api/recordings/sim-table/params", b" " * 70000 + b"{}", 413, "over 65536 bytes"),
-    ("post", "/api/recordings/sim-table/seek", {"index": 4}, 422, "frames 0..3"),
-    ("post", "/api/recordings/sim-table/seek", {"index": -1}, 422, "index"),
-    ("post", "/api/recordings/sim-table/seek", {"index": 1.5}, 422, "index"),
-])
+@pytest.mark.parametrize(
+    ("method", "path", "body", "status", "needle"),
+    [
+        ("get", "/api/recordings/nope", None, 404, "unknown recording"),
+        ("post", "/api/recordings/nope/play", None, 404, "unknown recording"),
+        ("post", "/api/recordings/sim-table/rewind", None, 404, "unknown action"),
+        ("put", "/api/recordings/sim-table/params", {"min_area": -1}, 422, "min_area"),
+        ("put", "/api/recordings/sim-table/params", {"method": "x"}, 422, "method"),
+        ("put", "/api/recordings/sim-table/params", {"no_such": 1}, 422, "unknown setting"),
+        ("put", "/api/recordings/sim-table/params", {}, 422, "params"),
+        ("put", "/api/recordings/sim-table/speed", {"value": 0}, 422, "speed"),
+        ("put", "/api/recordings/sim-table/speed", {"value": "fast"}, 422, "speed"),
+        ("put", "/api/recordings/sim-table/speed", b"{not json", 400, "JSON"),
+        # issue 18.8: nesting past the parser's recursion limit is the sender's error, not a 500
+        ("put", "/api/recordings/sim-table/params", b"[" * 30000 + b"]" * 30000, 400, "nested too deeply"),
+        (
+            "put",
+            "/api/recordings/sim-table/speed",
+            b'{"value": ' + b"[" * 30000 + b"]" * 30000 + b"}",
+            400,
+            "nested too deeply",
+        ),
+        # ... and bodies far larger than any control needs are refused before they are read
+        ("put", "/api/recordings/sim-table/params", b" " * 70000 + b"{}", 413, "over 65536 bytes"),
+        ("post", "/api/recordings/sim-table/seek", {"index": 4}, 422, "frames 0..3"),
+        ("post", "/api/recordings/sim-table/seek", {"index": -1}, 422, "index"),
+        ("post", "/api/recordings/sim-table/seek", {"index": 1.5}, 422, "index"),
+    ],
+)
 def test_bad_requests_get_a_clear_json_error(method: str, path: str, body: Any, status: int, needle: str) -> None:
     with _client(create_app(_sim_player(playing=False))) as client:
         if isinstance(body, bytes):
@@ -370,8 +392,9 @@ def test_real_recording_streams_at_its_own_size_with_the_pipeline_objects(shared
     frames = [f for _, f in zip(range(2), src, strict=False)]
     pipe = Pipeline()
     expected = [pipe.process(f) for f in frames]
-    player = Player(lambda: iter(src), recording_name(str(seq)), Config(), ViewerConfig(playing=False),
-                    frames=len(src), fps=src.fps)
+    player = Player(
+        lambda: iter(src), recording_name(str(seq)), Config(), ViewerConfig(playing=False), frames=len(src), fps=src.fps
+    )
     with _client(create_app(player)) as client:
         with client.websocket_connect(WS + "/ws/7scenes_redkitchen_seq") as ws:
             hello = _recv(ws)
@@ -394,8 +417,10 @@ def test_other_sites_and_other_host_names_are_refused() -> None:
         assert r.status_code == 403 and "evil.example" in r.json()["error"]
         assert client.put("/api/recordings/sim-table/speed", json={"value": 2}, headers=evil).status_code == 403
         assert client.get("/api/recordings/sim-table").json()["speed"] == 1.0
-        with pytest.raises(WebSocketDisconnect) as info, \
-                client.websocket_connect(WS + "/ws/sim-table", headers=evil) as ws:
+        with (
+            pytest.raises(WebSocketDisconnect) as info,
+            client.websocket_connect(WS + "/ws/sim-table", headers=evil) as ws,
+        ):
             ws.receive_text()
         assert info.value.code == 4403
         # the page's own origin is welcome
@@ -406,8 +431,10 @@ def test_other_sites_and_other_host_names_are_refused() -> None:
     with TestClient(app, base_url="http://rebound.example:8765") as client:
         r = client.get("/api/recordings")
         assert r.status_code == 400 and "rebound.example" in r.json()["error"]
-        with pytest.raises(WebSocketDisconnect) as info, \
-                client.websocket_connect("ws://rebound.example:8765/ws/sim-table") as ws:
+        with (
+            pytest.raises(WebSocketDisconnect) as info,
+            client.websocket_connect("ws://rebound.example:8765/ws/sim-table") as ws,
+        ):
             ws.receive_text()
         assert info.value.code == 4400
     for base in ("http://[::1]:8765", "http://localhost:8765"):
@@ -437,22 +464,26 @@ def test_a_body_sent_without_a_length_is_cut_off_at_the_limit() -> None:
 
 def test_the_origin_check_compares_the_scheme_too() -> None:
     with _client(create_app(_sim_player(playing=False))) as client:
-        for origin in ("https://127.0.0.1:8765", "ws://127.0.0.1:8765", "http://127.0.0.1:8766",
-                       "http://127.0.0.1"):
+        for origin in ("https://127.0.0.1:8765", "ws://127.0.0.1:8765", "http://127.0.0.1:8766", "http://127.0.0.1"):
             r = client.post("/api/recordings/sim-table/play", headers={"Origin": origin})
             assert r.status_code == 403, origin
-            with pytest.raises(WebSocketDisconnect) as info, \
-                    client.websocket_connect(WS + "/ws/sim-table", headers={"Origin": origin}) as ws:
+            with (
+                pytest.raises(WebSocketDisconnect) as info,
+                client.websocket_connect(WS + "/ws/sim-table", headers={"Origin": origin}) as ws,
+            ):
                 ws.receive_text()
             assert info.value.code == 4403
         assert client.get("/api/recordings/sim-table").json()["playing"] is False
-        assert client.post("/api/recordings/sim-table/pause",
-                           headers={"Origin": "http://127.0.0.1:8765"}).status_code == 200
+        assert (
+            client.post("/api/recordings/sim-table/pause", headers={"Origin": "http://127.0.0.1:8765"}).status_code
+            == 200
+        )
     # default ports: an origin without a port is port 80 for http
     with TestClient(create_app(_sim_player(playing=False)), base_url="http://localhost") as client:
         assert client.post("/api/recordings/sim-table/pause", headers={"Origin": "http://localhost"}).status_code == 200
-        assert client.post("/api/recordings/sim-table/pause",
-                           headers={"Origin": "https://localhost"}).status_code == 403
+        assert (
+            client.post("/api/recordings/sim-table/pause", headers={"Origin": "https://localhost"}).status_code == 403
+        )
 
 
 def test_beyond_loopback_every_request_needs_the_token_whatever_its_host() -> None:
@@ -462,8 +493,10 @@ def test_beyond_loopback_every_request_needs_the_token_whatever_its_host() -> No
         assert r.status_code == 401 and "access token" in r.json()["error"]
         assert client.get("/").status_code == 401
         assert client.get("/api/recordings", headers={"Authorization": "Bearer wrong"}).status_code == 401
-        with pytest.raises(WebSocketDisconnect) as info, \
-                client.websocket_connect("ws://rebound.example:8765/ws/sim-table") as ws:
+        with (
+            pytest.raises(WebSocketDisconnect) as info,
+            client.websocket_connect("ws://rebound.example:8765/ws/sim-table") as ws,
+        ):
             ws.receive_text()
         assert info.value.code == 4401
         # the address printed at start: the page gets the token as a cookie for its own origin

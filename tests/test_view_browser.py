@@ -17,8 +17,10 @@ import pytest
 
 CHROMIUM = Path("/usr/bin/chromium")
 if not CHROMIUM.exists():
-    pytest.skip("headless browser test needs Debian's chromium at /usr/bin/chromium "
-                "(apt-get install -y chromium)", allow_module_level=True)
+    pytest.skip(
+        "headless browser test needs Debian's chromium at /usr/bin/chromium (apt-get install -y chromium)",
+        allow_module_level=True,
+    )
 pytest.importorskip("playwright.sync_api", reason="needs the playwright Python package (pip install playwright)")
 uvicorn = pytest.importorskip("uvicorn")
 
@@ -29,8 +31,16 @@ from depthgram.sources import open_source  # noqa: E402
 from depthgram.views.server import Player, ViewerConfig, create_app, recording_name  # noqa: E402
 
 SPEC = "sim:table?frames=12"
-ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
-        "--disable-background-networking", "--disable-component-update", "--disable-sync"]
+ARGS = [
+    "--headless",
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-quic",
+    "--no-first-run",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+]
 SCREENSHOT = Path(os.environ.get("TMPDIR", "/tmp")) / "depthgram_view.png"
 
 
@@ -38,8 +48,14 @@ SCREENSHOT = Path(os.environ.get("TMPDIR", "/tmp")) / "depthgram_view.png"
 def server() -> Iterator[str]:
     """The viewer on a free loopback port in a background thread; yields its URL."""
     src = open_source(SPEC)
-    player = Player(lambda: iter(src), recording_name(SPEC), Config(), ViewerConfig(playing=False, loop=True),
-                    frames=len(src), fps=src.fps)
+    player = Player(
+        lambda: iter(src),
+        recording_name(SPEC),
+        Config(),
+        ViewerConfig(playing=False, loop=True),
+        frames=len(src),
+        fps=src.fps,
+    )
     sock = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
     sock.bind(("127.0.0.1", 0))
     port = sock.getsockname()[1]
@@ -140,8 +156,9 @@ def test_colour_bar_hover_timeline_back_point_cloud_and_snapshot(server: str, tm
     results = [pipe.process(f) for f in frames]
     errors: list[str] = []
     with sync_playwright() as pw:
-        browser = pw.chromium.launch(executable_path=str(CHROMIUM),
-                                     args=[*ARGS, "--use-angle=swiftshader", "--enable-unsafe-swiftshader"])
+        browser = pw.chromium.launch(
+            executable_path=str(CHROMIUM), args=[*ARGS, "--use-angle=swiftshader", "--enable-unsafe-swiftshader"]
+        )
         try:
             page = browser.new_page(viewport={"width": 1280, "height": 1100}, accept_downloads=True)
             page.on("pageerror", lambda e: errors.append(str(e)))
@@ -155,11 +172,15 @@ def test_colour_bar_hover_timeline_back_point_cloud_and_snapshot(server: str, tm
             lo, hi = depth_range_mm(frames[0].depth, frames[0].valid)
             assert float(page.get_attribute("#colourbar", "data-lo") or "nan") == pytest.approx(lo, abs=0.06)
             assert float(page.get_attribute("#colourbar", "data-hi") or "nan") == pytest.approx(hi, abs=0.06)
-            top = page.evaluate("Array.from(document.getElementById('colourbar').getContext('2d')"
-                                ".getImageData(10, 8, 1, 1).data.slice(0, 3))")
-            bottom = page.evaluate("(() => { const c = document.getElementById('colourbar');"
-                                   " return Array.from(c.getContext('2d').getImageData(10, c.height - 9, 1, 1)"
-                                   ".data.slice(0, 3)); })()")
+            top = page.evaluate(
+                "Array.from(document.getElementById('colourbar').getContext('2d')"
+                ".getImageData(10, 8, 1, 1).data.slice(0, 3))"
+            )
+            bottom = page.evaluate(
+                "(() => { const c = document.getElementById('colourbar');"
+                " return Array.from(c.getContext('2d').getImageData(10, c.height - 9, 1, 1)"
+                ".data.slice(0, 3)); })()"
+            )
             table = colour_table()
             assert top == table[255] and bottom == table[0]
 
@@ -193,12 +214,14 @@ def test_colour_bar_hover_timeline_back_point_cloud_and_snapshot(server: str, tm
             assert page.get_attribute("#cloud", "data-error") is None
             assert int(page.get_attribute("#cloud", "data-points") or 0) == int(frames[4].valid.sum())
             assert page.evaluate("cloud.coverage()") > 2000
-            n_colours = page.evaluate("(() => { const c = document.getElementById('cloud');"
-                                      " const gl = c.getContext('webgl');"
-                                      " const px = new Uint8Array(c.width * c.height * 4);"
-                                      " gl.readPixels(0, 0, c.width, c.height, gl.RGBA, gl.UNSIGNED_BYTE, px);"
-                                      " const seen = new Set(); for (let i = 0; i < px.length; i += 4)"
-                                      " seen.add((px[i] << 16) | (px[i + 1] << 8) | px[i + 2]); return seen.size; })()")
+            n_colours = page.evaluate(
+                "(() => { const c = document.getElementById('cloud');"
+                " const gl = c.getContext('webgl');"
+                " const px = new Uint8Array(c.width * c.height * 4);"
+                " gl.readPixels(0, 0, c.width, c.height, gl.RGBA, gl.UNSIGNED_BYTE, px);"
+                " const seen = new Set(); for (let i = 0; i < px.length; i += 4)"
+                " seen.add((px[i] << 16) | (px[i + 1] << 8) | px[i + 2]); return seen.size; })()"
+            )
             assert n_colours >= 1 + len(results[4].segmentation.objects) // 2
 
             # Snapshot: the picture as PNG and the frame's results as JSON, named after the frame.
@@ -214,8 +237,9 @@ def test_colour_bar_hover_timeline_back_point_cloud_and_snapshot(server: str, tm
             assert (width, height) == (page.evaluate("canvas.width"), page.evaluate("canvas.height"))
             snap = json.loads(paths["sim-table_frame000004.json"].read_text())
             assert snap["index"] == 4 and snap["record"]["sentence"] == results[4].sentence
-            assert snap["depth_range_mm"] == pytest.approx(list(depth_range_mm(frames[4].depth, frames[4].valid)),
-                                                           abs=0.06)
+            assert snap["depth_range_mm"] == pytest.approx(
+                list(depth_range_mm(frames[4].depth, frames[4].valid)), abs=0.06
+            )
         finally:
             browser.close()
     assert not errors, errors

@@ -27,9 +27,20 @@ def test_view_refuses_bad_arguments_with_a_message(capsys: pytest.CaptureFixture
 
 def test_view_serves_the_page_and_the_api_on_loopback() -> None:
     proc = subprocess.Popen(
-        [sys.executable, "-m", "depthgram.cli", "view", "sim:table?frames=3", "--port", "0", "--no-browser",
-         "--method", "threshold"],
-        stderr=subprocess.PIPE, text=True,
+        [
+            sys.executable,
+            "-m",
+            "depthgram.cli",
+            "view",
+            "sim:table?frames=3",
+            "--port",
+            "0",
+            "--no-browser",
+            "--method",
+            "threshold",
+        ],
+        stderr=subprocess.PIPE,
+        text=True,
     )
     try:
         assert proc.stderr is not None
@@ -38,7 +49,7 @@ def test_view_serves_the_page_and_the_api_on_loopback() -> None:
         while "http://" not in line:
             assert time.monotonic() < deadline and proc.poll() is None, f"viewer did not start: {line}"
             line = proc.stderr.readline()
-        url = line[line.index("http://"):].split()[0]
+        url = line[line.index("http://") :].split()[0]
         assert url.startswith("http://127.0.0.1:")
         with urllib.request.urlopen(url, timeout=10) as r:
             assert "depthgram view" in r.read().decode()
@@ -49,9 +60,13 @@ def test_view_serves_the_page_and_the_api_on_loopback() -> None:
             urllib.request.urlopen(url + "api/recordings/other", timeout=10)
         assert info.value.code == 404
         # Traversal attempts sent byte for byte (no client-side normalisation of "..").
-        host, port = url[len("http://"):].rstrip("/").split(":")
-        for target in ("/static/../../pyproject.toml", "/static/%2e%2e/%2e%2e/pyproject.toml",
-                       "/static/..%2f..%2fpyproject.toml", "/static/%2E%2E%5C%2E%2E%5Cpyproject.toml"):
+        host, port = url[len("http://") :].rstrip("/").split(":")
+        for target in (
+            "/static/../../pyproject.toml",
+            "/static/%2e%2e/%2e%2e/pyproject.toml",
+            "/static/..%2f..%2fpyproject.toml",
+            "/static/%2E%2E%5C%2E%2E%5Cpyproject.toml",
+        ):
             with socket.create_connection((host, int(port)), timeout=10) as conn:
                 conn.sendall(f"GET {target} HTTP/1.1\r\nHost: {host}\r\nConnection: close\r\n\r\n".encode())
                 reply = b""

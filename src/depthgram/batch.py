@@ -72,7 +72,8 @@ def settings_hash(config: Mapping[str, Any] | None, source_options: Mapping[str,
     """Short hash (hex) of everything besides the input that changes a recording's outputs."""
     text = json.dumps(
         {"config": dict(config or {}), "source": dict(source_options or {}), "track": bool(track)},
-        sort_keys=True, default=repr,
+        sort_keys=True,
+        default=repr,
     )
     return hashlib.sha256(text.encode()).hexdigest()[:16]
 
@@ -203,8 +204,9 @@ def _run_local(
         pending = list(queue)
         queue = []
         before = len(suspects)
-        with ProcessPoolExecutor(max_workers=min(workers, len(pending)), initializer=_watch_parent,
-                                 initargs=(os.getpid(),)) as pool:
+        with ProcessPoolExecutor(
+            max_workers=min(workers, len(pending)), initializer=_watch_parent, initargs=(os.getpid(),)
+        ) as pool:
             futs: dict[Future[dict[str, Any]], int] = {pool.submit(_guarded, *args[i]): i for i in pending}
             for fut in as_completed(futs):
                 i = futs[fut]
@@ -226,8 +228,10 @@ def _run_local(
                 outcome = pool.submit(_guarded, *args[i]).result()
             except BrokenProcessPool:
                 (Path(args[i][1]) / _RUNNING).unlink(missing_ok=True)
-                outcome = {"ok": False, "error": "the worker process died twice on this recording "
-                                                 "(killed, or out of memory?)"}
+                outcome = {
+                    "ok": False,
+                    "error": "the worker process died twice on this recording (killed, or out of memory?)",
+                }
                 with atomic_open(Path(args[i][1]) / "error.txt") as fh:
                     fh.write(str(outcome["error"]) + "\n")
         record(i, outcome)
@@ -308,8 +312,11 @@ def run_batch(
                 out = fut.result()
                 if out.get("ok") and _finished(root / names[i]) is None:
                     # the worker wrote on a disk this machine does not see
-                    out = {"ok": False, "error": f"the worker finished, but its outputs are not in {root / names[i]}: "
-                                                 "--out must be a folder every worker and this machine share"}
+                    out = {
+                        "ok": False,
+                        "error": f"the worker finished, but its outputs are not in {root / names[i]}: "
+                        "--out must be a folder every worker and this machine share",
+                    }
                 record(i, out)
     elif todo:
         n = workers or os.cpu_count() or 1

@@ -120,8 +120,14 @@ def _plain_warnings(command: str) -> Iterator[None]:
     """depthgram's own warnings (wrong units ...) as one line for people, without the source line."""
     shown = warnings.showwarning
 
-    def show(message: Warning | str, category: type[Warning], filename: str, lineno: int,
-             file: TextIO | None = None, line: str | None = None) -> None:
+    def show(
+        message: Warning | str,
+        category: type[Warning],
+        filename: str,
+        lineno: int,
+        file: TextIO | None = None,
+        line: str | None = None,
+    ) -> None:
         if category.__module__.startswith("depthgram") or Path(filename).resolve().is_relative_to(_PACKAGE):
             print(f"depthgram {command}: warning: {message}", file=sys.stderr)
         else:

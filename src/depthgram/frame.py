@@ -181,8 +181,11 @@ def check_array_units(arr: ArrayLike, where: str, valid: NDArray[np.bool_] | Non
     if a.ndim != 2 or a.size == 0 or a.dtype.kind not in "iuf":
         return  # the entry point's own checks give the error
     if _float_metres(a):
-        warn_units(where, f"float depths all under {FLOAT_METRES_BELOW:.0f} look like metres, read here as mm",
-                   ["scale_mm=1000 (--scale 1000), or multiply by 1000 before passing"])
+        warn_units(
+            where,
+            f"float depths all under {FLOAT_METRES_BELOW:.0f} look like metres, read here as mm",
+            ["scale_mm=1000 (--scale 1000), or multiply by 1000 before passing"],
+        )
         return
     ok = np.isfinite(a) & (a > 0) if valid is None else valid
     found = implausible_depth(a, ok)
@@ -270,8 +273,11 @@ def make_frame(
         raise DepthError(f"{where}: no valid depth pixel (all zero, NaN or marked invalid)")
     if check_units and index == 0:
         if scale_mm == 1.0 and _float_metres(arr):
-            warn_units(where, f"float depths all under {FLOAT_METRES_BELOW:.0f} look like metres, read here as mm",
-                       ["scale_mm=1000 (--scale 1000)"])
+            warn_units(
+                where,
+                f"float depths all under {FLOAT_METRES_BELOW:.0f} look like metres, read here as mm",
+                ["scale_mm=1000 (--scale 1000)"],
+            )
         else:
             found = implausible_depth(depth, valid)
             if found:

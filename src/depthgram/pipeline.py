@@ -67,7 +67,7 @@ class Config:
 
     def __post_init__(self) -> None:
         if self.stills not in (True, False, "auto"):
-            raise InputError(f"config: stills must be true, false or \"auto\", got {self.stills!r}")
+            raise InputError(f'config: stills must be true, false or "auto", got {self.stills!r}')
 
     def to_dict(self) -> dict[str, Any]:
         """Plain nested dict (TOML-ready: no None values)."""
@@ -216,9 +216,7 @@ class SceneResult:
         f = self.frame
         tree = tree_to_dict(self.tree)
         nodes = {n["id"]: n for n in tree["nodes"]}
-        objects = [
-            _object_record(o, nodes.get(o.id, {}), self.motions.get(o.id)) for o in self.segmentation.objects
-        ]
+        objects = [_object_record(o, nodes.get(o.id, {}), self.motions.get(o.id)) for o in self.segmentation.objects]
         occluded = [_object_record(o, {}, m) for o, m in self.occluded]
         return {
             "frame": f.index,
@@ -385,9 +383,7 @@ class Pipeline:
             update = self._tracker.update(seg.objects, frame.time_s, frame.size)
             seg = _relabel(seg, {oid: m.track_id for oid, m in update.motions.items()})
             motions = {m.track_id: m for m in update.motions.values()}
-            occluded = tuple(
-                (dataclasses.replace(t.last, id=t.id), _occluded_motion(t)) for t in update.occluded
-            )
+            occluded = tuple((dataclasses.replace(t.last, id=t.id), _occluded_motion(t)) for t in update.occluded)
         tree = build_tree(seg.objects, frame.size, motion=motions or None, config=cfg.tree, labels=seg.labels)
         action_plan = plan_scene(tree, frame, config=cfg.act)
         return SceneResult(

@@ -74,8 +74,7 @@ def column_clearance(frame: Frame, config: ActConfig | None = None) -> NDArray[n
     cfg = config or ActConfig()
     depth = np.asarray(frame.depth, dtype=np.float32)
     if depth.ndim != 2:
-        raise InputError(f"{frame.name or f'frame {frame.index}'}: expected a 2-D depth image, "
-                         f"got shape {depth.shape}")
+        raise InputError(f"{frame.name or f'frame {frame.index}'}: expected a 2-D depth image, got shape {depth.shape}")
     h, _ = depth.shape
     k = frame.intrinsics
     if k is not None:
@@ -100,8 +99,7 @@ def column_clearance(frame: Frame, config: ActConfig | None = None) -> NDArray[n
         lo = np.zeros(h)
         hi = np.full(h, -np.inf)  # rows outside the band admit no depth
         hi[r0:r1] = np.inf
-    return _column_min(depth, np.ascontiguousarray(frame.valid, np.bool_), lo.astype(np.float32),
-                       hi.astype(np.float32))
+    return _column_min(depth, np.ascontiguousarray(frame.valid, np.bool_), lo.astype(np.float32), hi.astype(np.float32))
 
 
 @njit(cache=True)

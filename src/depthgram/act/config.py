@@ -84,8 +84,16 @@ class ActConfig:
 
     def __post_init__(self) -> None:
         for name in (
-            "reach_mm", "grasp_max_mm", "grasp_max_px", "safety_mm", "lookahead_mm", "body_width_mm",
-            "body_width_px", "sensor_height_mm", "body_height_mm", "ttc_warning_s",
+            "reach_mm",
+            "grasp_max_mm",
+            "grasp_max_px",
+            "safety_mm",
+            "lookahead_mm",
+            "body_width_mm",
+            "body_width_px",
+            "sensor_height_mm",
+            "body_height_mm",
+            "ttc_warning_s",
         ):
             _positive(name, getattr(self, name))
         for name in ("grasp_min_mm", "grasp_min_px", "floor_margin_mm"):
@@ -93,18 +101,24 @@ class ActConfig:
             if not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
                 raise InputError(f"act: {name} must be a finite number >= 0, got {v!r}")
         if self.grasp_min_mm >= self.grasp_max_mm:
-            raise InputError(f"act: grasp_min_mm ({self.grasp_min_mm}) must be below grasp_max_mm "
-                             f"({self.grasp_max_mm})")
+            raise InputError(
+                f"act: grasp_min_mm ({self.grasp_min_mm}) must be below grasp_max_mm ({self.grasp_max_mm})"
+            )
         if self.grasp_min_px >= self.grasp_max_px:
-            raise InputError(f"act: grasp_min_px ({self.grasp_min_px}) must be below grasp_max_px "
-                             f"({self.grasp_max_px})")
+            raise InputError(
+                f"act: grasp_min_px ({self.grasp_min_px}) must be below grasp_max_px ({self.grasp_max_px})"
+            )
         if self.floor_margin_mm >= self.body_height_mm:
-            raise InputError(f"act: floor_margin_mm ({self.floor_margin_mm}) must be below body_height_mm "
-                             f"({self.body_height_mm})")
+            raise InputError(
+                f"act: floor_margin_mm ({self.floor_margin_mm}) must be below body_height_mm ({self.body_height_mm})"
+            )
         for name in ("band_rows", "path_corridor"):
             lo_hi = getattr(self, name)
-            if (len(lo_hi) != 2 or not all(isinstance(x, (int, float)) for x in lo_hi)
-                    or not 0.0 <= lo_hi[0] < lo_hi[1] <= 1.0):
+            if (
+                len(lo_hi) != 2
+                or not all(isinstance(x, (int, float)) for x in lo_hi)
+                or not 0.0 <= lo_hi[0] < lo_hi[1] <= 1.0
+            ):
                 raise InputError(f"act: {name} must be two fractions 0 <= lo < hi <= 1, got {lo_hi!r}")
         if self.channel_choice not in CHANNEL_CHOICES:
             raise InputError(f"act: channel_choice must be one of {CHANNEL_CHOICES}, got {self.channel_choice!r}")

@@ -192,8 +192,10 @@ def plan(
     cfg = config or ActConfig()
     if frame is not None:
         if frame_size is not None and tuple(frame_size) != frame.size:
-            raise InputError(f"{frame.name or f'frame {frame.index}'}: frame_size {frame_size} differs from "
-                             f"the frame's size {frame.size}")
+            raise InputError(
+                f"{frame.name or f'frame {frame.index}'}: frame_size {frame_size} differs from "
+                f"the frame's size {frame.size}"
+            )
         size = frame.size
         k = frame.intrinsics
     elif frame_size is not None:
@@ -242,7 +244,9 @@ def plan_to_dict(p: Plan) -> dict[str, Any]:
             for a in p.actions
         ],
         "channel_checked": p.channel_checked,
-        "channel": None if ch is None else {
+        "channel": None
+        if ch is None
+        else {
             "columns": [ch.col_start, ch.col_stop],
             "center_col": ch.center_col,
             "width_px": ch.width_px,
@@ -259,16 +263,18 @@ def plan_to_dict(p: Plan) -> dict[str, Any]:
 
 def plan_to_text(p: Plan) -> str:
     """The plan as a few lines for people: warnings first, then actions, then the channel."""
-    lines = [f"WARNING object {w.object_id}: time to collision {w.ttc:.2f} at {w.depth_mm:.0f} mm"
-             for w in p.warnings]
+    lines = [f"WARNING object {w.object_id}: time to collision {w.ttc:.2f} at {w.depth_mm:.0f} mm" for w in p.warnings]
     for a in p.actions:
         d = ", ".join(f"{c:+.2f}" for c in a.direction)
-        lines.append(f"{a.action:<7} object {a.object_id} ({a.kind}, label {a.depth_label}) "
-                     f"at {a.distance_mm:.0f} mm toward ({d}): {a.reason}")
+        lines.append(
+            f"{a.action:<7} object {a.object_id} ({a.kind}, label {a.depth_label}) "
+            f"at {a.distance_mm:.0f} mm toward ({d}): {a.reason}"
+        )
     ch = p.channel
     if ch is None:
-        lines.append("channel: blocked (no opening wide enough)" if p.channel_checked
-                     else "channel: unknown (no depth image)")
+        lines.append(
+            "channel: blocked (no opening wide enough)" if p.channel_checked else "channel: unknown (no depth image)"
+        )
     else:
         where = f"columns {ch.col_start}-{ch.col_stop}"
         if ch.angle_deg is not None and ch.width_mm is not None:

@@ -50,7 +50,7 @@ def add_source_arguments(p: argparse.ArgumentParser, *, input_optional: bool = F
         metavar="INPUT",
         nargs="?" if input_optional else None,
         help="file, folder or glob of depth frames, .npy/.npz stack, ROS bag / MCAP, realsense:[SERIAL], "
-             "or sim:SCENE (table, corridor, approach, crossing, ball_wall, touching; ?sensor=sl: structured light)",
+        "or sim:SCENE (table, corridor, approach, crossing, ball_wall, touching; ?sensor=sl: structured light)",
     )
     add_reading_arguments(p)
 
@@ -62,25 +62,56 @@ def add_reading_arguments(p: argparse.ArgumentParser) -> None:
     :func:`depthgram.sources.open_source` (``depthgram batch`` passes them to every recording).
     """
     g = p.add_argument_group("reading the input")
-    g.add_argument("--scale", type=float, default=None, metavar="MM_PER_UNIT",
-                   help="millimetres per raw unit (default 1 for integer images, 1000 for float = metres; "
-                        "0.2 for TUM's 5000 per metre, 0.1 for YCB-Video)")
-    g.add_argument("--invalid", type=float, nargs="+", default=[], metavar="VALUE",
-                   help="raw values that mean no reading (0 always does, and 65535 in 16-bit images)")
-    g.add_argument("--fps", type=float, default=None, metavar="RATE",
-                   help="frame rate (frames/s) of frames without timestamps")
-    g.add_argument("--timestamps", default=None, metavar="FILE",
-                   help="file with one time (s) per frame, or 'index time' pairs")
-    g.add_argument("--encoding", default="auto", choices=ENCODINGS,
-                   help="sample encoding: auto; mm / m (units whatever the dtype); 8bit (the paper's 0-255, "
-                        "with --range); sun (SUN RGB-D bit shift); kinect-disparity (NYU raw PGM)")
-    g.add_argument("--stills", "--no-track", dest="stills", default=None, nargs="?", const="yes",
-                   choices=["yes", "no", "auto"],
-                   help="the frames are unrelated still images: no motion (velocity, time to collision, approach "
-                        "alarm) is read between them. 'no': one recording, always track; default 'auto' (or the "
-                        "config's 'stills'): tracks are dropped between frames with nothing in common")
-    g.add_argument("--range", type=float, nargs=2, default=None, metavar=("NEAR_MM", "FAR_MM"),
-                   dest="depth_range", help="depth range in mm: of the 8-bit codes 1..255, else the valid range")
+    g.add_argument(
+        "--scale",
+        type=float,
+        default=None,
+        metavar="MM_PER_UNIT",
+        help="millimetres per raw unit (default 1 for integer images, 1000 for float = metres; "
+        "0.2 for TUM's 5000 per metre, 0.1 for YCB-Video)",
+    )
+    g.add_argument(
+        "--invalid",
+        type=float,
+        nargs="+",
+        default=[],
+        metavar="VALUE",
+        help="raw values that mean no reading (0 always does, and 65535 in 16-bit images)",
+    )
+    g.add_argument(
+        "--fps", type=float, default=None, metavar="RATE", help="frame rate (frames/s) of frames without timestamps"
+    )
+    g.add_argument(
+        "--timestamps", default=None, metavar="FILE", help="file with one time (s) per frame, or 'index time' pairs"
+    )
+    g.add_argument(
+        "--encoding",
+        default="auto",
+        choices=ENCODINGS,
+        help="sample encoding: auto; mm / m (units whatever the dtype); 8bit (the paper's 0-255, "
+        "with --range); sun (SUN RGB-D bit shift); kinect-disparity (NYU raw PGM)",
+    )
+    g.add_argument(
+        "--stills",
+        "--no-track",
+        dest="stills",
+        default=None,
+        nargs="?",
+        const="yes",
+        choices=["yes", "no", "auto"],
+        help="the frames are unrelated still images: no motion (velocity, time to collision, approach "
+        "alarm) is read between them. 'no': one recording, always track; default 'auto' (or the "
+        "config's 'stills'): tracks are dropped between frames with nothing in common",
+    )
+    g.add_argument(
+        "--range",
+        type=float,
+        nargs=2,
+        default=None,
+        metavar=("NEAR_MM", "FAR_MM"),
+        dest="depth_range",
+        help="depth range in mm: of the 8-bit codes 1..255, else the valid range",
+    )
     g.add_argument("--topic", default=None, help="depth Image topic of a ROS bag (when it has several)")
     g.add_argument("--key", default=None, help="array name inside an .npz")
 
@@ -104,8 +135,9 @@ def reading_options(args: argparse.Namespace) -> dict[str, Any]:
 def add_config_arguments(p: argparse.ArgumentParser) -> None:
     """--config and the most used segmentation setting."""
     p.add_argument("--config", default=None, metavar="TOML", help="pipeline settings (see depthgram config --dump)")
-    p.add_argument("--method", default=None, choices=METHODS,
-                   help="segmentation method (default from the config: surfaces)")
+    p.add_argument(
+        "--method", default=None, choices=METHODS, help="segmentation method (default from the config: surfaces)"
+    )
 
 
 def open_input(args: argparse.Namespace) -> Source:
@@ -135,8 +167,9 @@ def progress(iterable: Any, *, total: int | None, desc: str, quiet: bool = False
     """A tqdm progress bar on standard error; silent with --quiet or when not a terminal."""
     from tqdm import tqdm
 
-    return tqdm(iterable, total=total, desc=desc, unit="frame", disable=quiet or not sys.stderr.isatty(),
-                file=sys.stderr)
+    return tqdm(
+        iterable, total=total, desc=desc, unit="frame", disable=quiet or not sys.stderr.isatty(), file=sys.stderr
+    )
 
 
 def source_len(src: object) -> int | None:
@@ -179,8 +212,10 @@ def add_output_argument(p: argparse.ArgumentParser, flag: str, what: str, *, bar
 
 def deprecated(command: str, old: str, new: str) -> None:
     """Tell the user (on standard error) that a spelling goes in the next release."""
-    print(f"depthgram {command}: warning: {old} is deprecated and will be removed in the next release; "
-          f"use {new}", file=sys.stderr)
+    print(
+        f"depthgram {command}: warning: {old} is deprecated and will be removed in the next release; use {new}",
+        file=sys.stderr,
+    )
 
 
 def output_target(args: argparse.Namespace, dest: str) -> str | None:

@@ -15,8 +15,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("inputs", nargs="+", metavar="INPUT", help="recordings (files, folders, bags, sim:SCENE)")
     p.add_argument("--out", required=True, metavar="DIR", help="output root; one folder per recording")
     p.add_argument("--workers", type=int, default=None, help="local worker processes (default: all cores)")
-    p.add_argument("--scheduler", default=None, metavar="ADDRESS",
-                   help="Dask distributed scheduler address, e.g. tcp://10.0.0.5:8786")
+    p.add_argument(
+        "--scheduler",
+        default=None,
+        metavar="ADDRESS",
+        help="Dask distributed scheduler address, e.g. tcp://10.0.0.5:8786",
+    )
     p.add_argument("--config", default=None, metavar="TOML", help="pipeline settings")
     add_reading_arguments(p)  # the same reading options as every command, applied to each recording
     p.add_argument("--quiet", action="store_true", help="no per-recording lines")
@@ -37,9 +41,19 @@ def run(args: argparse.Namespace) -> int:
         detail = f"{r.frames} frames, {r.objects} objects" if r.status != "failed" else r.error
         print(f"{r.status:8s} {r.input}: {detail}", file=sys.stderr)
 
-    results = run_batch(args.inputs, args.out, config=cfg.to_dict(), source_options=opts, workers=args.workers,
-                        scheduler=args.scheduler, track=True, on_done=show)
+    results = run_batch(
+        args.inputs,
+        args.out,
+        config=cfg.to_dict(),
+        source_options=opts,
+        workers=args.workers,
+        scheduler=args.scheduler,
+        track=True,
+        on_done=show,
+    )
     failed = [r for r in results if r.status == "failed"]
-    print(f"{len(results)} recordings: {sum(r.status == 'done' for r in results)} done, "
-          f"{sum(r.status == 'skipped' for r in results)} skipped (finished before), {len(failed)} failed")
+    print(
+        f"{len(results)} recordings: {sum(r.status == 'done' for r in results)} done, "
+        f"{sum(r.status == 'skipped' for r in results)} skipped (finished before), {len(failed)} failed"
+    )
     return 1 if failed else 0

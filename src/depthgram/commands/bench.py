@@ -27,11 +27,16 @@ SUITES = {
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("suites", nargs="*", default=[], metavar="SUITE",
-                   help=f"which benchmarks: {', '.join(SUITES)} (default: all)")
+    p.add_argument(
+        "suites", nargs="*", default=[], metavar="SUITE", help=f"which benchmarks: {', '.join(SUITES)} (default: all)"
+    )
     p.add_argument("--quick", action="store_true", help="fewer repetitions (a rough figure in seconds)")
-    p.add_argument("--dir", default=None, metavar="BENCHMARKS",
-                   help="the benchmarks/ folder of a depthgram checkout (default: the one this depthgram runs from)")
+    p.add_argument(
+        "--dir",
+        default=None,
+        metavar="BENCHMARKS",
+        help="the benchmarks/ folder of a depthgram checkout (default: the one this depthgram runs from)",
+    )
 
 
 def benchmarks_dir() -> Path | None:

@@ -26,18 +26,29 @@ HELP = "describe every frame: objects, tree, sentence, motion (JSON lines or tex
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.epilog = ("Outputs name their file, '-' being standard output; with none of --json, --text and --mcap "
-                "the JSON lines go to standard output. Several may be given: the input is read once.")
+    p.epilog = (
+        "Outputs name their file, '-' being standard output; with none of --json, --text and --mcap "
+        "the JSON lines go to standard output. Several may be given: the input is read once."
+    )
     add_pipeline_arguments(p, stills=True)
     add_output_argument(p, "--json", "one JSON line per frame")
     add_output_argument(p, "--text", "one sentence per frame")
-    p.add_argument("--mcap", default=None, metavar="FILE",
-                   help="write the scene stream as MCAP with Foxglove's schemas (depth image, object outlines, "
-                        "3-D boxes, the sentence as a log line): opens in Foxglove with no plugin")
-    p.add_argument("--format", choices=["json", "text"], default=None,
-                   help="deprecated: --format text is --text -, --format json is --json -")
-    p.add_argument("--labels-dir", default=None, metavar="DIR",
-                   help="write a 16-bit PNG label map per frame (pixel = object id)")
+    p.add_argument(
+        "--mcap",
+        default=None,
+        metavar="FILE",
+        help="write the scene stream as MCAP with Foxglove's schemas (depth image, object outlines, "
+        "3-D boxes, the sentence as a log line): opens in Foxglove with no plugin",
+    )
+    p.add_argument(
+        "--format",
+        choices=["json", "text"],
+        default=None,
+        help="deprecated: --format text is --text -, --format json is --json -",
+    )
+    p.add_argument(
+        "--labels-dir", default=None, metavar="DIR", help="write a 16-bit PNG label map per frame (pixel = object id)"
+    )
 
 
 def label_file_name(frame_name: str, index: int) -> str:

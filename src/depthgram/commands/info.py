@@ -67,8 +67,10 @@ def run(args: argparse.Namespace) -> int:
     if n is None and src.live:
         # a camera streams for ever: summarise a fixed number of its frames
         spec = f"{args.input}{'&' if '?' in args.input else '?'}frames={_LIVE_FRAMES}"
-        print(f"depthgram info: live camera: summarising its first {_LIVE_FRAMES} frames "
-              f"(add ?frames=N to choose)", file=sys.stderr)
+        print(
+            f"depthgram info: live camera: summarising its first {_LIVE_FRAMES} frames (add ?frames=N to choose)",
+            file=sys.stderr,
+        )
         args.input, n = spec, _LIVE_FRAMES
         src = open_input(args)
     # Same rule as the other commands: no bar in logs or pipes.

@@ -19,8 +19,9 @@ HELP = "print the action plan per frame: grasp / avoid per object, the clearance
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.epilog = ("The plan is printed as text on standard output unless --json or --text names a file "
-                "('-' is standard output).")
+    p.epilog = (
+        "The plan is printed as text on standard output unless --json or --text names a file ('-' is standard output)."
+    )
     add_pipeline_arguments(p, input_optional=True)
     add_output_argument(p, "--json", "one JSON line per frame", bare_deprecated=True)
     add_output_argument(p, "--text", "the plan as text")
@@ -42,8 +43,10 @@ def run(args: argparse.Namespace) -> int:
         for result in results:
             f = result.frame
             if js is not None:
-                js.write(json.dumps({"frame": f.index, "time_s": f.time_s, "source": f.name,
-                                     **plan_to_dict(result.plan)}) + "\n")
+                js.write(
+                    json.dumps({"frame": f.index, "time_s": f.time_s, "source": f.name, **plan_to_dict(result.plan)})
+                    + "\n"
+                )
             if tx is not None:
                 tx.write(f"# frame {f.index} ({f.name})\n{plan_to_text(result.plan)}\n")
     return 0

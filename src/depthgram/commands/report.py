@@ -13,8 +13,12 @@ HELP = "write pictures (objects, histogram, tree, tracks) and an index.html for 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     add_pipeline_arguments(p, stills=True)
     p.add_argument("--out", required=True, metavar="DIR", help="folder to write the report into")
-    p.add_argument("--pictures", type=int, default=6,
-                   help="how many frames to picture, spread evenly from the first to the last (default 6)")
+    p.add_argument(
+        "--pictures",
+        type=int,
+        default=6,
+        help="how many frames to picture, spread evenly from the first to the last (default 6)",
+    )
 
 
 def run(args: argparse.Namespace) -> int:

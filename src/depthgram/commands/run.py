@@ -17,9 +17,14 @@ HELP = "play a recording at its frame rate (or --fast) and report per-frame late
 def add_arguments(p: argparse.ArgumentParser) -> None:
     add_pipeline_arguments(p)
     p.add_argument("--fast", action="store_true", help="as fast as possible instead of the recording's rate")
-    p.add_argument("--read-ahead", type=int, default=2, metavar="N",
-                   help="frames decoded ahead in a thread beside the pipeline, as a sensor delivers them "
-                        "(default 2; 0 reads on the pipeline's thread)")
+    p.add_argument(
+        "--read-ahead",
+        type=int,
+        default=2,
+        metavar="N",
+        help="frames decoded ahead in a thread beside the pipeline, as a sensor delivers them "
+        "(default 2; 0 reads on the pipeline's thread)",
+    )
     p.add_argument("--print", dest="print_sentences", action="store_true", help="print each frame's sentence")
 
 
@@ -80,8 +85,12 @@ def run(args: argparse.Namespace) -> int:
         return 1
     lat = np.asarray(latencies) * 1e3
     mode = "as fast as possible" if period is None else f"at {1.0 / period:.1f} frames/s"
-    print(f"{n + dropped} frames played {mode} in {wall:.2f} s: {n} processed, {dropped} dropped "
-          f"(start-up before the first frame: {warm_s * 1e3:.0f} ms)")
-    print(f"latency per frame: median {np.median(lat):.2f} ms, p95 {np.percentile(lat, 95):.2f} ms, "
-          f"max {lat.max():.2f} ms; throughput {n / wall:.1f} frames/s")
+    print(
+        f"{n + dropped} frames played {mode} in {wall:.2f} s: {n} processed, {dropped} dropped "
+        f"(start-up before the first frame: {warm_s * 1e3:.0f} ms)"
+    )
+    print(
+        f"latency per frame: median {np.median(lat):.2f} ms, p95 {np.percentile(lat, 95):.2f} ms, "
+        f"max {lat.max():.2f} ms; throughput {n / wall:.1f} frames/s"
+    )
     return 0

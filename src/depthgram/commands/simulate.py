@@ -29,12 +29,21 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", required=True, help="output folder (created when missing)")
     parser.add_argument("--seed", type=int, default=0, help="noise seed (default 0)")
     parser.add_argument("--fps", type=float, default=30.0, help="frame rate in frames per second (default 30)")
-    parser.add_argument("--bits", type=int, choices=(8, 16), default=16,
-                        help="sensor quantization: 16 (mm) or 8 (the paper's 0-255 over 3 m); PNGs stay mm")
+    parser.add_argument(
+        "--bits",
+        type=int,
+        choices=(8, 16),
+        default=16,
+        help="sensor quantization: 16 (mm) or 8 (the paper's 0-255 over 3 m); PNGs stay mm",
+    )
     parser.add_argument("--no-noise", action="store_true", help="no shot or read noise (no disparity noise)")
-    parser.add_argument("--sensor", default="tof", choices=("tof", "structured-light", "sl"),
-                        help="tof (default) or structured-light / sl: a Kinect v1 / Xtion-like camera "
-                             "(1/8 px disparity steps, projector shadows, registration holes)")
+    parser.add_argument(
+        "--sensor",
+        default="tof",
+        choices=("tof", "structured-light", "sl"),
+        help="tof (default) or structured-light / sl: a Kinect v1 / Xtion-like camera "
+        "(1/8 px disparity steps, projector shadows, registration holes)",
+    )
 
 
 def parse_size(text: str) -> tuple[int, int]:
@@ -79,8 +88,16 @@ def run(args: argparse.Namespace) -> int:
     if structured and args.bits != 16:
         raise InputError("--bits applies to the tof sensor only (structured light is read in mm)")
     tof = None if structured else dataclasses.replace(build_scene(args.scene, size).tof, bits=args.bits)
-    frames = simulate(args.scene, args.frames, size=size, fps=args.fps, seed=args.seed, tof=tof,
-                      noise=not args.no_noise, sensor=args.sensor)
+    frames = simulate(
+        args.scene,
+        args.frames,
+        size=size,
+        fps=args.fps,
+        seed=args.seed,
+        tof=tof,
+        noise=not args.no_noise,
+        sensor=args.sensor,
+    )
 
     out = Path(args.out)
     dirs = {name: out / name for name in ("depth", "instances", "truth")}
@@ -101,17 +118,34 @@ def run(args: argparse.Namespace) -> int:
             raise InputError(f"{path}: could not write ({exc.strerror or exc})") from exc
 
     camera_written = False
-    bar = tqdm(frames, total=args.frames, unit="frame", desc=f"simulate {args.scene}",
-               disable=not sys.stderr.isatty(), file=sys.stderr)
+    bar = tqdm(
+        frames,
+        total=args.frames,
+        unit="frame",
+        desc=f"simulate {args.scene}",
+        disable=not sys.stderr.isatty(),
+        file=sys.stderr,
+    )
     for sim in bar:
         f = sim.frame
         stem = f"{f.index:06d}"
         if not camera_written:
             k = f.intrinsics
             assert k is not None  # the simulator always knows its camera
-            camera = {"fx": k.fx, "fy": k.fy, "cx": k.cx, "cy": k.cy, "fps": float(args.fps), "unit": "mm",
-                      "scene": args.scene, "seed": args.seed, "bits": args.bits, "sensor": f.meta.get("sensor", "tof"),
-                      "width": size[0], "height": size[1]}
+            camera = {
+                "fx": k.fx,
+                "fy": k.fy,
+                "cx": k.cx,
+                "cy": k.cy,
+                "fps": float(args.fps),
+                "unit": "mm",
+                "scene": args.scene,
+                "seed": args.seed,
+                "bits": args.bits,
+                "sensor": f.meta.get("sensor", "tof"),
+                "width": size[0],
+                "height": size[1],
+            }
             write_text(dirs["depth"] / "camera.json", json.dumps(camera, indent=2) + "\n")
             camera_written = True
         write_png(dirs["depth"] / f"{stem}.png", np.rint(f.depth).astype(np.uint16))

@@ -23,25 +23,39 @@ GAP_S = 0.3
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.epilog = ("A recording plays at its own rate (its timestamps, its stated rate or --fps); frames with no "
-                "rate and no timestamps are refused: give --fps, or --stills for unrelated pictures. A still "
-                "image, or each picture of a folder of stills, plays for long enough to hear every object at "
-                "least twice. The cues: docs/sound-mapping.md; learn them with 'depthgram lesson DIR'.")
+    p.epilog = (
+        "A recording plays at its own rate (its timestamps, its stated rate or --fps); frames with no "
+        "rate and no timestamps are refused: give --fps, or --stills for unrelated pictures. A still "
+        "image, or each picture of a folder of stills, plays for long enough to hear every object at "
+        "least twice. The cues: docs/sound-mapping.md; learn them with 'depthgram lesson DIR'."
+    )
     add_pipeline_arguments(p)
     p.add_argument("--wav", required=True, metavar="OUT.wav", help="audio file to write")
     p.add_argument("--preset", default=None, help="sound mapping preset (overrides the config's [sound])")
     p.add_argument("--samplerate", type=int, default=22050, help="samples per second")
-    p.add_argument("--still-duration", type=float, default=None, metavar="S",
-                   help="seconds of sound per still image (default: long enough to hear every object twice)")
+    p.add_argument(
+        "--still-duration",
+        type=float,
+        default=None,
+        metavar="S",
+        help="seconds of sound per still image (default: long enough to hear every object twice)",
+    )
 
 
 class _Writer:
     """Writes results to the WAV as they come: recordings streamed, stills as separate scans."""
 
-    def __init__(self, wav: Any, mapping: SoundMapping, samplerate: int, fps: float | None,
-                 still_s: float | None, where: str) -> None:
+    def __init__(
+        self, wav: Any, mapping: SoundMapping, samplerate: int, fps: float | None, still_s: float | None, where: str
+    ) -> None:
         self.wav, self.mapping, self.sr, self.fps, self.still_s, self.where = (
-            wav, mapping, samplerate, fps, still_s, where)
+            wav,
+            mapping,
+            samplerate,
+            fps,
+            still_s,
+            where,
+        )
         self.pending: SceneResult | None = None
         self.run = 0  # frames of the current run (recording) so far, the pending one included
         self.stream: Sonifier | None = None
@@ -117,8 +131,14 @@ class _Writer:
 
         if self.samples:
             self._write(np.zeros((round(GAP_S * self.sr), 2), np.float32))
-        audio = render_scene(r.tree, r.frame.size, mapping=self.mapping, duration_s=self.still_s,
-                             samplerate=self.sr, objects=r.segmentation.objects)
+        audio = render_scene(
+            r.tree,
+            r.frame.size,
+            mapping=self.mapping,
+            duration_s=self.still_s,
+            samplerate=self.sr,
+            objects=r.segmentation.objects,
+        )
         self._write(audio)
         self.frames += 1
         self.stills.append((r, len(audio) / self.sr))
@@ -130,13 +150,17 @@ class _Writer:
     def summary(self, out: str) -> list[str]:
         from depthgram.sound.words import hearing
 
-        lines = [f"wrote {out}: {self.samples / self.sr:.1f} s of stereo audio at {self.sr} Hz, "
-                 f"{self.frames} frame(s): {self.streamed} of recordings, {len(self.stills)} still(s)"]
+        lines = [
+            f"wrote {out}: {self.samples / self.sr:.1f} s of stereo audio at {self.sr} Hz, "
+            f"{self.frames} frame(s): {self.streamed} of recordings, {len(self.stills)} still(s)"
+        ]
         if self.streamed:
             rates = ", ".join(f"{n} frame periods from {src}" for src, n in self.periods.most_common())
-            lines.append(f"  recordings at their real time ({rates or 'one frame'}); up to {self.most[0]} "
-                         f"object(s) beeping and {self.most[1]} surface(s) humming at once, "
-                         f"{len(self.voiced)} object id(s) voiced in all")
+            lines.append(
+                f"  recordings at their real time ({rates or 'one frame'}); up to {self.most[0]} "
+                f"object(s) beeping and {self.most[1]} surface(s) humming at once, "
+                f"{len(self.voiced)} object id(s) voiced in all"
+            )
             for why, n in self.left_out.most_common():
                 lines.append(f"  {n} time(s) a node was left out: {why}")
         for r, seconds in self.stills:

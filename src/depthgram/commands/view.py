@@ -15,25 +15,41 @@ _LOOPBACK = ("127.0.0.1", "localhost", "::1")
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.epilog = ("--fps also sets the playback rate at speed 1 (default: the recording's own rate, else 30 "
-                "frames/s). One server plays one recording; every open page shares its playback controls.")
+    p.epilog = (
+        "--fps also sets the playback rate at speed 1 (default: the recording's own rate, else 30 "
+        "frames/s). One server plays one recording; every open page shares its playback controls."
+    )
     add_source_arguments(p)
     add_config_arguments(p)
     g = p.add_argument_group("viewer")
-    g.add_argument("--host", default="127.0.0.1",
-                   help="address to listen on (default 127.0.0.1: this machine only). Any other address "
-                        "needs --allow-host or an access token (printed in the address, made up when not given)")
-    g.add_argument("--allow-host", action="append", default=[], metavar="NAME",
-                   help="a host name (or address) pages reach this server by, beyond loopback; repeatable")
-    g.add_argument("--token", default=None,
-                   help="access token required of every request (the page keeps it in a cookie once opened "
-                        "with ?token=...); default: made up when --host is not loopback and no --allow-host")
+    g.add_argument(
+        "--host",
+        default="127.0.0.1",
+        help="address to listen on (default 127.0.0.1: this machine only). Any other address "
+        "needs --allow-host or an access token (printed in the address, made up when not given)",
+    )
+    g.add_argument(
+        "--allow-host",
+        action="append",
+        default=[],
+        metavar="NAME",
+        help="a host name (or address) pages reach this server by, beyond loopback; repeatable",
+    )
+    g.add_argument(
+        "--token",
+        default=None,
+        help="access token required of every request (the page keeps it in a cookie once opened "
+        "with ?token=...); default: made up when --host is not loopback and no --allow-host",
+    )
     g.add_argument("--port", type=int, default=8765, help="TCP port (0 picks a free one)")
     g.add_argument("--no-browser", action="store_true", help="do not open a browser window")
     g.add_argument("--speed", type=float, default=1.0, help="initial playback speed factor, in (0, 16]")
     g.add_argument("--no-loop", action="store_true", help="pause at the end instead of starting over")
-    g.add_argument("--compress", action="store_true",
-                   help="compress each frame's depth and labels (about 3 x smaller, for slow links)")
+    g.add_argument(
+        "--compress",
+        action="store_true",
+        help="compress each frame's depth and labels (about 3 x smaller, for slow links)",
+    )
     g.add_argument("--jpeg", action="store_true", help=argparse.SUPPRESS)  # deprecated: --compress
 
 
@@ -77,20 +93,36 @@ def run(args: argparse.Namespace) -> int:
     src = open_input(args)
     cfg = load_config(args)
     if args.jpeg:
-        print("depthgram view: --jpeg is deprecated (frames are no longer pictures): use --compress",
-              file=sys.stderr)
+        print("depthgram view: --jpeg is deprecated (frames are no longer pictures): use --compress", file=sys.stderr)
     viewer = ViewerConfig(fps=args.fps, speed=args.speed, loop=not args.no_loop, compress=args.compress or args.jpeg)
-    player = Player(lambda: iter(src), recording_name(args.input), cfg, viewer,
-                    frames=source_len(src), fps=getattr(src, "fps", None), seekable=not getattr(src, "live", False))
+    player = Player(
+        lambda: iter(src),
+        recording_name(args.input),
+        cfg,
+        viewer,
+        frames=source_len(src),
+        fps=getattr(src, "fps", None),
+        seekable=not getattr(src, "live", False),
+    )
     hosts, token = access(args.host, args.allow_host, args.token)
     if token is not None and args.token is None:
-        print(f"depthgram view: listening on {args.host}: pages need the access token in the address "
-              "printed below (or name the host with --allow-host)", file=sys.stderr)
-    server = uvicorn.Server(uvicorn.Config(create_app(player, allowed_hosts=hosts, token=token), host=args.host,
-                                           port=args.port, log_level="warning", ws_max_size=MAX_BODY_BYTES,
-                                           # frames are raw arrays: deflating ~1 MB each on the
-                                           # event loop cost ~100 ms a frame on 7-Scenes
-                                           ws_per_message_deflate=False))
+        print(
+            f"depthgram view: listening on {args.host}: pages need the access token in the address "
+            "printed below (or name the host with --allow-host)",
+            file=sys.stderr,
+        )
+    server = uvicorn.Server(
+        uvicorn.Config(
+            create_app(player, allowed_hosts=hosts, token=token),
+            host=args.host,
+            port=args.port,
+            log_level="warning",
+            ws_max_size=MAX_BODY_BYTES,
+            # frames are raw arrays: deflating ~1 MB each on the
+            # event loop cost ~100 ms a frame on 7-Scenes
+            ws_per_message_deflate=False,
+        )
+    )
 
     def announce() -> None:
         # The port is known only once the socket is bound (--port 0).
@@ -132,13 +164,15 @@ def bind_port(host: str, port: int) -> socket.socket:
     except OSError as exc:
         sock.close()
         if exc.errno == errno.EADDRINUSE:
-            raise InputError(f"port {port} on {host} is already in use (another depthgram view?): "
-                             "stop it, or choose another with --port N (--port 0 picks a free one)") from None
+            raise InputError(
+                f"port {port} on {host} is already in use (another depthgram view?): "
+                "stop it, or choose another with --port N (--port 0 picks a free one)"
+            ) from None
         if exc.errno == errno.EACCES:
-            raise InputError(f"port {port} on {host}: permission denied (ports below 1024 need root): "
-                             "choose another with --port N") from None
+            raise InputError(
+                f"port {port} on {host}: permission denied (ports below 1024 need root): choose another with --port N"
+            ) from None
         raise InputError(f"cannot listen on {host}:{port}: {exc.strerror or exc}") from None
     sock.listen(128)
     sock.set_inheritable(True)
     return sock
-

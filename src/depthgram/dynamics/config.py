@@ -164,8 +164,12 @@ class TrackerConfig:
         _check(self.center_tau_s > 0, "center_tau_s", self.center_tau_s, "> 0 s")
         _check(self.estimator in ("kalman", "queue"), "estimator", self.estimator, "'kalman' or 'queue'")
         _check(self.innovation_gate > 0, "innovation_gate", self.innovation_gate, "> 0")
-        _check(self.depth_sigma_mm + self.depth_sigma_floor_mm > 0, "depth_sigma_mm", self.depth_sigma_mm,
-               "a positive noise (with depth_sigma_floor_mm)")
+        _check(
+            self.depth_sigma_mm + self.depth_sigma_floor_mm > 0,
+            "depth_sigma_mm",
+            self.depth_sigma_mm,
+            "a positive noise (with depth_sigma_floor_mm)",
+        )
         _check(self.area_tau_s > 0, "area_tau_s", self.area_tau_s, "> 0 s")
         f = self.fps
         ok = f is None or (

@@ -155,15 +155,24 @@ def mark_behind(f: NDArray[np.float64]) -> None:
             if i == j or not f[i, F_Z] < 0.95 * f[j, F_Z]:
                 continue
             # half-open boxes: x0 <= other x1 means overlapping or adjacent
-            if (f[j, F_X0] <= f[i, F_X0 + 2] and f[i, F_X0] <= f[j, F_X0 + 2]
-                    and f[j, F_X0 + 1] <= f[i, F_X0 + 3] and f[i, F_X0 + 1] <= f[j, F_X0 + 3]):
+            if (
+                f[j, F_X0] <= f[i, F_X0 + 2]
+                and f[i, F_X0] <= f[j, F_X0 + 2]
+                and f[j, F_X0 + 1] <= f[i, F_X0 + 3]
+                and f[i, F_X0 + 1] <= f[j, F_X0 + 3]
+            ):
                 f[j, F_BEHIND] = 1.0
                 break
 
 
 @njit(cache=True)
 def predict_cost(
-    s: NDArray[np.float64], n: int, f: NDArray[np.float64], diagonal_px: float, t_now: float, dt: float,
+    s: NDArray[np.float64],
+    n: int,
+    f: NDArray[np.float64],
+    diagonal_px: float,
+    t_now: float,
+    dt: float,
     p: NDArray[np.float64],
 ) -> NDArray[np.float64]:
     """Predict each track forward by the time since its last detection, then cost all pairs."""

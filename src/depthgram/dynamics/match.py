@@ -20,7 +20,6 @@ from depthgram.dynamics.kernels import FORBIDDEN, cost_kernel
 __all__ = ["FORBIDDEN", "assign", "bbox_iou", "cost_kernel", "cost_params", "match_cost"]
 
 
-
 def bbox_iou(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.float64]:
     """Intersection over union of every pair of half-open pixel boxes.
 

@@ -288,9 +288,7 @@ class Tracker:
         self._t_last = t
         return t
 
-    def update(
-        self, objects: Sequence[SceneObject], time_s: float | None, frame_size: tuple[int, int]
-    ) -> TrackUpdate:
+    def update(self, objects: Sequence[SceneObject], time_s: float | None, frame_size: tuple[int, int]) -> TrackUpdate:
         """Match this frame's objects to the tracks and read their motion.
 
         Parameters

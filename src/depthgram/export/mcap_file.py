@@ -93,8 +93,14 @@ _BOX_SAMPLE = 4000
 
 #: Object colours by id (Okabe-Ito, distinguishable with colour-blindness), RGB 0..1.
 _PALETTE = (
-    (0.90, 0.62, 0.0), (0.34, 0.71, 0.91), (0.0, 0.62, 0.45), (0.94, 0.89, 0.26),
-    (0.0, 0.45, 0.70), (0.84, 0.37, 0.0), (0.80, 0.47, 0.65), (0.6, 0.6, 0.6),
+    (0.90, 0.62, 0.0),
+    (0.34, 0.71, 0.91),
+    (0.0, 0.62, 0.45),
+    (0.94, 0.89, 0.26),
+    (0.0, 0.45, 0.70),
+    (0.84, 0.37, 0.0),
+    (0.80, 0.47, 0.65),
+    (0.6, 0.6, 0.6),
 )
 
 #: The JSON schema of ``/depthgram/scene`` (the ``depthgram describe`` line; loose on purpose:
@@ -149,8 +155,9 @@ def object_outlines(
     return out
 
 
-def object_box_m(frame: Frame, labels: NDArray[np.integer], object_id: int, box: tuple[int, int, int, int],
-                 k: Intrinsics) -> tuple[NDArray[np.float64], NDArray[np.float64]] | None:
+def object_box_m(
+    frame: Frame, labels: NDArray[np.integer], object_id: int, box: tuple[int, int, int, int], k: Intrinsics
+) -> tuple[NDArray[np.float64], NDArray[np.float64]] | None:
     """Centre and size (m) of the 3-D box over an object's pixels, in the camera's optical frame.
 
     The 2nd to 98th percentile of the back-projected pixels on each axis: a few stray pixels
@@ -197,8 +204,9 @@ class McapWriter:
     ...         w.add(result)
     """
 
-    def __init__(self, path: str | os.PathLike[str], *, source: str = "", fps: float | None = None,
-                 ttc_warn_s: float = 3.0) -> None:
+    def __init__(
+        self, path: str | os.PathLike[str], *, source: str = "", fps: float | None = None, ttc_warn_s: float = 3.0
+    ) -> None:
         self.path = os.fspath(path)
         self.fps = fps or _DEFAULT_FPS
         self.ttc_warn_s = ttc_warn_s
@@ -232,8 +240,13 @@ class McapWriter:
             self._channels[topic] = self._writer.register_channel(
                 topic=topic, message_encoding=MessageEncoding.Protobuf, schema_id=schema
             )
-        self._writer.add_message(channel_id=self._channels[topic], log_time=t_ns, publish_time=t_ns,
-                                 sequence=self.frames, data=message.SerializeToString())
+        self._writer.add_message(
+            channel_id=self._channels[topic],
+            log_time=t_ns,
+            publish_time=t_ns,
+            sequence=self.frames,
+            data=message.SerializeToString(),
+        )
         self.counts[topic] += 1
 
     def add(self, result: SceneResult) -> None:
@@ -246,15 +259,33 @@ class McapWriter:
         k = frame.intrinsics or assumed_intrinsics(w, h)
 
         depth = np.minimum(np.rint(frame.depth), 65535).astype("<u2")
-        self._write("/depthgram/depth", RawImage(timestamp=stamp, frame_id=FRAME_ID, width=w, height=h,
-                                                 encoding="16UC1", step=2 * w, data=depth.tobytes()), t_ns)
-        self._write("/depthgram/calibration", CameraCalibration(
-            timestamp=stamp, frame_id=FRAME_ID, width=w, height=h,
-            distortion_model="" if frame.intrinsics else "assumed (64 degrees)",
-            K=[k.fx, 0.0, k.cx, 0.0, k.fy, k.cy, 0.0, 0.0, 1.0],
-            R=[1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0],
-            P=[k.fx, 0.0, k.cx, 0.0, 0.0, k.fy, k.cy, 0.0, 0.0, 0.0, 1.0, 0.0],
-        ), t_ns)
+        self._write(
+            "/depthgram/depth",
+            RawImage(
+                timestamp=stamp,
+                frame_id=FRAME_ID,
+                width=w,
+                height=h,
+                encoding="16UC1",
+                step=2 * w,
+                data=depth.tobytes(),
+            ),
+            t_ns,
+        )
+        self._write(
+            "/depthgram/calibration",
+            CameraCalibration(
+                timestamp=stamp,
+                frame_id=FRAME_ID,
+                width=w,
+                height=h,
+                distortion_model="" if frame.intrinsics else "assumed (64 degrees)",
+                K=[k.fx, 0.0, k.cx, 0.0, k.fy, k.cy, 0.0, 0.0, 1.0],
+                R=[1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0],
+                P=[k.fx, 0.0, k.cx, 0.0, 0.0, k.fy, k.cy, 0.0, 0.0, 0.0, 1.0, 0.0],
+            ),
+            t_ns,
+        )
 
         record = result.to_record()
         by_id = {o["id"]: o for o in record["objects"]}
@@ -268,41 +299,88 @@ class McapWriter:
             warn |= ttc is not None and 0 < ttc < self.ttc_warn_s
             label = f"#{obj.id} {obj.kind} {obj.depth / 1000:.2f} m" + (f" ttc {ttc:.1f} s" if ttc is not None else "")
             for poly in object_outlines(labels, obj.id, obj.bbox_xy):
-                points.append(PointsAnnotation(
-                    timestamp=stamp, type=PointsAnnotation.Type.LINE_LOOP, thickness=2.0,
-                    outline_color=colour(obj.id), fill_color=colour(obj.id, 0.15),
-                    points=[Point2(x=float(x), y=float(y)) for x, y in poly],
-                ))
+                points.append(
+                    PointsAnnotation(
+                        timestamp=stamp,
+                        type=PointsAnnotation.Type.LINE_LOOP,
+                        thickness=2.0,
+                        outline_color=colour(obj.id),
+                        fill_color=colour(obj.id, 0.15),
+                        points=[Point2(x=float(x), y=float(y)) for x, y in poly],
+                    )
+                )
             x0, y0 = obj.bbox_xy[:2]
-            texts.append(TextAnnotation(timestamp=stamp, position=Point2(x=float(x0), y=float(y0)), text=label,
-                                        font_size=12.0, text_color=Color(r=1, g=1, b=1, a=1),
-                                        background_color=colour(obj.id, 0.8)))
+            texts.append(
+                TextAnnotation(
+                    timestamp=stamp,
+                    position=Point2(x=float(x0), y=float(y0)),
+                    text=label,
+                    font_size=12.0,
+                    text_color=Color(r=1, g=1, b=1, a=1),
+                    background_color=colour(obj.id, 0.8),
+                )
+            )
             box = object_box_m(frame, labels, obj.id, obj.bbox_xy, k)
             if box is None:
                 continue
             centre, size = box
             pose = Pose(position=Vector3(x=centre[0], y=centre[1], z=centre[2]), orientation=Quaternion(w=1.0))
-            top = Pose(position=Vector3(x=centre[0], y=centre[1] - size[1] / 2 - 0.03, z=centre[2]),
-                       orientation=Quaternion(w=1.0))
-            entities.append(SceneEntity(
-                timestamp=stamp, frame_id=FRAME_ID, id=str(obj.id), lifetime=Duration(),
-                cubes=[CubePrimitive(pose=pose, size=Vector3(x=size[0], y=size[1], z=size[2]),
-                                     color=colour(obj.id, 0.35))],
-                texts=[TextPrimitive(pose=top, billboard=True, font_size=14.0, scale_invariant=True,
-                                     color=Color(r=1, g=1, b=1, a=1), text=label)],
-            ))
+            top = Pose(
+                position=Vector3(x=centre[0], y=centre[1] - size[1] / 2 - 0.03, z=centre[2]),
+                orientation=Quaternion(w=1.0),
+            )
+            entities.append(
+                SceneEntity(
+                    timestamp=stamp,
+                    frame_id=FRAME_ID,
+                    id=str(obj.id),
+                    lifetime=Duration(),
+                    cubes=[
+                        CubePrimitive(
+                            pose=pose, size=Vector3(x=size[0], y=size[1], z=size[2]), color=colour(obj.id, 0.35)
+                        )
+                    ],
+                    texts=[
+                        TextPrimitive(
+                            pose=top,
+                            billboard=True,
+                            font_size=14.0,
+                            scale_invariant=True,
+                            color=Color(r=1, g=1, b=1, a=1),
+                            text=label,
+                        )
+                    ],
+                )
+            )
         self._write("/depthgram/objects", ImageAnnotations(points=points, texts=texts), t_ns)
         # objects that left the view must leave the 3-D view too: each update replaces them all
-        self._write("/depthgram/boxes", SceneUpdate(
-            deletions=[SceneEntityDeletion(timestamp=stamp, type=SceneEntityDeletion.Type.ALL)],
-            entities=entities,
-        ), t_ns)
-        self._write("/depthgram/sentence", Log(
-            timestamp=stamp, level=Log.Level.WARNING if warn else Log.Level.INFO, message=result.sentence,
-            name="depthgram", file=frame.name, line=frame.index,
-        ), t_ns)
-        self._writer.add_message(channel_id=self._channels["/depthgram/scene"], log_time=t_ns, publish_time=t_ns,
-                                 sequence=self.frames, data=json.dumps(record).encode())
+        self._write(
+            "/depthgram/boxes",
+            SceneUpdate(
+                deletions=[SceneEntityDeletion(timestamp=stamp, type=SceneEntityDeletion.Type.ALL)],
+                entities=entities,
+            ),
+            t_ns,
+        )
+        self._write(
+            "/depthgram/sentence",
+            Log(
+                timestamp=stamp,
+                level=Log.Level.WARNING if warn else Log.Level.INFO,
+                message=result.sentence,
+                name="depthgram",
+                file=frame.name,
+                line=frame.index,
+            ),
+            t_ns,
+        )
+        self._writer.add_message(
+            channel_id=self._channels["/depthgram/scene"],
+            log_time=t_ns,
+            publish_time=t_ns,
+            sequence=self.frames,
+            data=json.dumps(record).encode(),
+        )
         self.counts["/depthgram/scene"] += 1
         self.frames += 1
 
@@ -319,6 +397,7 @@ class McapWriter:
     def __enter__(self) -> McapWriter:
         return self
 
-    def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
-                 tb: TracebackType | None) -> None:
+    def __exit__(
+        self, exc_type: type[BaseException] | None, exc: BaseException | None, tb: TracebackType | None
+    ) -> None:
         self.close()

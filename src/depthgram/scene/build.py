@@ -281,9 +281,7 @@ def build_tree(
     return SceneTree(root=root, relations=rels)
 
 
-def _supports(
-    objs: Sequence[SceneObject], cfg: TreeConfig, labels: NDArray[np.integer] | None
-) -> NDArray[np.int64]:
+def _supports(objs: Sequence[SceneObject], cfg: TreeConfig, labels: NDArray[np.integer] | None) -> NDArray[np.int64]:
     """Support (object id, 0 for Bkg) of each object, decided for all pairs at once."""
     n = len(objs)
     bbox = np.array([o.bbox_xy for o in objs], dtype=np.float64)

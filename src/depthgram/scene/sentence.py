@@ -206,9 +206,7 @@ class _Reader:
             assert isinstance(key_tok, Token) and isinstance(val, Tree)
             key = str(key_tok)
             if key not in allowed:
-                raise self.fail(
-                    f"unknown attribute {key!r} (expected one of {', '.join(sorted(allowed))})", key_tok
-                )
+                raise self.fail(f"unknown attribute {key!r} (expected one of {', '.join(sorted(allowed))})", key_tok)
             if key in out:
                 raise self.fail(f"attribute {key!r} given twice", key_tok)
             toks = [c for c in val.children if isinstance(c, Token)]
@@ -291,8 +289,7 @@ class _Reader:
             a_tok, rel_tok, b_tok = r.children
             assert isinstance(a_tok, Token) and isinstance(rel_tok, Token) and isinstance(b_tok, Token)
             if str(rel_tok) not in RELATIONS:
-                raise self.fail(f"unknown relation {str(rel_tok)!r} (expected one of {', '.join(RELATIONS)})",
-                                rel_tok)
+                raise self.fail(f"unknown relation {str(rel_tok)!r} (expected one of {', '.join(RELATIONS)})", rel_tok)
             for tok in (a_tok, b_tok):
                 if int(tok) not in self.ids:
                     raise self.fail(f"relation names object {int(tok)}, which is not in the sentence", tok)
@@ -309,15 +306,19 @@ class _Reader:
         at = self.attrs(attrs_t, root=True)
         values = self.node_attrs(at, bkg_tok, required=False)
         label = int(at["L"][0]) if "L" in at else ROOT_LABEL  # type: ignore[call-overload]
-        kids = tuple(
-            self.p_object(c, 0) for c in bkg.children if isinstance(c, Tree) and c.data == "p_object"
-        )
+        kids = tuple(self.p_object(c, 0) for c in bkg.children if isinstance(c, Tree) and c.data == "p_object")
         root = Node(id=0, kind=ROOT_KIND, depth_label=label, children=kids, **values)
         return SceneTree(root=root, relations=self.relations(rel_t))
 
 
-_NAMED = {"NAME": "a name", "INT": "an integer", "NUMBER": "a number", "TERMINAL": "o_<label>",
-          "BKG": "'Bkg'", "$END": "the end of the line"}
+_NAMED = {
+    "NAME": "a name",
+    "INT": "an integer",
+    "NUMBER": "a number",
+    "TERMINAL": "o_<label>",
+    "BKG": "'Bkg'",
+    "$END": "the end of the line",
+}
 
 
 def _readable(terminal: str) -> str:
@@ -377,12 +378,14 @@ def parse_sentence(text: str, *, source: str = "<sentence>", first_line: int = 1
     """
     lines = [(i + first_line, s) for i, s in enumerate(text.splitlines()) if s.strip()]
     if not lines:
-        raise SentenceError("empty text: expected a sentence starting with Bkg", text="", line=first_line, column=1,
-                            source=source)
+        raise SentenceError(
+            "empty text: expected a sentence starting with Bkg", text="", line=first_line, column=1, source=source
+        )
     if len(lines) > 1:
         n, s = lines[1]
-        raise SentenceError("expected one sentence, found a second line (use parse_sentences)",
-                            text=s, line=n, column=1, source=source)
+        raise SentenceError(
+            "expected one sentence, found a second line (use parse_sentences)", text=s, line=n, column=1, source=source
+        )
     n, s = lines[0]
     return _parse_line(s, n, source)
 

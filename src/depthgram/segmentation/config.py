@@ -39,7 +39,6 @@ _RANGES = (
     ("max_slope_deg", 0.0, 89.0),
     ("crease_deg", 1.0, 89.0),
     ("far_mm", 100.0, 1e6),
-
 )
 
 #: Most histogram bins ``far_mm / bin_mm`` may ask for (each costs 32 bytes of counts).

@@ -366,7 +366,4 @@ def paper_slices(
         part_id += len(renamed)
         out.append(replace(c, id=new, parts=renamed))
     labels = relabel(labels, lut)
-    return Segmentation(
-        labels, tuple(out), bands.histogram, "paper", bands_mm=bands.limits_mm(), aperture_px=apertures
-    )
-
+    return Segmentation(labels, tuple(out), bands.histogram, "paper", bands_mm=bands.limits_mm(), aperture_px=apertures)

@@ -384,8 +384,15 @@ def reattach(
     """
     out = np.array(labels, dtype=np.int32, copy=True)
     if loose.any():
-        _grow(out, np.ascontiguousarray(depth_mm, np.float32), np.ascontiguousarray(loose, np.bool_),
-              float(tol_0), float(tol_2), float(slope_per_px), int(max_px))
+        _grow(
+            out,
+            np.ascontiguousarray(depth_mm, np.float32),
+            np.ascontiguousarray(loose, np.bool_),
+            float(tol_0),
+            float(tol_2),
+            float(slope_per_px),
+            int(max_px),
+        )
     return out
 
 
@@ -418,8 +425,12 @@ def _grow(
     for y in range(h):
         for x in range(w):
             if loose[y, x] and labels[y, x] == 0:
-                if (x > 0 and labels[y, x - 1] > 0) or (x < w - 1 and labels[y, x + 1] > 0) or (
-                    y > 0 and labels[y - 1, x] > 0) or (y < h - 1 and labels[y + 1, x] > 0):
+                if (
+                    (x > 0 and labels[y, x - 1] > 0)
+                    or (x < w - 1 and labels[y, x + 1] > 0)
+                    or (y > 0 and labels[y - 1, x] > 0)
+                    or (y < h - 1 and labels[y + 1, x] > 0)
+                ):
                     queue[tail] = y * w + x
                     steps[tail] = 1
                     pending[y, x] = True
@@ -524,7 +535,7 @@ def merge_openings(
     margin_all = 0.15 * (objs[:, 2] - objs[:, 0] + 1)
     zr_col = z_mean[:, None]
     maybe = (z_mean[None, :] < zr_col) & (zr_col - z_mean[None, :] <= width[None, :])
-    maybe &= (objs[None, :, 0] - margin_all[None, :] <= objs[:, 0, None])
+    maybe &= objs[None, :, 0] - margin_all[None, :] <= objs[:, 0, None]
     maybe &= objs[:, 2, None] <= objs[None, :, 2] + margin_all[None, :]
     maybe[:, 0] = False
     np.fill_diagonal(maybe, False)

@@ -352,9 +352,11 @@ def cast_times(
         z = np.take_along_axis(ts, nearest[None], axis=0)[0]
         hit = np.isfinite(z)
         depth = np.where(hit, z, 0.0)
-        out.append(RayHits(
-            depth.reshape(shape),
-            (depth * lengths).reshape(shape),
-            np.where(hit, ids[nearest], 0).astype(np.int32).reshape(shape),
-        ))
+        out.append(
+            RayHits(
+                depth.reshape(shape),
+                (depth * lengths).reshape(shape),
+                np.where(hit, ids[nearest], 0).astype(np.int32).reshape(shape),
+            )
+        )
     return out

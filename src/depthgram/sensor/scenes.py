@@ -59,13 +59,10 @@ def _table(w: int, h: int) -> SceneSpec:
     bodies = (
         Body(1, "floor", "floor", (FLOOR,), 0.4),
         Body(2, "back_wall", "wall", (_back_wall(2300.0),), 0.7),
-        Body(3, "table", "object", (Box((-650.0, top_y - 40.0, 700.0), (650.0, top_y, 1500.0)), *legs), 0.5,
-             parent=1),
+        Body(3, "table", "object", (Box((-650.0, top_y - 40.0, 700.0), (650.0, top_y, 1500.0)), *legs), 0.5, parent=1),
         Body(4, "cup", "object", (Cylinder((-280.0, top_y, 1000.0), 45.0, 110.0),), 0.8, parent=3),
-        Body(5, "box", "object", (Box((-180.0, top_y, 1050.0), (-20.0, top_y + 150.0, 1170.0)),), 0.6,
-             parent=3),
-        Body(6, "ball", "object", (Ellipsoid((80.0, top_y + 70.0, 1000.0), (70.0, 70.0, 70.0)),), 0.7,
-             parent=3),
+        Body(5, "box", "object", (Box((-180.0, top_y, 1050.0), (-20.0, top_y + 150.0, 1170.0)),), 0.6, parent=3),
+        Body(6, "ball", "object", (Ellipsoid((80.0, top_y + 70.0, 1000.0), (70.0, 70.0, 70.0)),), 0.7, parent=3),
         Body(7, "bottle", "object", (Cylinder((260.0, top_y, 1150.0), 40.0, 260.0),), 0.6, parent=3),
     )
     return SceneSpec("table", cam, bodies, ToFConfig())
@@ -151,8 +148,7 @@ def _touching(w: int, h: int) -> SceneSpec:
     bodies = (
         Body(1, "floor", "floor", (FLOOR,), 0.4),
         Body(2, "back_wall", "wall", (_back_wall(2300.0),), 0.7),
-        Body(3, "table", "object", (Box((-650.0, top_y - 40.0, 700.0), (650.0, top_y, 1500.0)), *legs), 0.5,
-             parent=1),
+        Body(3, "table", "object", (Box((-650.0, top_y - 40.0, 700.0), (650.0, top_y, 1500.0)), *legs), 0.5, parent=1),
         Body(4, "box", "object", (box,), 0.6, parent=3),
         Body(5, "cylinder", "object", (cylinder,), 0.6, parent=3),
     )

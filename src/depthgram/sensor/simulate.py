@@ -301,8 +301,10 @@ def render(
     samples = []
     for f in freqs:
         s = np.mean(
-            [correlation_samples(h.distance, amplitude_e(h.distance, refl[h.instances], cfg), f, ambient)
-             for h in hits],
+            [
+                correlation_samples(h.distance, amplitude_e(h.distance, refl[h.instances], cfg), f, ambient)
+                for h in hits
+            ],
             axis=0,
         )
         samples.append(s if rng is None else sample_noise(s, cfg.read_noise_e, rng))
@@ -324,8 +326,9 @@ def render(
     return SimFrame(frame, true_depth, instances, _truth(spec, instances, true_depth, t), amp.astype(np.float32))
 
 
-def _truth(spec: SceneSpec, instances: NDArray[np.int32], true_depth: NDArray[np.float32], t: float) -> tuple[
-        TruthObject, ...]:
+def _truth(
+    spec: SceneSpec, instances: NDArray[np.int32], true_depth: NDArray[np.float32], t: float
+) -> tuple[TruthObject, ...]:
     h, w = instances.shape
     n = max(b.id for b in spec.bodies) + 1
     flat = instances.ravel()
@@ -343,15 +346,17 @@ def _truth(spec: SceneSpec, instances: NDArray[np.int32], true_depth: NDArray[np
         a = int(area[b.id])
         if a == 0 or b.id == 0:
             continue
-        out.append(TruthObject(
-            id=b.id,
-            name=b.name,
-            kind=b.kind,
-            area=a,
-            center_xy=(float(sx[b.id] / a), float(sy[b.id] / a)),
-            depth=float(sd[b.id] / a),
-            v_radial=float(b.motion.velocity(t) @ forward),
-            parent=b.parent,
-            touches_border=bool(on_border[b.id]),
-        ))
+        out.append(
+            TruthObject(
+                id=b.id,
+                name=b.name,
+                kind=b.kind,
+                area=a,
+                center_xy=(float(sx[b.id] / a), float(sy[b.id] / a)),
+                depth=float(sd[b.id] / a),
+                v_radial=float(b.motion.velocity(t) @ forward),
+                parent=b.parent,
+                touches_border=bool(on_border[b.id]),
+            )
+        )
     return tuple(out)

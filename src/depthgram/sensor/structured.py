@@ -87,8 +87,11 @@ class StructuredLightConfig:
         def bad(what: str) -> InputError:
             return InputError(f"StructuredLightConfig: {what}")
 
-        for name, v in (("focal_px", self.focal_px), ("baseline_mm", self.baseline_mm),
-                        ("disparity_step_px", self.disparity_step_px)):
+        for name, v in (
+            ("focal_px", self.focal_px),
+            ("baseline_mm", self.baseline_mm),
+            ("disparity_step_px", self.disparity_step_px),
+        ):
             if not (np.isfinite(v) and v > 0):
                 raise bad(f"{name} must be a positive number, got {v}")
         if not (np.isfinite(self.disparity_noise_px) and self.disparity_noise_px >= 0):

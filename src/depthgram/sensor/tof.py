@@ -111,8 +111,11 @@ class ToFConfig:
             raise bad("f_mod2_hz must differ from f_mod_hz for unwrapping")
         if not (self.amplitude_at_1m_e > 0 and np.isfinite(self.amplitude_at_1m_e)):
             raise bad(f"amplitude_at_1m_e must be a positive number of electrons, got {self.amplitude_at_1m_e}")
-        for name, v in (("ambient_e", self.ambient_e), ("read_noise_e", self.read_noise_e),
-                        ("min_amplitude_e", self.min_amplitude_e)):
+        for name, v in (
+            ("ambient_e", self.ambient_e),
+            ("read_noise_e", self.read_noise_e),
+            ("min_amplitude_e", self.min_amplitude_e),
+        ):
             if not (v >= 0 and np.isfinite(v)):
                 raise bad(f"{name} must be >= 0 electrons, got {v}")
         if not (0 < self.integration_s <= 1.0):

@@ -15,10 +15,30 @@ from numba import njit
 
 @njit(cache=True, nogil=True)
 def pulse_voice(
-    out_l: np.ndarray, out_r: np.ndarray, table_new: np.ndarray, table_old: np.ndarray, hann: np.ndarray,
-    cross: bool, osc: float, pulse: float, samplerate: float, ramp_n: float, duty_max: float, scale: float,
-    f0: float, f1: float, r0: float, r1: float, b0: float, b1: float,
-    g0: float, g1: float, l0: float, l1: float, q0: float, q1: float,
+    out_l: np.ndarray,
+    out_r: np.ndarray,
+    table_new: np.ndarray,
+    table_old: np.ndarray,
+    hann: np.ndarray,
+    cross: bool,
+    osc: float,
+    pulse: float,
+    samplerate: float,
+    ramp_n: float,
+    duty_max: float,
+    scale: float,
+    f0: float,
+    f1: float,
+    r0: float,
+    r1: float,
+    b0: float,
+    b1: float,
+    g0: float,
+    g1: float,
+    l0: float,
+    l1: float,
+    q0: float,
+    q1: float,
 ) -> tuple[float, float]:
     """Add one beeping voice to ``out_l``/``out_r``; return its (oscillator, pulse) phases.
 

@@ -61,31 +61,54 @@ def lesson(mapping: SoundMapping, samplerate: int = 22050) -> list[Cue]:
     mid, d = _H / 2, 1000.0
     each = max(1.0, 2.0 / m.rate(d))
     cues = [
-        Cue("01-left-right", f"One object at the left edge, in the middle, then at the right edge: the beep moves "
+        Cue(
+            "01-left-right",
+            f"One object at the left edge, in the middle, then at the right edge: the beep moves "
             f"from your left ear to your right ear (stereo pan, width {m.pan_width:g}).",
-            _steps(m, sr, [_tree(_obj(x, mid, d)) for x in (0, (_W - 1) / 2, _W - 1)], each)),
-        Cue("02-near-far", "One object at " + ", ".join(f"{z / 1000:g} m" for z in (m.near_mm, 1000, 2000, m.far_mm))
+            _steps(m, sr, [_tree(_obj(x, mid, d)) for x in (0, (_W - 1) / 2, _W - 1)], each),
+        ),
+        Cue(
+            "02-near-far",
+            "One object at "
+            + ", ".join(f"{z / 1000:g} m" for z in (m.near_mm, 1000, 2000, m.far_mm))
             + ": nearer is faster and louder, "
             + ", ".join(f"{m.rate(z):.1f}" for z in (m.near_mm, 1000, 2000, m.far_mm))
             + " beeps per second.",
-            _steps(m, sr, [_tree(_obj(_W / 2, mid, z)) for z in (m.near_mm, 1000.0, 2000.0, m.far_mm)],
-                   max(1.0, 2.0 / m.rate(m.far_mm)))),
-        Cue("03-height", f"One object at the top of the view, the middle, then the bottom: high is up "
+            _steps(
+                m,
+                sr,
+                [_tree(_obj(_W / 2, mid, z)) for z in (m.near_mm, 1000.0, 2000.0, m.far_mm)],
+                max(1.0, 2.0 / m.rate(m.far_mm)),
+            ),
+        ),
+        Cue(
+            "03-height",
+            f"One object at the top of the view, the middle, then the bottom: high is up "
             f"({m.pitch(0, _H):.0f} Hz), low is down ({m.pitch(_H - 1, _H):.0f} Hz).",
-            _steps(m, sr, [_tree(_obj(_W / 2, y, d)) for y in (0, (_H - 1) / 2, _H - 1)], each)),
-        Cue("04-size", f"A small object, then a big one (a quarter of the view): the big one sounds fuller "
+            _steps(m, sr, [_tree(_obj(_W / 2, y, d)) for y in (0, (_H - 1) / 2, _H - 1)], each),
+        ),
+        Cue(
+            "04-size",
+            f"A small object, then a big one (a quarter of the view): the big one sounds fuller "
             f"({m.weight(m.area_full)[0]} harmonics) and longer ({1000 * m.weight(m.area_full)[1]:.0f} ms "
             f"against {1000 * m.weight(0.001)[1]:.0f} ms).",
-            _steps(m, sr, [_tree(_obj(_W / 2, mid, d, area=a)) for a in (300, int(m.area_full * _W * _H))], each)),
+            _steps(m, sr, [_tree(_obj(_W / 2, mid, d, area=a)) for a in (300, int(m.area_full * _W * _H))], each),
+        ),
     ]
     wall = Node(2, "wall", 0, 2000.0, 60000, (60.0, mid))
     floor = Node(3, "floor", 0, 2000.0, 80000, (_W / 2, _H - 60.0))
     cues += [
-        Cue("05-wall", f"A wall along your left running into the distance: no beeps, a hum whose pitch glides from "
+        Cue(
+            "05-wall",
+            f"A wall along your left running into the distance: no beeps, a hum whose pitch glides from "
             f"its near end (higher) to its far end (lower) and back every {m.glide_period_s:g} s.",
-            render_scene(_tree(wall), mapping=m, duration_s=2 * m.glide_period_s, samplerate=sr)),
-        Cue("06-floor", "The floor ahead: the same kind of glide, low in pitch because it is at the bottom "
-            "of the view.", render_scene(_tree(floor), mapping=m, duration_s=2 * m.glide_period_s, samplerate=sr)),
+            render_scene(_tree(wall), mapping=m, duration_s=2 * m.glide_period_s, samplerate=sr),
+        ),
+        Cue(
+            "06-floor",
+            "The floor ahead: the same kind of glide, low in pitch because it is at the bottom of the view.",
+            render_scene(_tree(floor), mapping=m, duration_s=2 * m.glide_period_s, samplerate=sr),
+        ),
     ]
     # Approach: an object closing from 5 m at 1 m/s; its beeps speed up as time to collision drops.
     son = Sonifier(m, sr, (_W, _H))
@@ -93,13 +116,23 @@ def lesson(mapping: SoundMapping, samplerate: int = 22050) -> list[Cue]:
     for k in range(int(4.6 * fps)):
         z = 5000.0 - 1000.0 * k / fps
         chunks.append(son.push(_tree(_obj(_W / 2, mid, z, ttc=z / 1000.0)), 1 / fps))
-    cues.append(Cue("07-approaching", f"An object coming at you at 1 m/s from 5 m to 0.4 m: under {m.ttc_alert:g} s to "
-                    f"collision its beeps accelerate into a rattle (up to {m.rate_max_hz:g} per second).",
-                    np.concatenate(chunks)))
+    cues.append(
+        Cue(
+            "07-approaching",
+            f"An object coming at you at 1 m/s from 5 m to 0.4 m: under {m.ttc_alert:g} s to "
+            f"collision its beeps accelerate into a rattle (up to {m.rate_max_hz:g} per second).",
+            np.concatenate(chunks),
+        )
+    )
     three = _tree(*(_obj(x, mid, d, i=i + 1) for i, x in enumerate((80.0, _W / 2, _W - 80.0))))
-    cues.append(Cue("08-scan", f"Three objects appear together: their first beeps sweep {m.scan.replace('_', ' ')} "
-                    f"within {m.scan_s:g} s, then each keeps its own beat.",
-                    render_scene(three, mapping=m, duration_s=2.0, samplerate=sr)))
+    cues.append(
+        Cue(
+            "08-scan",
+            f"Three objects appear together: their first beeps sweep {m.scan.replace('_', ' ')} "
+            f"within {m.scan_s:g} s, then each keeps its own beat.",
+            render_scene(three, mapping=m, duration_s=2.0, samplerate=sr),
+        )
+    )
     return cues
 
 
@@ -116,5 +149,7 @@ def write_lesson(folder: str | Path, mapping: SoundMapping, samplerate: int = 22
     written = [(write_wav(out / f"{c.name}.wav", c.audio, samplerate), c.text) for c in lesson(mapping, samplerate)]
     (out / "lesson.txt").write_text(
         f"Sound mapping '{mapping.name}': one cue per file, play them in order.\n"
-        + "".join(f"{p.name}: {t}\n" for p, t in written), encoding="utf-8")
+        + "".join(f"{p.name}: {t}\n" for p, t in written),
+        encoding="utf-8",
+    )
     return written

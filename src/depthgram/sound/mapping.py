@@ -115,8 +115,19 @@ class SoundMapping:
                 isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v)
             ):
                 raise bad(f"{f.name} must be a finite number, got {v!r}")
-        for name in ("near_mm", "rate_near_hz", "rate_far_hz", "ttc_alert", "rate_max_hz", "pitch_low_hz",
-                     "beep_min_s", "area_full", "glide_period_s", "master_gain", "ramp_s"):
+        for name in (
+            "near_mm",
+            "rate_near_hz",
+            "rate_far_hz",
+            "ttc_alert",
+            "rate_max_hz",
+            "pitch_low_hz",
+            "beep_min_s",
+            "area_full",
+            "glide_period_s",
+            "master_gain",
+            "ramp_s",
+        ):
             if getattr(self, name) <= 0:
                 raise bad(f"{name} must be > 0, got {getattr(self, name)!r}")
         if self.master_gain > 1.0:
@@ -216,16 +227,36 @@ PRESETS: dict[str, dict[str, Any]] = {
     "default": {},
     # Fewer, slower, softer cues for long use; pure tones in one octave.
     "calm": {
-        "rate_near_hz": 4.0, "rate_far_hz": 1.0, "rate_max_hz": 8.0, "pitch_low_hz": 262.0,
-        "pitch_high_hz": 523.0, "harmonics_max": 1, "beep_max_s": 0.15, "beep_min_s": 0.06,
-        "gain_far_db": -18.0, "glide_gain_db": -16.0, "max_voices": 3, "max_glides": 1,
-        "scan_s": 0.4, "pan_width": 0.8,
+        "rate_near_hz": 4.0,
+        "rate_far_hz": 1.0,
+        "rate_max_hz": 8.0,
+        "pitch_low_hz": 262.0,
+        "pitch_high_hz": 523.0,
+        "harmonics_max": 1,
+        "beep_max_s": 0.15,
+        "beep_min_s": 0.06,
+        "gain_far_db": -18.0,
+        "glide_gain_db": -16.0,
+        "max_voices": 3,
+        "max_glides": 1,
+        "scan_s": 0.4,
+        "pan_width": 0.8,
     },
     # More objects, three octaves of pitch and richer timbre for trained listeners.
     "detailed": {
-        "rate_near_hz": 12.0, "rate_far_hz": 1.0, "rate_max_hz": 20.0, "pitch_low_hz": 165.0,
-        "pitch_high_hz": 1320.0, "harmonics_max": 6, "gain_far_db": -30.0, "glide_gain_db": -8.0,
-        "glide_octaves": 1.5, "max_voices": 10, "max_glides": 4, "beep_min_s": 0.02,
-        "beep_max_s": 0.1, "master_gain": 0.3,
+        "rate_near_hz": 12.0,
+        "rate_far_hz": 1.0,
+        "rate_max_hz": 20.0,
+        "pitch_low_hz": 165.0,
+        "pitch_high_hz": 1320.0,
+        "harmonics_max": 6,
+        "gain_far_db": -30.0,
+        "glide_gain_db": -8.0,
+        "glide_octaves": 1.5,
+        "max_voices": 10,
+        "max_glides": 4,
+        "beep_min_s": 0.02,
+        "beep_max_s": 0.1,
+        "master_gain": 0.3,
     },
 }

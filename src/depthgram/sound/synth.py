@@ -27,7 +27,14 @@ from depthgram.segmentation.objects import SceneObject
 from depthgram.sound.mapping import SoundMapping
 
 __all__ = [
-    "BEEP_KINDS", "OBLIQUE_KINDS", "Selection", "Sonifier", "Voice", "render_scene", "select", "still_seconds",
+    "BEEP_KINDS",
+    "OBLIQUE_KINDS",
+    "Selection",
+    "Sonifier",
+    "Voice",
+    "render_scene",
+    "select",
+    "still_seconds",
     "voices",
 ]
 
@@ -110,8 +117,10 @@ def select(tree: SceneTree, mapping: SoundMapping) -> Selection:
     for n in nodes:
         if n.kind not in BEEP_KINDS and n.kind not in OBLIQUE_KINDS:
             left.append((n, f"no voice rule for kind {n.kind!r}"))
-    for group, cap, what, setting in ((objs, mapping.max_voices, "objects", "max_voices"),
-                                      (surfs, mapping.max_glides, "surfaces", "max_glides")):
+    for group, cap, what, setting in (
+        (objs, mapping.max_voices, "objects", "max_voices"),
+        (surfs, mapping.max_glides, "surfaces", "max_glides"),
+    ):
         for n in group[cap:]:
             left.append((n, f"{cap} nearer {what} already sound ({setting} = {cap})"))
     left.sort(key=lambda t: (t[0].depth, t[0].id))
@@ -177,11 +186,21 @@ def voices(
         fc = mapping.pitch(n.center_xy[1], h)
         span = mapping.glide_octaves * (mapping.nearness(d_near) - mapping.nearness(d_far))
         k = 10.0 ** (mapping.glide_gain_db / 20.0)
-        out.append(Voice(
-            ("g", n.id), fc * 2.0 ** (span / 2), fc * 2.0 ** (-span / 2),
-            k * mapping.gain(d_near), k * mapping.gain(d_far),
-            mapping.pan(x_near, w), mapping.pan(x_far, w), 0.0, 0.0, 1, 0.0,
-        ))
+        out.append(
+            Voice(
+                ("g", n.id),
+                fc * 2.0 ** (span / 2),
+                fc * 2.0 ** (-span / 2),
+                k * mapping.gain(d_near),
+                k * mapping.gain(d_far),
+                mapping.pan(x_near, w),
+                mapping.pan(x_far, w),
+                0.0,
+                0.0,
+                1,
+                0.0,
+            )
+        )
     return out
 
 
@@ -274,8 +293,9 @@ class Sonifier:
     >>> audio = s.push(tree, 1 / 30)  # doctest: +SKIP
     """
 
-    def __init__(self, mapping: SoundMapping | None = None, samplerate: int = 22050,
-                 frame_size: tuple[int, int] | None = None) -> None:
+    def __init__(
+        self, mapping: SoundMapping | None = None, samplerate: int = 22050, frame_size: tuple[int, int] | None = None
+    ) -> None:
         if not isinstance(samplerate, (int, np.integer)) or not 4000 <= samplerate <= 192000:
             raise InputError(f"samplerate must be an integer in 4000..192000 Hz, got {samplerate!r}")
         if frame_size is not None:
@@ -362,10 +382,30 @@ class Sonifier:
 
             if key[0] == "o":
                 st.osc, st.pulse = self._pulse_voice(
-                    out_l, out_r, self._tables[new.harmonics], self._tables[old.harmonics], self._hann,
-                    old.harmonics != new.harmonics, st.osc, st.pulse, float(sr), float(r), m.duty_max, m.master_gain,
-                    old.freq_a, new.freq_a, old.rate, new.rate, old.beep_s, new.beep_s,
-                    old.gain_a, new.gain_a, old.pan_a[0], new.pan_a[0], old.pan_a[1], new.pan_a[1],
+                    out_l,
+                    out_r,
+                    self._tables[new.harmonics],
+                    self._tables[old.harmonics],
+                    self._hann,
+                    old.harmonics != new.harmonics,
+                    st.osc,
+                    st.pulse,
+                    float(sr),
+                    float(r),
+                    m.duty_max,
+                    m.master_gain,
+                    old.freq_a,
+                    new.freq_a,
+                    old.rate,
+                    new.rate,
+                    old.beep_s,
+                    new.beep_s,
+                    old.gain_a,
+                    new.gain_a,
+                    old.pan_a[0],
+                    new.pan_a[0],
+                    old.pan_a[1],
+                    new.pan_a[1],
                 )
                 st.voice = new
                 continue
@@ -377,10 +417,12 @@ class Sonifier:
             gain = (ramp(old.gain_a, new.gain_a) * (1 - tri) + ramp(old.gain_b, new.gain_b) * tri) * m.master_gain
             cyc = st.osc + np.cumsum(freq) / sr
             wave = self._tables[new.harmonics][(cyc * _TABLE).astype(np.int64) & (_TABLE - 1)]
-            out_l += wave * gain * (ramp(old.pan_a[0], new.pan_a[0]) * (1 - tri)
-                                    + ramp(old.pan_b[0], new.pan_b[0]) * tri)
-            out_r += wave * gain * (ramp(old.pan_a[1], new.pan_a[1]) * (1 - tri)
-                                    + ramp(old.pan_b[1], new.pan_b[1]) * tri)
+            out_l += (
+                wave * gain * (ramp(old.pan_a[0], new.pan_a[0]) * (1 - tri) + ramp(old.pan_b[0], new.pan_b[0]) * tri)
+            )
+            out_r += (
+                wave * gain * (ramp(old.pan_a[1], new.pan_a[1]) * (1 - tri) + ramp(old.pan_b[1], new.pan_b[1]) * tri)
+            )
             st.osc = float(cyc[-1] % 1.0)
             st.pulse = float(gp[-1] % 1.0)
             st.voice = new

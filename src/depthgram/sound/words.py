@@ -52,12 +52,17 @@ def hearing(
             fast = ""
             if v.rate > mapping.rate(n.depth) + 1e-9:
                 fast = f", sped up from {mapping.rate(n.depth):.1f}/s: approaching, {n.ttc:.1f} s to collision"
-            out.append(f"{head}: beeps {v.rate:.1f}/s{fast}, {v.freq_a:.0f} Hz, {where(v.pan_a)}, "
-                       f"{1000 * v.beep_s:.0f} ms, {v.harmonics} harmonic(s), {loud:.0f} dB")
+            out.append(
+                f"{head}: beeps {v.rate:.1f}/s{fast}, {v.freq_a:.0f} Hz, {where(v.pan_a)}, "
+                f"{1000 * v.beep_s:.0f} ms, {v.harmonics} harmonic(s), {loud:.0f} dB"
+            )
         else:
             side = where(v.pan_a) if where(v.pan_a) == where(v.pan_b) else f"{where(v.pan_a)} to {where(v.pan_b)}"
-            out.append(f"{head}: hums, gliding {v.freq_a:.0f} -> {v.freq_b:.0f} Hz and back every "
-                       f"{mapping.glide_period_s:g} s, {side}, {loud:.0f} dB at its near end")
-    out.extend(f"o_{n.id} {n.kind} at {n.depth / 1000:.2f} m: silent, {why}"
-               for n, why in select(tree, mapping).left_out)
+            out.append(
+                f"{head}: hums, gliding {v.freq_a:.0f} -> {v.freq_b:.0f} Hz and back every "
+                f"{mapping.glide_period_s:g} s, {side}, {loud:.0f} dB at its near end"
+            )
+    out.extend(
+        f"o_{n.id} {n.kind} at {n.depth / 1000:.2f} m: silent, {why}" for n, why in select(tree, mapping).left_out
+    )
     return out

@@ -33,9 +33,7 @@ def image_array(msg: Any, where: str) -> np.ndarray:
     """The (H, W) samples of a ``sensor_msgs/Image`` depth message, honouring step and endianness."""
     enc = str(msg.encoding).lower()
     if enc not in _DTYPES:
-        raise InputError(
-            f"{where}: image encoding {msg.encoding!r} is not depth; expected 16UC1 (mm) or 32FC1 (m)"
-        )
+        raise InputError(f"{where}: image encoding {msg.encoding!r} is not depth; expected 16UC1 (mm) or 32FC1 (m)")
     dtype = np.dtype(_DTYPES[enc]).newbyteorder(">" if msg.is_bigendian else "<")
     h, w, step = int(msg.height), int(msg.width), int(msg.step)
     check_size(h, w, where)
@@ -95,8 +93,15 @@ class BagSource(Source):
 
     kind = "bag"
 
-    def __init__(self, path: Path, cfg: SourceConfig, *, name: str,
-                 intrinsics: Intrinsics | None = None, fps: float | None = None) -> None:
+    def __init__(
+        self,
+        path: Path,
+        cfg: SourceConfig,
+        *,
+        name: str,
+        intrinsics: Intrinsics | None = None,
+        fps: float | None = None,
+    ) -> None:
         self.path = path
         self.cfg = cfg
         self.name = name
@@ -135,9 +140,7 @@ class BagSource(Source):
             return images[0]
         if len(depthish) == 1:
             return depthish[0]
-        raise InputError(
-            f"{self.path}: several Image topics ({', '.join(images)}); choose one with topic= (--topic)"
-        )
+        raise InputError(f"{self.path}: several Image topics ({', '.join(images)}); choose one with topic= (--topic)")
 
     def _camera_info(self, reader: Any, conns: list[Any]) -> Intrinsics | None:
         # camera_info lives beside the image topic: /cam/depth/image_raw -> /cam/depth/camera_info.
@@ -179,8 +182,12 @@ class BagSource(Source):
                 stamp = msg.header.stamp
                 t = stamp.sec + stamp.nanosec * 1e-9
                 frame = to_frame(
-                    image_array(msg, where), self.cfg, where=where, index=i,
-                    time_s=t if t > 0 else log_ns * 1e-9, intrinsics=self.intrinsics,
+                    image_array(msg, where),
+                    self.cfg,
+                    where=where,
+                    index=i,
+                    time_s=t if t > 0 else log_ns * 1e-9,
+                    intrinsics=self.intrinsics,
                     name=f"bag:{self.topic}#{i}",
                 )
                 if first is None:

@@ -35,9 +35,7 @@ def check_depth_array(raw: NDArray[np.generic], where: str) -> NDArray[np.generi
         )
     if arr.ndim != 2:
         raise InputError(f"{where}: expected a 2-D depth image, got an array of shape {arr.shape}")
-    if arr.dtype == np.bool_ or not (
-        np.issubdtype(arr.dtype, np.integer) or np.issubdtype(arr.dtype, np.floating)
-    ):
+    if arr.dtype == np.bool_ or not (np.issubdtype(arr.dtype, np.integer) or np.issubdtype(arr.dtype, np.floating)):
         raise InputError(f"{where}: expected integer or float depth samples, got dtype {arr.dtype}")
     if arr.size == 0:
         raise InputError(f"{where}: the depth image is empty (shape {arr.shape})")

@@ -96,7 +96,12 @@ class FilesSource(Source):
             where = f"{path} (frame {i})" if seq else str(path)
             raw = read_image(path, key=self.cfg.key, where=where)
             frame = to_frame(
-                raw, self.cfg, where=where, index=i, time_s=self._time(i), intrinsics=self.intrinsics,
+                raw,
+                self.cfg,
+                where=where,
+                index=i,
+                time_s=self._time(i),
+                intrinsics=self.intrinsics,
                 name=path.name,
             )
             if first is None:

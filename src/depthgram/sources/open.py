@@ -104,9 +104,14 @@ def open_source(
     text_path, query = _split_query(text)
     key = key if key is not None else query.get("key")
     cfg = SourceConfig(
-        scale_mm=scale_mm, invalid=tuple(invalid), fps=fps,
+        scale_mm=scale_mm,
+        invalid=tuple(invalid),
+        fps=fps,
         timestamps=os.fspath(timestamps) if timestamps is not None else None,
-        depth_range_mm=depth_range_mm, encoding=encoding, topic=topic, key=key,
+        depth_range_mm=depth_range_mm,
+        encoding=encoding,
+        topic=topic,
+        key=key,
     )
     path = Path(text_path)
     if path.is_dir():
@@ -155,8 +160,9 @@ def _npy_shape(path: Path) -> tuple[int, ...]:
         raise InputError(f"{path}: cannot read the .npy ({exc})") from None
 
 
-def _files(paths: list[Path], cfg: SourceConfig, name: str, kind: str, folder: Path,
-           intrinsics: Intrinsics | None) -> FilesSource:
+def _files(
+    paths: list[Path], cfg: SourceConfig, name: str, kind: str, folder: Path, intrinsics: Intrinsics | None
+) -> FilesSource:
     side = find_sidecar(folder, folder.parent)
     if cfg.depth_range_mm is None and side.depth_range_mm is not None:
         cfg = dataclasses.replace(cfg, depth_range_mm=side.depth_range_mm)
@@ -166,7 +172,12 @@ def _files(paths: list[Path], cfg: SourceConfig, name: str, kind: str, folder: P
                 cfg = dataclasses.replace(cfg, timestamps=str(cand))
                 break
     return FilesSource(
-        paths, cfg, name=name, kind=kind, intrinsics=intrinsics or side.intrinsics, fps=cfg.fps or side.fps,
+        paths,
+        cfg,
+        name=name,
+        kind=kind,
+        intrinsics=intrinsics or side.intrinsics,
+        fps=cfg.fps or side.fps,
     )
 
 

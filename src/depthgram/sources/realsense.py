@@ -47,7 +47,7 @@ class RealSenseSpec:
 
 def parse_realsense_spec(spec: str) -> RealSenseSpec:
     """Parse ``realsense:[SERIAL][?size=WxH&fps=F&frames=N]``."""
-    body = spec[len(PREFIX):] if spec.startswith(PREFIX) else spec
+    body = spec[len(PREFIX) :] if spec.startswith(PREFIX) else spec
     serial, _, query = body.partition("?")
     opts = dict(parse_qsl(query, keep_blank_values=True))
     unknown = set(opts) - {"size", "fps", "frames"}
@@ -93,8 +93,9 @@ class RealSenseSource(Source):
         try:
             profile = pipe.start(cfg)
         except RuntimeError as exc:  # no camera, busy camera, or a mode it does not offer
-            raise InputError(f"{self.name}: cannot start the RealSense depth stream {w}x{h} at "
-                             f"{self.spec.fps} frames/s: {exc}") from None
+            raise InputError(
+                f"{self.name}: cannot start the RealSense depth stream {w}x{h} at {self.spec.fps} frames/s: {exc}"
+            ) from None
         try:
             scale_mm = float(profile.get_device().first_depth_sensor().get_depth_scale()) * 1000.0
             k = profile.get_stream(rs.stream.depth).as_video_stream_profile().get_intrinsics()
@@ -105,14 +106,19 @@ class RealSenseSource(Source):
                 try:
                     frames = pipe.wait_for_frames(self.timeout_ms)
                 except RuntimeError as exc:
-                    raise InputError(f"{self.name}: no frame from the camera within "
-                                     f"{self.timeout_ms} ms (frame {index}): {exc}") from None
+                    raise InputError(
+                        f"{self.name}: no frame from the camera within {self.timeout_ms} ms (frame {index}): {exc}"
+                    ) from None
                 depth = frames.get_depth_frame()
                 t_ms = float(depth.get_timestamp())
                 t0 = t_ms if t0 is None else t0
                 yield make_frame(
-                    _as_array(depth.get_data()), scale_mm=scale_mm, index=index, time_s=(t_ms - t0) / 1000.0,
-                    intrinsics=self.intrinsics, name=f"{self.name}#{index}",
+                    _as_array(depth.get_data()),
+                    scale_mm=scale_mm,
+                    index=index,
+                    time_s=(t_ms - t0) / 1000.0,
+                    intrinsics=self.intrinsics,
+                    name=f"{self.name}#{index}",
                 )
                 index += 1
         finally:

@@ -54,8 +54,9 @@ def npz_member_header(path: Path, key: str | None) -> tuple[str, tuple[int, ...]
 
 
 class _StackSource(Source):
-    def __init__(self, path: Path, cfg: SourceConfig, n: int, *, name: str,
-                 intrinsics: Intrinsics | None, fps: float | None) -> None:
+    def __init__(
+        self, path: Path, cfg: SourceConfig, n: int, *, name: str, intrinsics: Intrinsics | None, fps: float | None
+    ) -> None:
         self.path = path
         self.cfg = cfg
         self.n = n
@@ -70,8 +71,13 @@ class _StackSource(Source):
     def _frame(self, raw: np.ndarray, i: int) -> Frame:
         t = self.times[i] if self.times is not None else (i / self.fps if self.fps else None)
         return to_frame(
-            raw, self.cfg, where=f"{self.path} (frame {i})", index=i, time_s=t,
-            intrinsics=self.intrinsics, name=f"{self.path.name}#{i}",
+            raw,
+            self.cfg,
+            where=f"{self.path} (frame {i})",
+            index=i,
+            time_s=t,
+            intrinsics=self.intrinsics,
+            name=f"{self.path.name}#{i}",
         )
 
 
@@ -92,8 +98,15 @@ class NpyStackSource(_StackSource):
 
     kind = "npy-stack"
 
-    def __init__(self, path: Path, cfg: SourceConfig, *, name: str,
-                 intrinsics: Intrinsics | None = None, fps: float | None = None) -> None:
+    def __init__(
+        self,
+        path: Path,
+        cfg: SourceConfig,
+        *,
+        name: str,
+        intrinsics: Intrinsics | None = None,
+        fps: float | None = None,
+    ) -> None:
         try:
             self.stack = np.load(path, mmap_mode="r", allow_pickle=False)
         except (ValueError, OSError, EOFError) as exc:
@@ -125,8 +138,15 @@ class NpzStackSource(_StackSource):
 
     kind = "npz-stack"
 
-    def __init__(self, path: Path, cfg: SourceConfig, *, name: str,
-                 intrinsics: Intrinsics | None = None, fps: float | None = None) -> None:
+    def __init__(
+        self,
+        path: Path,
+        cfg: SourceConfig,
+        *,
+        name: str,
+        intrinsics: Intrinsics | None = None,
+        fps: float | None = None,
+    ) -> None:
         self.member, shape, self.fortran, self.dtype = npz_member_header(path, cfg.key)
         if len(shape) != 3:
             raise InputError(f"{path}[{self.member}]: expected an (N, H, W) stack, got shape {shape}")

@@ -19,8 +19,17 @@ from urllib.parse import parse_qs, urlsplit
 
 from fastapi.responses import JSONResponse
 
-__all__ = ["LOOPBACK_HOSTS", "MAX_BODY_BYTES", "TOKEN_COOKIE", "BodyTooLarge", "Guard", "JSONBodyError", "host_name",
-           "parse_json", "same_origin"]
+__all__ = [
+    "LOOPBACK_HOSTS",
+    "MAX_BODY_BYTES",
+    "TOKEN_COOKIE",
+    "BodyTooLarge",
+    "Guard",
+    "JSONBodyError",
+    "host_name",
+    "parse_json",
+    "same_origin",
+]
 
 #: Host names that reach this machine only; the default set of allowed ``Host`` headers.
 LOOPBACK_HOSTS = ("127.0.0.1", "localhost", "::1")
@@ -109,8 +118,9 @@ class Guard:
         Largest request body (bytes); larger ones get 413.
     """
 
-    def __init__(self, app: Any, hosts: Sequence[str] | None, token: str | None = None,
-                 max_body: int = MAX_BODY_BYTES) -> None:
+    def __init__(
+        self, app: Any, hosts: Sequence[str] | None, token: str | None = None, max_body: int = MAX_BODY_BYTES
+    ) -> None:
         self.app = app
         self.hosts = None if hosts is None else {h.lower().strip("[]") for h in hosts}
         self.token = token
@@ -142,12 +152,19 @@ class Guard:
         host = headers.get(b"host", b"").decode("latin-1")
         if self.token is not None:
             if not self._has_token(scope, headers):
-                await self._refuse(scope, receive, send, 401, 4401,
-                                   "this viewer needs its access token: open the address it printed at start")
+                await self._refuse(
+                    scope,
+                    receive,
+                    send,
+                    401,
+                    4401,
+                    "this viewer needs its access token: open the address it printed at start",
+                )
                 return
         elif self.hosts is not None and host_name(host) not in self.hosts:
-            await self._refuse(scope, receive, send, 400, 4400,
-                               f"host {host!r} is not served here; use {sorted(self.hosts)[0]}")
+            await self._refuse(
+                scope, receive, send, 400, 4400, f"host {host!r} is not served here; use {sorted(self.hosts)[0]}"
+            )
             return
         if scope["type"] == "http":
             length = headers.get(b"content-length")

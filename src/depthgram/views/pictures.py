@@ -131,8 +131,16 @@ def place_labels(
         best = None
         steps = [(0.0, 0.0)]
         for k in (1, 2, 3, 4):
-            steps += [(0.0, -k * h), (0.0, k * h), (-k * w * 0.6, 0.0), (k * w * 0.6, 0.0),
-                      (-k * w * 0.6, -k * h), (k * w * 0.6, k * h), (k * w * 0.6, -k * h), (-k * w * 0.6, k * h)]
+            steps += [
+                (0.0, -k * h),
+                (0.0, k * h),
+                (-k * w * 0.6, 0.0),
+                (k * w * 0.6, 0.0),
+                (-k * w * 0.6, -k * h),
+                (k * w * 0.6, k * h),
+                (k * w * 0.6, -k * h),
+                (-k * w * 0.6, k * h),
+            ]
         for dx, dy in steps:
             cx = min(max(ax_ + dx, w / 2), width - w / 2)
             cy = min(max(ay + dy, h / 2), height - h / 2)
@@ -202,13 +210,23 @@ def draw_overlay(
     for text, pos in zip(texts, place_labels(anchors, sizes, (img.shape[1], img.shape[0])), strict=True):
         if pos is None:
             continue
-        ax.text(pos[0], pos[1], text, color="white", fontsize=fontsize, ha="center", va="center",
-                bbox={"facecolor": "black", "alpha": 0.6, "pad": 1.5, "edgecolor": "none"}, clip_on=True)
+        ax.text(
+            pos[0],
+            pos[1],
+            text,
+            color="white",
+            fontsize=fontsize,
+            ha="center",
+            va="center",
+            bbox={"facecolor": "black", "alpha": 0.6, "pad": 1.5, "edgecolor": "none"},
+            clip_on=True,
+        )
     ax.set_axis_off()
     cmap = colormaps["turbo_r"]
     bar = fig.colorbar(ScalarMappable(norm=Normalize(lo, hi), cmap=cmap), ax=ax, fraction=0.04, pad=0.01)
-    bar.set_label(f"depth (mm), {DEPTH_PERCENTILES[0]:g}-{DEPTH_PERCENTILES[1]:g} % of valid pixels; black = none",
-                  fontsize=8)
+    bar.set_label(
+        f"depth (mm), {DEPTH_PERCENTILES[0]:g}-{DEPTH_PERCENTILES[1]:g} % of valid pixels; black = none", fontsize=8
+    )
     bar.ax.tick_params(labelsize=8)
     ax.set_title(title or frame.name or f"frame {frame.index}", fontsize=9)
     fig.tight_layout(pad=0.2)

@@ -180,8 +180,12 @@ class ReportWriter:
             # Only tracks seen in at least three frames: one-frame flickers would bury the plot.
             keep = {k: v for k, v in s.depth.items() if sum(x is not None for x in v) >= 3}
             draw_tracks(
-                s.times, keep, {k: s.v[k] for k in keep}, self.out / "tracks.png",
-                time_unit="frame" if s.per_frame else "s", v_unit="mm/s",
+                s.times,
+                keep,
+                {k: s.v[k] for k in keep},
+                self.out / "tracks.png",
+                time_unit="frame" if s.per_frame else "s",
+                v_unit="mm/s",
             )
             extra = '<section><h2>tracks</h2><img src="tracks.png" alt="tracks"></section>'
         (self.out / "series.json").write_text(

@@ -163,8 +163,7 @@ def tree_lines(tree_dict: dict[str, Any]) -> list[dict[str, Any]]:
     for n in tree_dict["nodes"]:
         lv = 0 if n.get("parent") is None else level.get(n["parent"], 0) + 1
         level[n["id"]] = lv
-        out.append({"level": lv, "id": n["id"], "kind": n.get("kind"), "depth": n.get("depth"),
-                    "area": n.get("area")})
+        out.append({"level": lv, "id": n["id"], "kind": n.get("kind"), "depth": n.get("depth"), "area": n.get("area")})
     return out
 
 
@@ -294,8 +293,7 @@ class Player:
             "clients": len(self.clients),
             "latency_ms": self.latency_ms,
             "error": self.error,
-            "params": {"method": seg.method, "min_area": seg.min_area, "fraction": seg.fraction,
-                       "bin_mm": seg.bin_mm},
+            "params": {"method": seg.method, "min_area": seg.min_area, "fraction": seg.fraction, "bin_mm": seg.bin_mm},
             "sound_available": self.sound_available,
             "methods": list(METHODS),
         }
@@ -365,7 +363,7 @@ class Player:
     def set_params(self, values: Any) -> None:
         """Change ``[segment]`` settings from the next frame on; raises InputError on bad values."""
         if not isinstance(values, dict) or not values:
-            raise InputError("params must be a JSON object of [segment] settings, e.g. {\"min_area\": 50}")
+            raise InputError('params must be a JSON object of [segment] settings, e.g. {"min_area": 50}')
         self.config = self.config.replace(segment=values)
 
     # -- clients ------------------------------------------------------------------------
@@ -510,8 +508,7 @@ class Player:
             sound = not stepping and not settling and any(c.sound for c in self.clients)
             try:
                 t_r = time.perf_counter()
-                payload, audio = await asyncio.to_thread(self._render, frame, advanced / (self.fps * self.speed),
-                                                         sound)
+                payload, audio = await asyncio.to_thread(self._render, frame, advanced / (self.fps * self.speed), sound)
                 self._timed("loop-render", t_r)
             except Exception as exc:
                 self._fail(f"{frame.name or self.name}: frame {frame.index}: {exc}")
@@ -544,11 +541,9 @@ class Player:
         """Skip the frame in hand? Only while playing, behind the recording, and when skipping
         catches up, i.e. reading is cheaper than a period; otherwise (a slow source) playback
         slows down instead."""
-        return (self.playing and not self._steps and time.monotonic() - due > period
-                and self._read_s < period)
+        return self.playing and not self._steps and time.monotonic() - due > period and self._read_s < period
 
-    def _read_due(self, due: float, period: float,
-                  tail: Frame | None) -> tuple[Frame | None, Frame | None, float, int]:
+    def _read_due(self, due: float, period: float, tail: Frame | None) -> tuple[Frame | None, Frame | None, float, int]:
         """Read the next frame to show, skipping (and counting) those whose time has passed.
 
         Runs in a worker thread, so that a run of skipped frames costs one hand-over between
@@ -621,11 +616,13 @@ class Player:
             if not fut.done():
                 fut.set_result(None)
 
-    def _render(self, frame: Frame, duration_s: float,
-                with_sound: bool) -> tuple[tuple[dict[str, Any], bytes], str | None]:
+    def _render(
+        self, frame: Frame, duration_s: float, with_sound: bool
+    ) -> tuple[tuple[dict[str, Any], bytes], str | None]:
         """Process one frame and build what the pages get (runs in a worker thread)."""
         from depthgram.act import plan_to_dict
         from depthgram.scene import tree_to_dict
+
         t = time.perf_counter()
         result: SceneResult = self.pipeline.process(frame)
         t = self._timed("pipeline", t)
@@ -681,8 +678,13 @@ def _json_error(status: int, message: str) -> JSONResponse:
     return JSONResponse({"error": message}, status_code=status)
 
 
-def create_app(player: Player, *, allowed_hosts: Sequence[str] | None = LOOPBACK_HOSTS,
-               token: str | None = None, max_body: int = MAX_BODY_BYTES) -> FastAPI:
+def create_app(
+    player: Player,
+    *,
+    allowed_hosts: Sequence[str] | None = LOOPBACK_HOSTS,
+    token: str | None = None,
+    max_body: int = MAX_BODY_BYTES,
+) -> FastAPI:
     """The FastAPI application serving one :class:`Player`.
 
     The player's loop starts with the app (its lifespan) and stops with it.
@@ -714,8 +716,9 @@ def create_app(player: Player, *, allowed_hosts: Sequence[str] | None = LOOPBACK
             await player.stop()
 
     app = FastAPI(title="depthgram view", lifespan=lifespan, docs_url=None, redoc_url=None, openapi_url=None)
-    app.add_middleware(Guard, hosts=None if allowed_hosts is None else tuple(allowed_hosts), token=token,
-                       max_body=max_body)
+    app.add_middleware(
+        Guard, hosts=None if allowed_hosts is None else tuple(allowed_hosts), token=token, max_body=max_body
+    )
 
     def ours(request: Request) -> None:
         if not same_origin(request.headers, request.url.scheme):
@@ -846,8 +849,11 @@ def create_app(player: Player, *, allowed_hosts: Sequence[str] | None = LOOPBACK
                     (header, body), client.slot = client.slot, None
                     audio, client.audio = client.audio, []
                     client.ready.clear()
-                    msg = {**header, "dropped": client.dropped + header["server_dropped"],
-                           "page_dropped": client.dropped}
+                    msg = {
+                        **header,
+                        "dropped": client.dropped + header["server_dropped"],
+                        "page_dropped": client.dropped,
+                    }
                     if audio:
                         msg["audio"] = {"samplerate": player.viewer.samplerate, "channels": 2, "chunks": audio}
                     t0 = time.perf_counter()

@@ -64,8 +64,14 @@ def _text(n: Node) -> str:
     return "\n".join(lines)
 
 
-_COLORS = {"Bkg": "#dddddd", "floor": "#d9c7a7", "wall": "#b9c9d9", "ceiling": "#d0d0e8",
-           "compound": "#e8d0a8", "part": "#f0e0c0"}
+_COLORS = {
+    "Bkg": "#dddddd",
+    "floor": "#d9c7a7",
+    "wall": "#b9c9d9",
+    "ceiling": "#d0d0e8",
+    "compound": "#e8d0a8",
+    "part": "#f0e0c0",
+}
 
 
 def draw_tree(tree: SceneTree, path: str | Path) -> None:
@@ -117,16 +123,41 @@ def draw_tree(tree: SceneTree, path: str | Path) -> None:
         if r.a not in pos or r.b not in pos:
             continue
         (xa, ya), (xb, yb) = pos[r.a], pos[r.b]
-        arc = FancyArrowPatch((xa, ya - 0.2), (xb, yb - 0.2), connectionstyle="arc3,rad=0.35",
-                              arrowstyle="-|>", mutation_scale=10, linestyle="--", color="#aa3333", lw=1.0,
-                              zorder=2)
+        arc = FancyArrowPatch(
+            (xa, ya - 0.2),
+            (xb, yb - 0.2),
+            connectionstyle="arc3,rad=0.35",
+            arrowstyle="-|>",
+            mutation_scale=10,
+            linestyle="--",
+            color="#aa3333",
+            lw=1.0,
+            zorder=2,
+        )
         ax.add_patch(arc)
-        ax.text((xa + xb) / 2, (ya + yb) / 2 - 0.2 - 0.18 * abs(xb - xa) * 0.35 - 0.05, r.relation,
-                ha="center", va="top", fontsize=7, color="#aa3333", zorder=4)
+        ax.text(
+            (xa + xb) / 2,
+            (ya + yb) / 2 - 0.2 - 0.18 * abs(xb - xa) * 0.35 - 0.05,
+            r.relation,
+            ha="center",
+            va="top",
+            fontsize=7,
+            color="#aa3333",
+            zorder=4,
+        )
     for n in nodes:
         x, y = pos[n.id]
-        ax.text(x, y, _text(n), ha="center", va="center", fontsize=7, family="monospace", zorder=3,
-                bbox={"boxstyle": "round,pad=0.35", "fc": _COLORS.get(n.kind, "#ffffff"), "ec": "#333333"})
+        ax.text(
+            x,
+            y,
+            _text(n),
+            ha="center",
+            va="center",
+            fontsize=7,
+            family="monospace",
+            zorder=3,
+            bbox={"boxstyle": "round,pad=0.35", "fc": _COLORS.get(n.kind, "#ffffff"), "ec": "#333333"},
+        )
     ax.set_title("Scene parse tree (solid: supports, dashed: relations)", fontsize=9)
     fig.tight_layout()
     fig.savefig(out, format=out.suffix.lower()[1:], dpi=110)

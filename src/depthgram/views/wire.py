@@ -54,8 +54,9 @@ def depth_range_mm(depth: NDArray[np.floating], valid: NDArray[np.bool_]) -> tup
     return float(lo), float(max(hi, lo + 1.0))
 
 
-def pack_body(depth: NDArray[np.floating], valid: NDArray[np.bool_], labels: NDArray[np.integer],
-              compress: bool) -> tuple[bytes, str]:
+def pack_body(
+    depth: NDArray[np.floating], valid: NDArray[np.bool_], labels: NDArray[np.integer], compress: bool
+) -> tuple[bytes, str]:
     """The body of a frame message and the label image's dtype name (``uint8``, ``uint16`` or ``uint32``)."""
     d16 = np.rint(np.clip(depth, 0, 65535)).astype("<u2")
     d16[~valid] = 0
@@ -77,7 +78,7 @@ def pack_frame(header: dict[str, Any], body: bytes) -> bytes:
 def unpack_frame(data: bytes) -> tuple[dict[str, Any], NDArray[np.uint16], NDArray[np.unsignedinteger]]:
     """The header, depth image (uint16 mm) and label image of a message made by :func:`pack_frame`."""
     (n,) = struct.unpack_from("<I", data, 0)
-    header = json.loads(data[4:4 + n].decode("utf-8"))
+    header = json.loads(data[4 : 4 + n].decode("utf-8"))
     start = 4 + n + (-(4 + n)) % 4
     body = data[start:]
     if header.get("compressed"):
