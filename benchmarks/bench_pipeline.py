@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import gc
+import os
 import platform
 import resource
 import time
@@ -136,37 +137,95 @@ def memory_row(frames: int) -> dict[str, Any]:
     }
 
 
-def batch_scaling(recordings: int = 4, frames: int = 30, size: str = "320x240") -> list[dict[str, Any]]:
-    """Wall time of ``depthgram batch`` over ``recordings`` simulated recordings on 1, 2, ... cores.
+def batch_scaling(recordings: int = 4, frames: int = 30, size: str = "640x480") -> list[dict[str, Any]]:
+    """Wall time of ``depthgram batch`` over ``recordings`` recordings on 1, 2, ... cores.
 
-    One row per worker count (1 up to the cores visible, at most ``recordings``): seconds, and
-    the speed-up over one worker (ideal: the worker count). Each run writes into a fresh
-    temporary folder, so none is skipped as already done.
+    The recordings are simulated and written as PNG folders first, outside the timed part: the
+    simulator renders a 640x480 frame far slower than depthgram reads one, so batching over
+    ``sim:`` inputs would time the simulator. One row per worker count (1 up to the cores
+    visible, at most ``recordings``): seconds, frames/s and the speed-up over one worker (ideal:
+    the worker count). Each run writes into a fresh folder, so none is skipped as already done.
     """
-    import os
+    import contextlib
+    import io
     import tempfile
+    from pathlib import Path
 
     from depthgram.batch import run_batch
+    from depthgram.cli import main as cli_main
 
-    inputs = [f"sim:crossing?frames={frames}&size={size}&seed={i}" for i in range(recordings)]
     rows: list[dict[str, Any]] = []
     base = float("nan")
-    for workers in range(1, min(os.cpu_count() or 1, recordings) + 1):
-        with tempfile.TemporaryDirectory(prefix="depthgram-bench-") as out:
+    with tempfile.TemporaryDirectory(prefix="depthgram-bench-") as tmp:
+        inputs = []
+        for i in range(recordings):
+            folder = Path(tmp) / f"rec{i}"
+            with contextlib.redirect_stderr(io.StringIO()):  # its "wrote N frames" lines are not results
+                argv = ["simulate", "crossing", "--frames", str(frames), "--size", size]
+                code = cli_main([*argv, "--seed", str(i), "--out", str(folder)])
+            if code != 0:
+                raise RuntimeError(f"depthgram simulate failed with status {code}")
+            inputs.append(str(folder))
+        for workers in range(1, min(os.cpu_count() or 1, recordings) + 1):
+            out = Path(tmp) / f"out{workers}"
             t0 = time.perf_counter()
-            results = run_batch(inputs, out, workers=workers)
+            results = run_batch(inputs, str(out), workers=workers)
             seconds = time.perf_counter() - t0
-        if workers == 1:
-            base = seconds
-        rows.append(
-            {
-                "workers": workers,
-                "seconds": seconds,
-                "speedup": base / seconds,
-                "done": sum(r.status == "done" for r in results),
-            }
-        )
+            if workers == 1:
+                base = seconds
+            rows.append(
+                {
+                    "workers": workers,
+                    "seconds": seconds,
+                    "fps": recordings * frames / seconds,
+                    "speedup": base / seconds,
+                    "done": sum(r.status == "done" for r in results),
+                }
+            )
     return rows
+
+
+def real_pipeline_row(frames: int = 100) -> dict[str, Any] | None:
+    """Thread CPU time per 640x480 7-Scenes frame: the whole pipeline, and its segmentation alone.
+
+    Thread CPU time, not wall time, so other work on the machine does not inflate it. None when
+    ``../shared/data/7scenes_redkitchen_seq`` is not beside the checkout.
+    """
+    import warnings
+    from pathlib import Path
+
+    import depthgram
+    from depthgram.pipeline import Pipeline
+    from depthgram.segmentation import segment
+
+    folder = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "7scenes_redkitchen_seq"
+    if not folder.is_dir():
+        return None
+    clip = [f for _, f in zip(range(frames), depthgram.read(str(folder), fps=30.0), strict=False)]
+    pipe = Pipeline()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        for f in clip[:5]:  # warm-up: numba, lazy imports, the sensor estimate
+            pipe.process(f)
+        pipe.reset()
+        whole, seg = [], []
+        for f in clip:
+            t0 = time.thread_time()
+            pipe.process(f)
+            t1 = time.thread_time()
+            segment(f, sensor=pipe._sensor_model(f))
+            t2 = time.thread_time()
+            whole.append(t1 - t0)
+            seg.append(t2 - t1)
+    w, sg = np.array(whole) * 1e3, np.array(seg) * 1e3
+    return {
+        "frames": len(clip),
+        "ms": float(np.median(w)),
+        "p95_ms": float(np.percentile(w, 95)),
+        "max_ms": float(w.max()),
+        "segment_ms": float(np.median(sg)),
+        "fps": 1e3 / float(np.median(w)),
+    }
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -186,12 +245,27 @@ def main(argv: Sequence[str] | None = None) -> int:
             f"{r['size']:>9} | {r['stage']:<20} | {r['ms']:9.3f} | {r['fps']:9.0f} | {r['x_bincount']:10.1f} | "
             f"{r['x_threshold']:11.2f}"
         )
-    recs = 2 if a.quick else 4
-    print(f"\nbatch scaling ({recs} simulated recordings of 30 frames at 320x240; wall time, load included):")
-    for b in batch_scaling(recordings=recs):
+    real = real_pipeline_row(30 if a.quick else 100)
+    if real is None:
         print(
-            f"  {b['workers']} worker(s): {b['seconds']:6.2f} s, speed-up {b['speedup']:.2f}x "
-            f"(ideal {b['workers']}x), {b['done']} done"
+            "\nwhole pipeline on 7-Scenes: skipped (../shared/data/7scenes_redkitchen_seq is not beside the checkout)"
+        )
+    else:
+        print(
+            f"\nwhole pipeline (segment, tree, tracks, plan) on {real['frames']} 7-Scenes frames at 640x480, "
+            f"thread CPU time: median {real['ms']:.1f} ms ({real['fps']:.0f} frames/s; target >= 100), "
+            f"p95 {real['p95_ms']:.1f}, max {real['max_ms']:.1f}; segmentation alone {real['segment_ms']:.1f} ms"
+        )
+    recs = 2 if a.quick else 4
+    frames = 15 if a.quick else 60
+    print(
+        f"\nbatch scaling ({recs} recordings of {frames} frames at 640x480 written beforehand; wall time, "
+        f"load included; load average now {os.getloadavg()[0]:.1f}):"
+    )
+    for b in batch_scaling(recordings=recs, frames=frames):
+        print(
+            f"  {b['workers']} worker(s): {b['seconds']:6.2f} s, {b['fps']:5.1f} frames/s, "
+            f"speed-up {b['speedup']:.2f}x (ideal {b['workers']}x), {b['done']} of {recs} done"
         )
     m = memory_row(a.memory_frames or (60 if a.quick else 300))
     print(
