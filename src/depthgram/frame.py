@@ -161,7 +161,7 @@ def warn_units(where: str, reason: str, hints: Sequence[str]) -> None:
 
 
 def _float_metres(arr: NDArray[np.generic]) -> bool:
-    """A float image whose readings all sit under :data:`FLOAT_METRES_BELOW` (metres, not mm)."""
+    """Return a float image whose readings all sit under :data:`FLOAT_METRES_BELOW` (metres, not mm)."""
     if not np.issubdtype(arr.dtype, np.floating):
         return False
     a = np.asarray(arr, dtype=np.float64)
