@@ -178,7 +178,7 @@ def threshold_stages(size: tuple[int, int], seed: int = 0) -> dict[str, float]:
     depth, ok = check_depth(f.depth, f.valid)
     bins, edges, counts = bin_index(depth, ok, cfg, zero_outside=True)
     bands = depth_bands(counts, edges, cfg)
-    min_px = cfg.min_area_px(depth.size)
+    min_px = cfg.min_pixels(depth.size)
     labels, _, sums, boxes = label_bands_stats(bins, bands.lut, ok, None, depth, bridge=2, min_px=min_px)
     st = Stats(sums[:, 0], sums[:, 1], sums[:, 2], sums[:, 3], sums[:, 4], sums[:, 5], sums[:, 6], boxes)
     return {

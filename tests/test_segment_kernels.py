@@ -13,23 +13,23 @@ import numpy as np
 import pytest
 
 from depthgram.frame import Intrinsics
-from depthgram.segmentation.attributes import label_stats, label_stats_bincount, relabel_small
+from depthgram.segmentation.attributes import label_stats
 from depthgram.segmentation.binning import band_state, bin_pixels, depth_range
+from depthgram.segmentation.contacts import front_faces
 from depthgram.segmentation.label import ACTIVE, BLOCK, HOLE, label_bands_stats, label_keyed, label_keyed_stats
 from depthgram.segmentation.objects import SceneObject
 from depthgram.segmentation.orientation import _jumps, _jumps_cols, _one_sided, _one_sided_cols, upsample_classes
-from depthgram.segmentation.slices import (
-    front_faces,
+from depthgram.segmentation.planes import near_planes, planes_from_sums
+from depthgram.segmentation.slices import slice_parts, support_pieces
+from depthgram.segmentation.validate import check_depth
+from reference import (
+    label_stats_bincount,
     merge_coplanar,
-    near_planes,
     on_support_planes,
     plane_fits,
-    planes_from_sums,
-    slice_parts,
+    relabel_small,
     support_components,
-    support_pieces,
 )
-from depthgram.segmentation.validate import check_depth
 
 
 def _random_keyed(rng: np.random.Generator, smooth: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -33,7 +33,7 @@ EXTRAS = {
 
 
 def extra_for(exc: ModuleNotFoundError) -> MissingExtraError | None:
-    """The :class:`MissingExtraError` for a missing optional module, None for any other module."""
+    """Return the :class:`MissingExtraError` for a missing optional module, None for any other module."""
     top = (exc.name or "").partition(".")[0]
     extra = EXTRAS.get(top)
     if extra is None:

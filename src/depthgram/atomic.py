@@ -23,7 +23,7 @@ def _part(path: Path) -> Path:
 
 @contextmanager
 def atomic_path(path: str | os.PathLike[str]) -> Iterator[Path]:
-    """A temporary path beside ``path`` to write to; renamed to ``path`` when the block succeeds.
+    """Return a temporary path beside ``path`` to write to; renamed to ``path`` when the block succeeds.
 
     On an exception the temporary file is removed and ``path`` is left as it was.
     """

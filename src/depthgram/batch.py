@@ -51,7 +51,7 @@ class BatchResult:
 
 
 def input_key(spec: str) -> str:
-    """The input as every machine must read it: an existing path (or a relative glob) made absolute.
+    """Return the input as every machine must read it: an existing path (or a relative glob) made absolute.
 
     Other specs (``sim:``, ``realsense:``, a scene name) are returned as they are. A Dask worker
     runs in another folder, so a relative path would name another file there (issue 18.4).
@@ -332,7 +332,7 @@ def run_batch(
 
 
 def _finished(folder: Path) -> dict[str, Any] | None:
-    """The summary of a finished recording's folder, or None."""
+    """Return the summary of a finished recording's folder, or None."""
     try:
         done = json.loads((folder / "summary.json").read_text(encoding="utf-8"))
     except (OSError, ValueError):

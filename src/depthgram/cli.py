@@ -25,7 +25,7 @@ _PACKAGE = Path(__file__).resolve().parent
 
 
 def build_parser() -> argparse.ArgumentParser:
-    """The argument parser with every sub-command found in :mod:`depthgram.commands`."""
+    """Return the argument parser with every sub-command found in :mod:`depthgram.commands`."""
     parser = argparse.ArgumentParser(
         prog="depthgram",
         description="Depth frames to a compact scene description: objects, motion, grammar, actions, sound.",
@@ -81,8 +81,11 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 class _ClosedStream(io.TextIOBase):
-    """Stands in for a standard stream the caller closed (``>&-``, ``<&-``): Python leaves None,
-    which turned writes into tracebacks and ``print`` into silently lost output (issue 18.10)."""
+    """Stand in for a standard stream the caller closed (``>&-``, ``<&-``).
+
+    Python leaves None there, which turned writes into tracebacks and ``print`` into silently
+    lost output (issue 18.10).
+    """
 
     def __init__(self, name: str) -> None:
         self._name = name
@@ -105,8 +108,11 @@ def _closed_streams() -> None:
 
 
 def _silence_stdout() -> None:
-    """Point standard output at /dev/null, so the interpreter's last flush of what is still
-    buffered finds nowhere to fail ("Exception ignored ... Broken pipe")."""
+    """Point standard output at /dev/null.
+
+    The interpreter's last flush of what is still buffered then finds nowhere to fail
+    ("Exception ignored ... Broken pipe").
+    """
     try:
         devnull = os.open(os.devnull, os.O_WRONLY)
         os.dup2(devnull, sys.stdout.fileno())
@@ -117,7 +123,7 @@ def _silence_stdout() -> None:
 
 @contextmanager
 def _plain_warnings(command: str) -> Iterator[None]:
-    """depthgram's own warnings (wrong units ...) as one line for people, without the source line."""
+    """Show depthgram's own warnings (wrong units ...) as one line for people, without the source line."""
     shown = warnings.showwarning
 
     def show(

@@ -121,7 +121,7 @@ def _column_min(
 
 
 def openings(free: NDArray[np.bool_]) -> list[tuple[int, int]]:
-    """Runs of True in a 1-D mask as (start, stop) inclusive column pairs, left to right."""
+    """Return runs of True in a 1-D mask as (start, stop) inclusive column pairs, left to right."""
     f = np.concatenate(([False], np.asarray(free, bool), [False])).astype(np.int8)
     edges = np.diff(f)
     starts = np.flatnonzero(edges == 1)
@@ -130,7 +130,7 @@ def openings(free: NDArray[np.bool_]) -> list[tuple[int, int]]:
 
 
 def clearance_channel(frame: Frame, config: ActConfig | None = None) -> Channel | None:
-    """The clearance channel of one frame, or None when the way is blocked.
+    """Return the clearance channel of one frame, or None when the way is blocked.
 
     A column is free when its nearest obstruction in the body's band is at least
     ``config.safety_mm`` away (columns without a reading count as blocked unless

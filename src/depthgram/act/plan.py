@@ -227,7 +227,7 @@ def _r(v: float | None, nd: int = 3) -> float | None:
 
 
 def plan_to_dict(p: Plan) -> dict[str, Any]:
-    """The plan as plain JSON-ready data (lists, floats rounded, None for unknown)."""
+    """Return the plan as plain JSON-ready data (lists, floats rounded, None for unknown)."""
     ch = p.channel
     return {
         "actions": [
@@ -262,7 +262,7 @@ def plan_to_dict(p: Plan) -> dict[str, Any]:
 
 
 def plan_to_text(p: Plan) -> str:
-    """The plan as a few lines for people: warnings first, then actions, then the channel."""
+    """Return the plan as a few lines for people: warnings first, then actions, then the channel."""
     lines = [f"WARNING object {w.object_id}: time to collision {w.ttc:.2f} at {w.depth_mm:.0f} mm" for w in p.warnings]
     for a in p.actions:
         d = ", ".join(f"{c:+.2f}" for c in a.direction)

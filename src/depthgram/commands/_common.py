@@ -56,7 +56,7 @@ def add_source_arguments(p: argparse.ArgumentParser, *, input_optional: bool = F
 
 
 def add_reading_arguments(p: argparse.ArgumentParser) -> None:
-    """The options that say how to read a recording, the same for every command that reads one.
+    """Return the options that say how to read a recording, the same for every command that reads one.
 
     :func:`reading_options` turns them into the keyword arguments of
     :func:`depthgram.sources.open_source` (``depthgram batch`` passes them to every recording).
@@ -117,7 +117,7 @@ def add_reading_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def reading_options(args: argparse.Namespace) -> dict[str, Any]:
-    """The reading options of ``args`` as keyword arguments of :func:`depthgram.sources.open_source`."""
+    """Return the reading options of ``args`` as keyword arguments of :func:`depthgram.sources.open_source`."""
     kwargs: dict[str, Any] = {
         "scale_mm": args.scale,
         "invalid": tuple(args.invalid),
@@ -151,7 +151,7 @@ def open_input(args: argparse.Namespace) -> Source:
 
 
 def load_config(args: argparse.Namespace) -> Config:
-    """The pipeline configuration from --config and --method."""
+    """Return the pipeline configuration from --config and --method."""
     from depthgram.pipeline import Config
 
     cfg = Config.load(args.config) if getattr(args, "config", None) else Config()
@@ -164,7 +164,7 @@ def load_config(args: argparse.Namespace) -> Config:
 
 
 def progress(iterable: Any, *, total: int | None, desc: str, quiet: bool = False) -> Any:
-    """A tqdm progress bar on standard error; silent with --quiet or when not a terminal."""
+    """Return a tqdm progress bar on standard error; silent with --quiet or when not a terminal."""
     from tqdm import tqdm
 
     return tqdm(
@@ -188,7 +188,7 @@ _BARE = "\0bare"
 
 
 def add_output_argument(p: argparse.ArgumentParser, flag: str, what: str, *, bare_deprecated: bool = False) -> None:
-    """An output option that takes a file, ``-`` meaning standard output (the one convention).
+    """Return an output option that takes a file, ``-`` meaning standard output (the one convention).
 
     Parameters
     ----------
@@ -219,7 +219,7 @@ def deprecated(command: str, old: str, new: str) -> None:
 
 
 def output_target(args: argparse.Namespace, dest: str) -> str | None:
-    """The file named by an output option: a path, :data:`STDOUT`, or None when not given.
+    """Return the file named by an output option: a path, :data:`STDOUT`, or None when not given.
 
     A bare deprecated switch (``plan --json``) gives :data:`STDOUT` and a deprecation message. The
     old spelling with the switch before the input (``plan --json INPUT``) had the input taken as

@@ -12,6 +12,7 @@ HELP = "process many recordings (local cores, or a Dask cluster with --scheduler
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
+    """Add this command's options to ``p``."""
     p.add_argument("inputs", nargs="+", metavar="INPUT", help="recordings (files, folders, bags, sim:SCENE)")
     p.add_argument("--out", required=True, metavar="DIR", help="output root; one folder per recording")
     p.add_argument("--workers", type=int, default=None, help="local worker processes (default: all cores)")
@@ -27,6 +28,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    """Run the command on parsed ``args``; return the exit status."""
     from depthgram.batch import BatchResult, run_batch
     from depthgram.errors import InputError
 

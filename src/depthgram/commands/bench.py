@@ -27,6 +27,7 @@ SUITES = {
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
+    """Add this command's options to ``p``."""
     p.add_argument(
         "suites", nargs="*", default=[], metavar="SUITE", help=f"which benchmarks: {', '.join(SUITES)} (default: all)"
     )
@@ -40,13 +41,14 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def benchmarks_dir() -> Path | None:
-    """The benchmarks/ folder of the source checkout this depthgram runs from; None when installed."""
+    """Return the benchmarks/ folder of the source checkout this depthgram runs from; None when installed."""
     package = Path(__file__).resolve().parents[1]
     folder = package.parents[1] / "benchmarks"  # src/depthgram -> the checkout's root
     return folder if package.parent.name == "src" and folder.is_dir() else None
 
 
 def run(args: argparse.Namespace) -> int:
+    """Run the command on parsed ``args``; return the exit status."""
     from depthgram.errors import InputError
 
     unknown = [s for s in args.suites if s not in SUITES]

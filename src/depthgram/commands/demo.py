@@ -10,11 +10,13 @@ HELP = "run the pipeline on the bundled simulated scenes (table, approach): JSON
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
+    """Add this command's options to ``p``."""
     p.add_argument("--out", default="demo-out", metavar="DIR", help="folder to write into (default demo-out)")
     p.add_argument("--frames", type=int, default=30, help="frames of the moving scene (default 30)")
 
 
 def run(args: argparse.Namespace) -> int:
+    """Run the command on parsed ``args``; return the exit status."""
     import json
 
     from depthgram._optional import needs_extra

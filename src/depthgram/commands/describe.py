@@ -26,6 +26,7 @@ HELP = "describe every frame: objects, tree, sentence, motion (JSON lines or tex
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
+    """Add this command's options to ``p``."""
     p.epilog = (
         "Outputs name their file, '-' being standard output; with none of --json, --text and --mcap "
         "the JSON lines go to standard output. Several may be given: the input is read once."
@@ -83,6 +84,7 @@ def write_label_map(path: Path, labels: NDArray[np.integer], frame_name: str) ->
 
 
 def run(args: argparse.Namespace) -> int:
+    """Run the command on parsed ``args``; return the exit status."""
     from contextlib import ExitStack
 
     json_to, text_to = output_target(args, "json"), output_target(args, "text")

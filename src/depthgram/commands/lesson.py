@@ -11,6 +11,7 @@ HELP = "write one short WAV per sound cue (left/right, near/far, height, size, g
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
+    """Add this command's options to ``p``."""
     p.add_argument("folder", metavar="DIR", help="folder to write the WAVs and lesson.txt into (made if missing)")
     add_config_arguments(p)
     p.add_argument("--preset", default=None, help="sound mapping preset (overrides the config's [sound])")
@@ -18,6 +19,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    """Run the command on parsed ``args``; return the exit status."""
     from depthgram.commands._common import load_config
     from depthgram.errors import InputError
     from depthgram.sound import SoundMapping

@@ -19,6 +19,7 @@ HELP = "print the action plan per frame: grasp / avoid per object, the clearance
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
+    """Add this command's options to ``p``."""
     p.epilog = (
         "The plan is printed as text on standard output unless --json or --text names a file ('-' is standard output)."
     )
@@ -28,6 +29,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    """Run the command on parsed ``args``; return the exit status."""
     from contextlib import ExitStack
 
     from depthgram.act import plan_to_dict, plan_to_text

@@ -11,6 +11,7 @@ HELP = "write pictures (objects, histogram, tree, tracks) and an index.html for 
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
+    """Add this command's options to ``p``."""
     add_pipeline_arguments(p, stills=True)
     p.add_argument("--out", required=True, metavar="DIR", help="folder to write the report into")
     p.add_argument(
@@ -22,6 +23,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    """Run the command on parsed ``args``; return the exit status."""
     from depthgram._optional import needs_extra
     from depthgram.errors import InputError
     from depthgram.views.report import ReportWriter

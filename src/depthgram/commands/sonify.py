@@ -23,6 +23,7 @@ GAP_S = 0.3
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
+    """Add this command's options to ``p``."""
     p.epilog = (
         "A recording plays at its own rate (its timestamps, its stated rate or --fps); frames with no "
         "rate and no timestamps are refused: give --fps, or --stills for unrelated pictures. A still "
@@ -171,6 +172,7 @@ class _Writer:
 
 
 def run(args: argparse.Namespace) -> int:
+    """Run the command on parsed ``args``; return the exit status."""
     import soundfile as sf
 
     from depthgram.errors import InputError

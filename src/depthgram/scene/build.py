@@ -193,7 +193,7 @@ def build_tree(
     config: TreeConfig | None = None,
     labels: NDArray[np.integer] | None = None,
 ) -> SceneTree:
-    """The scene's parse tree: ``Bkg`` at the root, every object below what supports it.
+    """Return the scene's parse tree: ``Bkg`` at the root, every object below what supports it.
 
     Parameters
     ----------

@@ -29,7 +29,7 @@ def _node_dict(n: Node, parent: int | None) -> dict[str, Any]:
 
 
 def tree_to_dict(tree: SceneTree) -> dict[str, Any]:
-    """A JSON-ready dictionary of the tree.
+    """Return a JSON-ready dictionary of the tree.
 
     Returns
     -------

@@ -145,7 +145,7 @@ def to_sentence(tree: SceneTree, *, precision: int = 1) -> str:
 
 
 def round_tree(tree: SceneTree, precision: int = 1) -> SceneTree:
-    """The tree as :func:`parse_sentence` reads it back from ``to_sentence(tree, precision=...)``.
+    """Return the tree as :func:`parse_sentence` reads it back from ``to_sentence(tree, precision=...)``.
 
     Floats are rounded to ``precision`` decimals; used to compare round trips.
     """

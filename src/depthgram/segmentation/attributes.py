@@ -1,9 +1,8 @@
 """Object attributes from a label map: area, center, mean and spread of depth, bbox, metric size.
 
-All statistics (count, sum Z, sum Z², sum x, sum y, sum xZ, sum yZ, bounding box) come from one
-compiled raster pass over the label map, whatever the object count. The plain-numpy route
-(seven weighted ``np.bincount`` passes plus ``scipy.ndimage.find_objects``) is kept as
-:func:`label_stats_bincount`; it gives the same numbers and was measured about 3x slower.
+All statistics (count, sum Z, sum Z², sum x, sum y, sum xZ, sum yZ, bounding box: the table of
+:mod:`depthgram.segmentation.label.stats`) come from the labellers or from one compiled raster
+pass over the label map, whatever the object count; :class:`Stats` holds its columns by name.
 """
 
 from __future__ import annotations
@@ -19,9 +18,10 @@ from scipy import ndimage
 
 from depthgram.frame import Intrinsics
 from depthgram.segmentation.label import label_stats_fused, relabel
+from depthgram.segmentation.label.stats import COUNT, KEY, SUM_X, SUM_XZ, SUM_Y, SUM_YZ, SUM_Z, SUM_ZZ
 from depthgram.segmentation.objects import SceneObject
 
-__all__ = ["Stats", "fused_stats", "label_stats", "label_stats_bincount", "make_objects", "relabel_small"]
+__all__ = ["Stats", "fused_stats", "label_stats", "make_objects"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -49,11 +49,11 @@ class Stats:
 
     @classmethod
     def from_sums(cls, sums: NDArray[np.float64], boxes: NDArray[Any] | None, *, metric: bool) -> Stats:
-        """From the labellers' stacked sums (count, Z, Z², x, y, xZ, yZ, ...) per row; the two
-        metric sums are kept only when ``metric`` (intrinsics known)."""
+        """From the statistics table of :mod:`depthgram.segmentation.label.stats` (one row per
+        label); the two metric sums are kept only when ``metric`` (intrinsics known)."""
         return cls(
-            sums[:, 0], sums[:, 1], sums[:, 2], sums[:, 3], sums[:, 4],
-            sums[:, 5] if metric else None, sums[:, 6] if metric else None, boxes,
+            sums[:, COUNT], sums[:, SUM_Z], sums[:, SUM_ZZ], sums[:, SUM_X], sums[:, SUM_Y],
+            sums[:, SUM_XZ] if metric else None, sums[:, SUM_YZ] if metric else None, boxes,
         )  # fmt: skip
 
 
@@ -72,36 +72,7 @@ def label_stats(labels: NDArray[np.int32], depth_mm: NDArray[np.floating], n: in
         Keep the sums of x·Z and y·Z (for 3-D centroids).
     """
     sums, boxes = label_stats_fused(labels, n, np.asarray(depth_mm, np.float32), labels)
-    return Stats(
-        sums[:, 0],
-        sums[:, 1],
-        sums[:, 2],
-        sums[:, 3],
-        sums[:, 4],
-        sums[:, 5] if metric else None,
-        sums[:, 6] if metric else None,
-        boxes,
-    )
-
-
-def label_stats_bincount(
-    labels: NDArray[np.int32], depth_mm: NDArray[np.floating], n: int, *, metric: bool = False
-) -> Stats:
-    """The same sums with weighted ``np.bincount`` passes (reference; about 3x slower at 640 x 480)."""
-    flat = labels.ravel()
-    idx = np.flatnonzero(flat)
-    lab = flat[idx]
-    z = depth_mm.ravel()[idx].astype(np.float64)
-    ys, xs = np.divmod(idx, labels.shape[1])
-    m = n + 1
-    count = np.bincount(lab, minlength=m).astype(np.float64)
-    sz = np.bincount(lab, weights=z, minlength=m)
-    szz = np.bincount(lab, weights=z * z, minlength=m)
-    sx = np.bincount(lab, weights=xs, minlength=m)
-    sy = np.bincount(lab, weights=ys, minlength=m)
-    sxz = np.bincount(lab, weights=xs * z, minlength=m) if metric else None
-    syz = np.bincount(lab, weights=ys * z, minlength=m) if metric else None
-    return Stats(count, sz, szz, sx, sy, sxz, syz)
+    return Stats.from_sums(sums, boxes, metric=metric)
 
 
 def fused_stats(
@@ -109,25 +80,15 @@ def fused_stats(
 ) -> tuple[NDArray[np.int32], Stats, NDArray[np.float64]]:
     """Drop labels under ``min_px`` pixels, renumber, and return their sums, boxes and keys."""
     sums, boxes = label_stats_fused(labels, n, depth_mm, key)
-    keep = sums[:, 0] >= min_px
+    keep = sums[:, COUNT] >= min_px
     keep[0] = False
     lut = np.zeros(n + 1, dtype=np.int32)
     lut[keep] = np.arange(1, int(keep.sum()) + 1, dtype=np.int32)
     sel = np.concatenate(([0], np.flatnonzero(keep)))
     s = sums[sel]
-    stats = Stats(s[:, 0], s[:, 1], s[:, 2], s[:, 3], s[:, 4], s[:, 5], s[:, 6], boxes[sel])
+    stats = Stats.from_sums(s, boxes[sel], metric=True)
     out = relabel(labels, lut) if n else labels
-    return out, stats, s[:, 7]
-
-
-def relabel_small(labels: NDArray[np.int32], count: NDArray[np.float64], min_px: int) -> NDArray[np.int32]:
-    """Drop labels with fewer than ``min_px`` pixels and renumber the rest 1..k in order."""
-    keep = count >= min_px
-    keep[0] = False
-    lut = np.zeros(count.size, dtype=np.int32)
-    lut[keep] = np.arange(1, int(keep.sum()) + 1, dtype=np.int32)
-    out: NDArray[np.int32] = lut[labels]
-    return out
+    return out, stats, s[:, KEY]
 
 
 @njit(cache=True)

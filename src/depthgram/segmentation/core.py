@@ -12,8 +12,9 @@ from numpy.typing import NDArray
 from depthgram.frame import Frame, Intrinsics, check_array_units
 from depthgram.segmentation.attributes import Stats, make_objects
 from depthgram.segmentation.config import SegmentConfig
+from depthgram.segmentation.contacts import front_faces, side_faces
 from depthgram.segmentation.histogram import Bands, bin_index, depth_bands
-from depthgram.segmentation.label import label_bands_stats, label_stats_fused, plane_sums, relabel
+from depthgram.segmentation.label import label_bands_stats, label_stats_fused, relabel
 from depthgram.segmentation.objects import Histogram, SceneObject, Segmentation
 from depthgram.segmentation.orientation import (
     FACING,
@@ -24,20 +25,10 @@ from depthgram.segmentation.orientation import (
     upsample_classes,
 )
 from depthgram.segmentation.paper_slices import paper_slices
-from depthgram.segmentation.planes import find_planes, plane_normal
+from depthgram.segmentation.planes import find_planes, near_planes, plane_normal, plane_sums, planes_from_sums
 from depthgram.segmentation.region import region_grow
 from depthgram.segmentation.sensor import SensorModel, estimate_sensor, sensor_model
-from depthgram.segmentation.slices import (
-    add_labels,
-    drop_pieces,
-    front_faces,
-    near_planes,
-    planes_from_sums,
-    side_faces,
-    slice_parts,
-    support_kind,
-    support_pieces,
-)
+from depthgram.segmentation.slices import add_labels, drop_pieces, slice_parts, support_kind, support_pieces
 from depthgram.segmentation.surfaces import (
     concave_creases,
     crease_scale_px,

@@ -20,7 +20,7 @@ from numpy.typing import NDArray
 
 from depthgram.frame import Intrinsics
 
-__all__ = ["default_intrinsics", "orientation_classes", "orientation_field"]
+__all__ = ["default_intrinsics", "orientation_classes"]
 
 #: Classes returned by :func:`orientation_classes`.
 FACING, HORIZONTAL, VERTICAL = 0, 1, 2
@@ -44,22 +44,6 @@ def orientation_classes(
 ) -> NDArray[np.int8]:
     """Per-pixel class: 0 facing the sensor (or unknown), 1 horizontal, 2 vertical lateral.
 
-    See :func:`orientation_field` for the parameters.
-    """
-    return _field(depth_mm, valid, intrinsics, window_px, oblique_deg, jump_rel, False)[0]
-
-
-def orientation_field(
-    depth_mm: NDArray[np.float32],
-    valid: NDArray[np.bool_],
-    intrinsics: Intrinsics,
-    *,
-    window_px: int = 7,
-    oblique_deg: float = 35.0,
-    jump_rel: float = 0.05,
-) -> tuple[NDArray[np.int8], NDArray[np.float32]]:
-    """Per-pixel class (0 facing or unknown, 1 horizontal, 2 vertical lateral) and unit normal.
-
     Parameters
     ----------
     depth_mm : ndarray of float32, shape (H, W)
@@ -79,13 +63,8 @@ def orientation_field(
     Returns
     -------
     classes : ndarray of int8, shape (H, W)
-    normals : ndarray of float32, shape (H, W, 3)
-        Unit surface normal in the camera frame (x right, y down, z forward), turned toward
-        the sensor.
     """
-    cls, normals = _field(depth_mm, valid, intrinsics, window_px, oblique_deg, jump_rel, True)
-    assert normals is not None
-    return cls, normals
+    return _field(depth_mm, valid, intrinsics, window_px, oblique_deg, jump_rel, False)[0]
 
 
 def _field(

@@ -12,6 +12,11 @@ so the dominant planes are found by a robust fit of that affine model (RANSAC ov
 of valid pixels, then a least-squares refit on the inliers) without any intrinsics. A plane is a
 support when it is large and oblique (its depth spreads over its extent); a fronto-parallel plane
 such as a back wall is a facing object in the paper's model.
+
+The same model fitted by least squares to labelled pieces (:func:`plane_sums`,
+:func:`planes_from_sums`) gives the plane of each support of the slicing method; pieces of one
+plane cut apart by occluders are joined (:func:`coplanar_groups`), and pixels lying on a
+support's plane near it are found (:func:`near_planes`).
 """
 
 from __future__ import annotations
@@ -26,7 +31,17 @@ from numpy.typing import NDArray
 
 from depthgram.frame import Intrinsics
 
-__all__ = ["Plane", "find_planes", "plane_distance_mm", "plane_normal", "plane_residual_mask"]
+__all__ = [
+    "Plane",
+    "coplanar_groups",
+    "find_planes",
+    "near_planes",
+    "plane_distance_mm",
+    "plane_normal",
+    "plane_residual_mask",
+    "plane_sums",
+    "planes_from_sums",
+]
 
 
 @dataclass(frozen=True)
@@ -287,7 +302,7 @@ def _score(
     tol: NDArray[np.float64],
 ) -> NDArray[np.int64]:
     # inliers of every hypothesis without the (hypotheses x points) temporaries of numpy
-    # broadcasting, which took 4 ms per search on a shared core
+    # broadcasting (docs/design-notes.md, "Segmentation kernels")
     out = np.zeros(coef.shape[0], np.int64)
     for k in range(coef.shape[0]):
         a, b, c = coef[k, 0], coef[k, 1], coef[k, 2]
@@ -311,3 +326,241 @@ def _large_pieces(mask: NDArray[np.bool_], min_px: int) -> NDArray[np.bool_]:
     keep[0] = False
     out: NDArray[np.bool_] = keep[lab]
     return out
+
+
+# Least-squares planes of labelled pieces (the supports of the slicing method)
+
+
+@njit(cache=True)
+def _plane_sums(
+    labels: NDArray[np.int32],
+    n: int,
+    depth: NDArray[np.float32],
+    fx: float,
+    fy: float,
+    cx: float,
+    cy: float,
+    want: NDArray[np.bool_],
+    use_want: bool,
+) -> NDArray[np.float64]:
+    # sums are gathered in registers along each run of one label in a row and added once per
+    # run (v is constant along a row, so its terms are v times the run's sums) instead of
+    # adding nine values into the table at every pixel. With `use_want`, runs of labels
+    # not wanted are stepped over (no division per pixel): a few supports among all objects.
+    h, w = labels.shape
+    out = np.zeros((n + 1, 9), np.float64)
+    # u' of each column once rather than at every pixel (the same division, the same numbers)
+    ucol = np.empty(w, np.float64)
+    for x in range(w):
+        ucol[x] = (x - cx) / fx
+    for y in range(h):
+        v = (y - cy) / fy
+        x = 0
+        while x < w:
+            i = labels[y, x]
+            if i == 0:
+                x += 1
+                continue
+            if use_want and not want[i]:
+                while x < w and labels[y, x] == i:
+                    x += 1
+                continue
+            c = 0.0
+            su = 0.0
+            suu = 0.0
+            sq = 0.0
+            suq = 0.0
+            while x < w and labels[y, x] == i:
+                u = ucol[x]
+                q = 1.0 / depth[y, x]
+                c += 1.0
+                su += u
+                suu += u * u
+                sq += q
+                suq += u * q
+                x += 1
+            out[i, 0] += suu
+            out[i, 1] += v * su
+            out[i, 2] += su
+            out[i, 3] += v * v * c
+            out[i, 4] += v * c
+            out[i, 5] += c
+            out[i, 6] += suq
+            out[i, 7] += v * sq
+            out[i, 8] += sq
+    return out
+
+
+def plane_sums(
+    labels: NDArray[np.int32],
+    n: int,
+    depth_mm: NDArray[np.float32],
+    fx: float,
+    fy: float,
+    cx: float,
+    cy: float,
+    only: NDArray[np.bool_] | None = None,
+) -> NDArray[np.float64]:
+    """Normal-equation sums of the plane fit ``1/Z = alpha u' + beta v' + gamma`` per label.
+
+    Columns: u'u', u'v', u', v'v', v', 1, u'/Z, v'/Z, 1/Z with ``u' = (x - cx) / fx``,
+    ``v' = (y - cy) / fy`` (one pass; the bincount route took nine). ``only`` (bool per label,
+    length ``n + 1``): the rows of other labels stay 0 and their pixels cost no arithmetic.
+    """
+    want = _NO_WANT if only is None else np.ascontiguousarray(only, np.bool_)
+    return _plane_sums(
+        np.ascontiguousarray(labels, np.int32),
+        int(n),
+        np.ascontiguousarray(depth_mm, np.float32),
+        float(fx),
+        float(fy),
+        float(cx),
+        float(cy),
+        want,
+        only is not None,
+    )
+
+
+#: Stand-in for a missing ``only`` table of :func:`plane_sums` (numba wants an array).
+_NO_WANT = np.ones(1, np.bool_)
+
+
+def planes_from_sums(sums: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """Unit normals, offsets (mm) and pixel counts from the sums of :func:`plane_sums` (row 0 unused).
+
+    The sums are additive, so the plane of a union of pieces comes from the sum of their rows
+    without another pass over the image.
+    """
+    m = sums.shape[0]
+    ata = np.empty((m, 3, 3))
+    ata[:, 0, 0], ata[:, 0, 1], ata[:, 0, 2] = sums[:, 0], sums[:, 1], sums[:, 2]
+    ata[:, 1, 0], ata[:, 1, 1], ata[:, 1, 2] = sums[:, 1], sums[:, 3], sums[:, 4]
+    ata[:, 2, 0], ata[:, 2, 1], ata[:, 2, 2] = sums[:, 2], sums[:, 4], sums[:, 5]
+    atb = sums[:, 6:9].copy()
+    ata[0] = np.eye(3)
+    atb[0] = (0.0, 0.0, 1.0)
+    ata += np.eye(3) * 1e-12
+    coef = np.linalg.solve(ata, atb[..., None])[..., 0]
+    norm = np.maximum(np.linalg.norm(coef, axis=1), 1e-15)
+    return -coef / norm[:, None], 1.0 / norm, sums[:, 5]
+
+
+def coplanar_groups(
+    normal: NDArray[np.float64],
+    off: NDArray[np.float64],
+    count: NDArray[np.float64],
+    *,
+    max_angle_deg: float = 10.0,
+    max_offset_rel: float = 0.08,
+    min_fit_px: int = 1,
+) -> tuple[NDArray[np.int32], int]:
+    """Join pieces of one plane cut apart by occluders (the floor between two boxes).
+
+    Pieces join when their normals (from :func:`planes_from_sums`) agree within
+    ``max_angle_deg`` and their plane offsets within ``max_offset_rel``. Pieces under
+    ``min_fit_px`` pixels are left alone: a few rows give no reliable plane (a cup's rim would
+    join the table top).
+
+    Returns
+    -------
+    lut : ndarray of int32, shape (n + 1,)
+        Piece -> group (row 0 maps to 0); groups are numbered 1..m in the order of their first
+        piece.
+    m : int
+        Number of groups.
+    """
+    n = normal.shape[0] - 1
+    ident = np.arange(n + 1, dtype=np.int32)
+    # only pieces big enough for a reliable plane can join: compare those alone (a few),
+    # not all pairs of pieces (hundreds of noise specks)
+    big = np.flatnonzero(count >= min_fit_px)
+    big = big[big > 0]
+    if big.size < 2:
+        return ident, n
+    nb, ob = normal[big], off[big]
+    same_dir = nb @ nb.T > math.cos(math.radians(max_angle_deg))
+    close = np.abs(ob[:, None] - ob[None, :]) <= max_offset_rel * np.maximum(ob[:, None], ob[None, :])
+    join = np.triu(same_dir & close, 1)
+    if not join.any():
+        return ident, n
+    parent = list(range(n + 1))
+
+    def root(i: int) -> int:
+        while parent[i] != i:
+            i = parent[i]
+        return i
+
+    for i, j in zip(*np.nonzero(join), strict=True):
+        a, b = root(int(big[i])), root(int(big[j]))
+        if a != b:
+            parent[max(a, b)] = min(a, b)
+    roots = np.array([root(i) for i in range(n + 1)])
+    uniq, lut = np.unique(roots, return_inverse=True)
+    return lut.astype(np.int32), int(uniq.size - 1)
+
+
+def near_planes(
+    normal: NDArray[np.float64],
+    off: NDArray[np.float64],
+    count: NDArray[np.float64],
+    boxes: NDArray[np.int64],
+    depth_mm: NDArray[np.float32],
+    candidates: NDArray[np.bool_],
+    cam: Intrinsics,
+    *,
+    min_px: int,
+    tol_rel: float,
+) -> NDArray[np.bool_]:
+    """Candidate pixels whose depth lies on the plane of a support of >= ``min_px`` pixels.
+
+    ``normal``, ``off`` (mm), ``count`` and inclusive ``boxes`` per support (row 0 unused), as
+    :func:`planes_from_sums` and the labellers give them. Only pixels inside the support's box
+    grown by a tenth are tested, so a far object that happens to lie on the plane's extension
+    elsewhere is not taken; a pixel is on the plane when ``|Z / Z_plane - 1| <= tol_rel``.
+    """
+    out = np.zeros(depth_mm.shape, bool)
+    ids = np.flatnonzero(count >= min_px)
+    ids = ids[ids > 0]
+    if ids.size:
+        _near(out, ids, normal, off, boxes, depth_mm, candidates, cam.fx, cam.fy, cam.cx, cam.cy, float(tol_rel))
+    return out
+
+
+@njit(cache=True)
+def _near(
+    out: NDArray[np.bool_],
+    ids: NDArray[np.intp],
+    normal: NDArray[np.float64],
+    off: NDArray[np.float64],
+    boxes: NDArray[np.int64],
+    depth: NDArray[np.float32],
+    candidates: NDArray[np.bool_],
+    fx: float,
+    fy: float,
+    cx: float,
+    cy: float,
+    tol_rel: float,
+) -> None:
+    # per support, one loop over its box grown by a tenth, where numpy built six box-sized
+    # temporaries per support. Same float64 arithmetic.
+    h, w = depth.shape
+    ucol = np.empty(w, np.float64)  # u of each column once (the same division, the same numbers)
+    for x in range(w):
+        ucol[x] = (x - cx) / fx
+    for i in ids:
+        bx0, by0, bx1, by1 = boxes[i, 0], boxes[i, 1], boxes[i, 2], boxes[i, 3]
+        my = (by1 - by0 + 1) // 10 + 1
+        mx = (bx1 - bx0 + 1) // 10 + 1
+        y0, y1 = max(by0 - my, 0), min(by1 + 1 + my, h)
+        x0, x1 = max(bx0 - mx, 0), min(bx1 + 1 + mx, w)
+        n0, n1, n2, d = normal[i, 0], normal[i, 1], normal[i, 2], off[i]
+        for y in range(y0, y1):
+            v = (y - cy) / fy
+            for x in range(x0, x1):
+                if not candidates[y, x]:
+                    continue
+                u = ucol[x]
+                # 1/Z predicted by the plane: -(n . ray) / d
+                inv_pred = -(n0 * u + n1 * v + n2) / d
+                if inv_pred > 0 and abs(inv_pred * np.float64(depth[y, x]) - 1.0) <= tol_rel:
+                    out[y, x] = True

@@ -24,7 +24,9 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-from depthgram.segmentation.label import ACTIVE, BLOCK, HOLE, _resolve, _union
+from depthgram.segmentation.label import ACTIVE, BLOCK, HOLE
+from depthgram.segmentation.label.unionfind import resolve as _resolve
+from depthgram.segmentation.label.unionfind import union as _union
 from depthgram.segmentation.sensor import SensorModel
 
 __all__ = [
@@ -304,7 +306,7 @@ def label_surfaces(
     return labels, int(n)
 
 
-#: Stand-ins for the statistics :func:`depthgram.segmentation.label._resolve` does not read here.
+#: Stand-ins for the statistics :func:`depthgram.segmentation.label.unionfind.resolve` does not read here.
 _NO_SUMS = np.zeros((1, 8), np.float64)
 _NO_BOXES = np.zeros((1, 4), np.int32)
 

@@ -169,7 +169,7 @@ SCENES: tuple[str, ...] = tuple(_BUILDERS)
 
 
 def build_scene(name: str, size: tuple[int, int]) -> SceneSpec:
-    """The scene ``name`` for a camera of ``size`` (width, height) px.
+    """Return the scene ``name`` for a camera of ``size`` (width, height) px.
 
     Raises
     ------

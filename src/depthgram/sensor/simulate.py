@@ -113,7 +113,7 @@ class SimFrame:
 
 
 def sensor_name(sensor: str) -> str:
-    """The canonical name of a sensor spelling (``tof``, ``structured-light``; ``sl`` too).
+    """Return the canonical name of a sensor spelling (``tof``, ``structured-light``; ``sl`` too).
 
     Raises
     ------

@@ -168,7 +168,7 @@ def depth_to_phase(depth_mm: ArrayLike, f_mod_hz: float) -> NDArray[np.float64]:
 
 
 def amplitude_e(distance_mm: ArrayLike, reflectivity: ArrayLike, cfg: ToFConfig) -> NDArray[np.float64]:
-    """Returned modulated amplitude (electrons): reflectivity / distance² times the 1 m value.
+    """Return the modulated amplitude (electrons): reflectivity / distance² times the 1 m value.
 
     Distance 0 (no surface) returns 0 amplitude.
     """
@@ -182,7 +182,7 @@ def amplitude_e(distance_mm: ArrayLike, reflectivity: ArrayLike, cfg: ToFConfig)
 def correlation_samples(
     distance_mm: ArrayLike, amplitude: ArrayLike, f_mod_hz: float, ambient: ArrayLike = 0.0
 ) -> NDArray[np.float64]:
-    """Expected (noise-free) charge of the four gates, shape (4, ...), in electrons.
+    """Return the expected (noise-free) charge of the four gates, shape (4, ...), in electrons.
 
     ``A_k = ambient + a (1 + cos(φ - θ_k))`` with θ_k in :data:`PHASE_OFFSETS`: a 50 % duty
     square source correlated with a gate shifted by θ_k, low-passed to its fundamental. Then

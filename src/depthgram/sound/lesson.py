@@ -45,7 +45,7 @@ def _steps(m: SoundMapping, sr: int, trees: list[SceneTree], each_s: float) -> N
 
 
 def lesson(mapping: SoundMapping, samplerate: int = 22050) -> list[Cue]:
-    """The cues of ``mapping``, each alone: pan, nearness, height, size, glides, approach, scan.
+    """Return the cues of ``mapping``, each alone: pan, nearness, height, size, glides, approach, scan.
 
     Parameters
     ----------

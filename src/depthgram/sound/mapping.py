@@ -160,7 +160,7 @@ class SoundMapping:
 
     @classmethod
     def preset(cls, name: str) -> SoundMapping:
-        """A named preset: ``default``, ``calm`` or ``detailed`` (see :data:`PRESETS`)."""
+        """Return a named preset: ``default``, ``calm`` or ``detailed`` (see :data:`PRESETS`)."""
         try:
             values = PRESETS[name]
         except KeyError:
@@ -169,8 +169,11 @@ class SoundMapping:
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any]) -> SoundMapping:
-        """Build from a dict (a TOML table): ``preset`` (or ``name``) picks the base preset,
-        the other keys override it; unknown keys are errors."""
+        """Build from a dict (a TOML table).
+
+        ``preset`` (or ``name``) picks the base preset, the other keys override it; unknown keys
+        are errors.
+        """
         d = dict(data)
         base = str(d.pop("preset", d.get("name", "default")))
         fields = {f.name for f in dataclasses.fields(cls)}

@@ -95,7 +95,7 @@ class Selection:
 
 
 def select(tree: SceneTree, mapping: SoundMapping) -> Selection:
-    """The nodes a scene voices: the nearest ``max_voices`` objects and ``max_glides`` surfaces.
+    """Return the nodes a scene voices: the nearest ``max_voices`` objects and ``max_glides`` surfaces.
 
     Every node of the tree counts on its own, whatever its parent: an object standing on a
     table or inside a compound support is voiced like one standing on the floor. (A compound's
@@ -146,7 +146,7 @@ def voices(
     mapping: SoundMapping,
     objects: Sequence[SceneObject] = (),
 ) -> list[Voice]:
-    """The voices a scene makes under a mapping: the nearest objects and surfaces only.
+    """Return the voices a scene makes under a mapping: the nearest objects and surfaces only.
 
     Parameters
     ----------

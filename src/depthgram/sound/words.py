@@ -14,7 +14,7 @@ __all__ = ["hearing", "where"]
 
 
 def where(pan: tuple[float, float]) -> str:
-    """The side a listener hears an equal-power pan on: far left .. centre .. far right."""
+    """Return the side a listener hears an equal-power pan on: far left .. centre .. far right."""
     p = math.atan2(pan[1], pan[0]) / (math.pi / 2)  # 0 hard left, 0.5 centre, 1 hard right
     for limit, word in ((0.15, "far left"), (0.4, "left"), (0.6, "centre"), (0.85, "right")):
         if p < limit:

@@ -30,7 +30,7 @@ _DTYPES = {"16uc1": "u2", "mono16": "u2", "32fc1": "f4", "8uc1": "u1", "mono8": 
 
 
 def image_array(msg: Any, where: str) -> np.ndarray:
-    """The (H, W) samples of a ``sensor_msgs/Image`` depth message, honouring step and endianness."""
+    """Return the (H, W) samples of a ``sensor_msgs/Image`` depth message, honouring step and endianness."""
     enc = str(msg.encoding).lower()
     if enc not in _DTYPES:
         raise InputError(f"{where}: image encoding {msg.encoding!r} is not depth; expected 16UC1 (mm) or 32FC1 (m)")
@@ -54,8 +54,11 @@ def _reader(path: Path) -> Any:
 
 
 def _messages(reader: Any, conns: list[Any], path: Path, topic: str) -> Iterator[tuple[Any, int, bytes]]:
-    """``reader.messages`` with a damaged file's error (rosbags' ReaderError, AssertionError,
-    sqlite's CorruptError, a decompressor's) turned into an InputError naming the message."""
+    """Yield ``reader.messages``, a damaged file's error turned into an InputError.
+
+    The errors turned are rosbags' ReaderError, AssertionError, sqlite's CorruptError and a
+    decompressor's; the InputError names the message.
+    """
     it = iter(reader.messages(connections=conns))
     i = 0
     last: int | None = None

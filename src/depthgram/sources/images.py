@@ -54,8 +54,10 @@ _CAPTURE_FILE: list[IO[bytes]] = []  # one file, made on first use and reused (a
 
 @contextmanager
 def _stderr_captured() -> Iterator[list[str]]:
-    """What C libraries (libpng) write to file descriptor 2 inside the block, as one stripped
-    string in the yielded list once the block ends."""
+    """Capture what C libraries (libpng) write to file descriptor 2 inside the block.
+
+    It arrives as one stripped string in the yielded list once the block ends.
+    """
     said: list[str] = []
     with _CAPTURE_LOCK:
         if not _CAPTURE_FILE:
@@ -87,7 +89,7 @@ MAX_PIXELS = 25_000_000
 
 
 def max_pixels() -> int:
-    """The frame size limit (pixels): ``DEPTHGRAM_MAX_PIXELS`` when set, else :data:`MAX_PIXELS`."""
+    """Return the frame size limit (pixels): ``DEPTHGRAM_MAX_PIXELS`` when set, else :data:`MAX_PIXELS`."""
     text = os.environ.get("DEPTHGRAM_MAX_PIXELS", "").strip()
     if not text:
         return MAX_PIXELS

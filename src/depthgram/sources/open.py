@@ -182,7 +182,7 @@ def _files(
 
 
 def read(spec: str | os.PathLike[str], **options: object) -> Source:
-    """The frames of any source, one at a time (see :func:`open_source` for ``options``).
+    """Return the frames of any source, one at a time (see :func:`open_source` for ``options``).
 
     Returns the :class:`Source` itself, not a bare generator: iterating it reads frame after
     frame (memory stays at about one frame however long the recording), and consumers see

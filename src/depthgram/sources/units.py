@@ -37,7 +37,7 @@ def _plausible(mm: float | None) -> bool:
 
 
 def likely_options(raw: NDArray[np.generic], frame: Frame, cfg: SourceConfig, *, too_far: bool = True) -> list[str]:
-    """Reading options under which ``raw`` gives a plausible median depth, as flags to print.
+    """Return reading options under which ``raw`` gives a plausible median depth, as flags to print.
 
     Parameters
     ----------

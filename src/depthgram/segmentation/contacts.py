@@ -1,0 +1,120 @@
+"""Which facing objects are faces of a support: contacts along an edge without a depth jump.
+
+A box or a table shows the sensor a front face under its top, or a front face beside a side
+running away; the orientation classes cut such an object into a facing part and a support part
+(:mod:`depthgram.segmentation.slices`). These functions count, in one pass, the pixels where a
+facing object meets a support without a depth jump, and say which faces belong to which support.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+from numpy.typing import NDArray
+
+__all__ = ["front_faces", "side_faces"]
+
+
+def front_faces(
+    labels: NDArray[np.int32],
+    depth_mm: NDArray[np.float32],
+    widths: NDArray[np.float64],
+    horizontal_ids: NDArray[np.int32],
+    *,
+    jump_rel: float,
+    min_contact: float = 0.5,
+) -> dict[int, int]:
+    """Facing objects that are the front face of a horizontal support right above them.
+
+    A table's front edge or a box's front face meets its top along the face's upper edge, at
+    the same depth; an object standing on the support meets it along its base instead, and
+    its upper edge borders the support farther behind (a depth jump). Facing objects have ids
+    ``1..len(widths) - 1`` and bounding-box widths ``widths`` (px, index 0 unused). Returns
+    ``{facing id: support id}`` for faces whose upper edge touches the support, without a
+    depth jump, over at least ``min_contact`` of the face's width.
+    """
+    n_facing = widths.size - 1
+    if n_facing == 0 or horizontal_ids.size == 0:
+        return {}
+    n_ids = int(labels.max(initial=0)) + 1
+    is_support = np.zeros(n_ids, np.bool_)
+    is_support[horizontal_ids] = True
+    contact = _contacts(labels, depth_mm, is_support, n_facing, np.float32(jump_rel), False)
+    return _best_contact(contact, min_contact * widths)
+
+
+def side_faces(
+    labels: NDArray[np.int32],
+    depth_mm: NDArray[np.float32],
+    heights: NDArray[np.float64],
+    vertical_ids: NDArray[np.int32],
+    mean_depth: NDArray[np.float64],
+    *,
+    jump_rel: float,
+    min_contact: float = 0.5,
+) -> dict[int, int]:
+    """Facing objects whose side meets a small vertical support: the front and side of one box.
+
+    A box seen at an angle shows a face toward the sensor and a side running away from it; the
+    two meet along a vertical edge at the same depth, at the NEAR end of the side. Facing
+    objects have ids ``1..len(heights) - 1`` and bounding-box heights ``heights`` (px, index 0
+    unused); ``mean_depth`` (mm) is indexed by id. Returns ``{facing id: support id}`` for faces
+    in front of the side's middle touching a support in ``vertical_ids`` side by side, without
+    a depth jump, over at least ``min_contact`` of the face's height. (A wall behind the box
+    meets the side's far end and lies behind its middle, so it is not taken.)
+    """
+    n_facing = heights.size - 1
+    if n_facing == 0 or vertical_ids.size == 0:
+        return {}
+    is_side = np.zeros(int(labels.max(initial=0)) + 1, np.bool_)
+    is_side[vertical_ids] = True
+    contact = _contacts(labels, depth_mm, is_side, n_facing, np.float32(jump_rel), True)
+    behind = mean_depth[None, : contact.shape[1]] > mean_depth[: contact.shape[0], None]
+    return _best_contact(np.where(behind, contact, 0), min_contact * heights)
+
+
+def _best_contact(contact: NDArray[np.int64], needed: NDArray[np.float64]) -> dict[int, int]:
+    """``{facing id: support id}``: for each facing row the support it touches most, when that
+    contact (px) reaches ``needed[facing id]``."""
+    out: dict[int, int] = {}
+    if contact.size == 0:
+        return out
+    best = contact.argmax(axis=1)
+    most = contact[np.arange(contact.shape[0]), best]
+    for f in np.flatnonzero((most > 0) & (most >= needed)):
+        out[int(f)] = int(best[f])
+    return out
+
+
+@njit(cache=True)
+def _contacts(
+    labels: NDArray[np.int32],
+    depth: NDArray[np.float32],
+    is_support: NDArray[np.bool_],
+    n_facing: int,
+    rel: np.float32,
+    side_by_side: bool,
+) -> NDArray[np.int64]:
+    # One pass counting (facing id, support id) neighbours without a depth jump: a support
+    # pixel right above a facing one (front faces), or with ``side_by_side`` the two next to
+    # each other in either order (side faces), where numpy needs masks over the whole frame
+    # and np.unique of the pairs. The depth test is in float32 like the numpy one, so the
+    # counts are the same. Facing ids are 1..n_facing, supports above.
+    h, w = labels.shape
+    dy, dx = (0, 1) if side_by_side else (1, 0)
+    out = np.zeros((n_facing + 1, is_support.size), np.int64)
+    for y in range(h - dy):
+        for x in range(w - dx):
+            a = labels[y, x]
+            b = labels[y + dy, x + dx]
+            if 0 < b <= n_facing and is_support[a]:
+                f, s = b, a
+            elif side_by_side and 0 < a <= n_facing and is_support[b]:
+                f, s = a, b
+            else:
+                continue
+            za = depth[y, x]
+            zb = depth[y + dy, x + dx]
+            if abs(za - zb) <= rel * max(za, zb):
+                out[f, s] += 1
+    return out

@@ -1,0 +1,227 @@
+"""Connected components of a keyed image in one pass, bridging small holes of invalid pixels.
+
+OpenCV's ``connectedComponentsWithStats`` labels binary images only, and labelling each depth
+band by masking would cost (bands x pixels). This union-find labeller joins 4-neighbours whose
+keys agree within a tolerance, so one pass labels every band at once (key = band index,
+tolerance 0) and also serves region growing (key = depth, tolerance in mm). It skips over short
+runs of pixels without a reading, so a surface seen through a sieve of dropouts stays one
+component, while a valid pixel of another key always blocks the join. No library kernel does
+this (scipy's csgraph needs an explicit edge list; OpenCV's labeller cannot compare depths),
+hence numba; ``benchmarks/bench_segmentation.py --profile`` measures the alternatives.
+
+With statistics (:func:`label_keyed_stats`) each component's sums and box (the table of
+:mod:`depthgram.segmentation.label.stats`) are gathered while labelling, and components under
+a pixel count are dropped before the one relabelling pass.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from numba import njit
+from numpy.typing import NDArray
+
+from depthgram.segmentation.label.stats import N_COLUMNS, flush_run
+from depthgram.segmentation.label.unionfind import resolve, union
+
+__all__ = ["ACTIVE", "BLOCK", "HOLE", "label_keyed", "label_keyed_stats"]
+
+#: Pixel states for :func:`label_keyed`: a hole may be bridged, an active pixel is labelled,
+#: a blocking pixel (valid, but not part of any component) stops a bridge.
+HOLE, ACTIVE, BLOCK = 0, 1, 2
+
+
+@njit(cache=True)
+def _label_runs(
+    key: NDArray[np.float32],
+    state: NDArray[np.int8],
+    tol: float,
+    rel: float,
+    bridge: int,
+    depth: NDArray[np.float32],
+    stats: bool,
+) -> tuple[NDArray[np.int32], NDArray[np.int32], int, NDArray[np.float64], NDArray[np.int32]]:
+    # First pass of a two-pass labeller with provisional labels. Each column remembers its last
+    # pixel with a reading (row, label, key) and the row scan its last one, so the neighbour
+    # across a bridged hole is found in O(1) instead of by walking back over the holes. A pixel
+    # takes its left or upper neighbour's label; only a meeting of two labels costs a union.
+    # With `stats`, sums are gathered per run of one label along a row and flushed once per run.
+    # (Band images have their own run-based labeller, bands._label_bands: a mode for them here
+    # would put tests on runtime flags inside this pixel loop.)
+    h, w = state.shape
+    lab = np.zeros((h, w), np.int32)
+    # one provisional label per pixel at most; np.empty only reserves the memory, the pages
+    # of labels never used are never touched (growing the tables inside the loop instead makes
+    # numba count references on every pixel)
+    cap = h * w + 1
+    parent = np.empty(cap, np.int32)
+    sums = np.empty((cap if stats else 1, N_COLUMNS), np.float64)
+    boxes = np.empty((cap if stats else 1, 4), np.int32)
+    reach = bridge + 1
+    col_row = np.full(w, -reach - 1, np.int64)
+    col_lab = np.zeros(w, np.int32)
+    col_key = np.zeros(w, np.float32)
+    nxt = 1
+    for y in range(h):
+        last_x = -reach - 1
+        last_lab = 0
+        last_key = np.float32(0.0)
+        run = 0
+        c = 0.0
+        sz = 0.0
+        szz = 0.0
+        sx = 0.0
+        sxz = 0.0
+        rx0 = 0
+        rx1 = 0
+        rk = np.float32(0.0)
+        merged_up = 0
+        for x in range(w):
+            s = state[y, x]
+            if s == HOLE:
+                continue
+            active = s == ACTIVE
+            kp = key[y, x]
+            if not active:
+                last_x = x
+                last_lab = 0
+                col_row[x] = y
+                col_lab[x] = 0
+                continue
+            lim = tol + rel * abs(kp)
+            left = 0
+            if last_lab != 0 and x - last_x <= reach and abs(last_key - kp) <= lim:
+                left = last_lab
+            up = 0
+            cl = col_lab[x]
+            if cl != 0 and y - col_row[x] <= reach and abs(col_key[x] - kp) <= lim:
+                up = cl
+            if left == 0 and up == 0:
+                merged_up = 0
+                parent[nxt] = nxt
+                if stats:
+                    sums[nxt, :] = 0.0
+                    boxes[nxt, 0] = w
+                    boxes[nxt, 1] = y
+                    boxes[nxt, 2] = -1
+                    boxes[nxt, 3] = -1
+                lab_here = nxt
+                nxt += 1
+            elif up == 0 or up == left:
+                lab_here = left
+            elif left == 0:
+                lab_here = up
+                merged_up = up
+            else:
+                lab_here = left
+                # along a run under one upper label the union is done once, not per pixel
+                if up != merged_up:
+                    union(parent, left, up)
+                    merged_up = up
+            lab[y, x] = lab_here
+            last_x = x
+            last_lab = lab_here
+            last_key = kp
+            col_row[x] = y
+            col_lab[x] = lab_here
+            col_key[x] = kp
+            if stats:
+                if lab_here != run:
+                    if run != 0:
+                        flush_run(sums, boxes, run, c, sz, szz, sx, sxz, y, rx0, rx1, rk)
+                    run = lab_here
+                    c = 0.0
+                    sz = 0.0
+                    szz = 0.0
+                    sx = 0.0
+                    sxz = 0.0
+                    rx0 = x
+                    rk = kp
+                z = np.float64(depth[y, x])
+                c += 1.0
+                sz += z
+                szz += z * z
+                sx += x
+                sxz += x * z
+                rx1 = x
+        if stats and run != 0:
+            flush_run(sums, boxes, run, c, sz, szz, sx, sxz, y, rx0, rx1, rk)
+    return lab, parent, nxt, sums, boxes
+
+
+def label_keyed(
+    key: NDArray[Any],
+    state: NDArray[np.int8],
+    *,
+    tol: float = 0.0,
+    rel: float = 0.0,
+    bridge: int = 0,
+) -> tuple[NDArray[np.int32], int]:
+    """Label 4-connected components of active pixels whose keys agree.
+
+    Parameters
+    ----------
+    key : ndarray, shape (H, W)
+        Value compared between neighbours (band index, or depth in mm).
+    state : ndarray of int8, shape (H, W)
+        :data:`HOLE`, :data:`ACTIVE` or :data:`BLOCK` per pixel.
+    tol : float
+        Neighbours join when ``|key_a - key_b| <= tol + rel * |key_a|``.
+    rel : float
+        Relative part of the tolerance (per unit of key).
+    bridge : int
+        Longest run of holes (px) crossed along a row or a column.
+
+    Returns
+    -------
+    labels : ndarray of int32, shape (H, W)
+        Component id per active pixel, 1..n in raster order of first pixel; 0 elsewhere.
+    n : int
+        Number of components.
+    """
+    k = np.ascontiguousarray(key, dtype=np.float32)
+    s = np.ascontiguousarray(state, dtype=np.int8)
+    lab, parent, nxt, ps, pb = _label_runs(k, s, float(tol), float(rel), int(bridge), _NO_DEPTH, False)
+    labels, n, _, _ = resolve(lab, parent, nxt, ps, pb, 0, False)
+    return labels, int(n)
+
+
+def label_keyed_stats(
+    key: NDArray[Any],
+    state: NDArray[np.int8],
+    depth_mm: NDArray[np.float32],
+    *,
+    tol: float = 0.0,
+    rel: float = 0.0,
+    bridge: int = 0,
+    min_px: int = 1,
+) -> tuple[NDArray[np.int32], int, NDArray[np.float64], NDArray[np.int64]]:
+    """:func:`label_keyed`, components under ``min_px`` pixels dropped, with their statistics.
+
+    Same labels as ``label_keyed`` followed by dropping small components and renumbering the
+    rest 1..n in order, and the same sums and boxes as
+    :func:`depthgram.segmentation.label.stats.label_stats_fused` on them, but
+    the sums are gathered during labelling (no second statistics pass over the image).
+
+    Returns
+    -------
+    labels : ndarray of int32, shape (H, W)
+    n : int
+        Number of components kept.
+    sums : ndarray of float64, shape (n + 1, N_COLUMNS)
+        The table of :mod:`depthgram.segmentation.label.stats`, ``KEY`` holding each
+        component's key.
+    boxes : ndarray of int64, shape (n + 1, 4)
+        Inclusive (x0, y0, x1, y1).
+    """
+    k = np.ascontiguousarray(key, dtype=np.float32)
+    s = np.ascontiguousarray(state, dtype=np.int8)
+    z = np.ascontiguousarray(depth_mm, dtype=np.float32)
+    lab, parent, nxt, ps, pb = _label_runs(k, s, float(tol), float(rel), int(bridge), z, True)
+    labels, n, sums, boxes = resolve(lab, parent, nxt, ps, pb, int(min_px), True)
+    return labels, int(n), sums, boxes
+
+
+#: Stand-in for the depth image :func:`_label_runs` does not read without statistics.
+_NO_DEPTH = np.zeros((1, 1), np.float32)

@@ -1,0 +1,167 @@
+"""The per-label statistics table: its columns, and the one-pass statistics of a label map.
+
+Every labeller of :mod:`depthgram.segmentation.label` and the statistics pass here give the
+same two tables per label (row ``i`` is label ``i``, row 0 unused):
+
+``sums``, float64, shape (n + 1, :data:`N_COLUMNS`)
+    :data:`COUNT` pixels; :data:`SUM_Z` and :data:`SUM_ZZ` of depth (mm, mm²); :data:`SUM_X`
+    and :data:`SUM_Y` of column and row (px); :data:`SUM_XZ` and :data:`SUM_YZ` of column x
+    depth and row x depth (px mm); and :data:`KEY`, the key of the label (its band, or what the
+    caller passed). The first :data:`N_SUMS` columns are additive: the row of a union of labels
+    is the sum of their rows.
+``boxes``, int64, shape (n + 1, 4)
+    (x0, y0, x1, y1) INCLUSIVE per label (the last column and row it covers); an empty label
+    has (W, H, -1, -1). :class:`~depthgram.segmentation.objects.SceneObject` carries half-open
+    boxes; :func:`depthgram.segmentation.attributes.make_objects` converts.
+
+This module owns that layout: code reading the table names the column by these constants
+(they are plain ints, so compiled kernels index with them at no cost).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from numba import njit
+from numpy.typing import NDArray
+
+__all__ = [
+    "COUNT",
+    "KEY",
+    "N_COLUMNS",
+    "N_SUMS",
+    "SUM_X",
+    "SUM_XZ",
+    "SUM_Y",
+    "SUM_YZ",
+    "SUM_Z",
+    "SUM_ZZ",
+    "label_stats_fused",
+]
+
+#: Pixel count of the label.
+COUNT = 0
+#: Sum of depth (mm).
+SUM_Z = 1
+#: Sum of depth squared (mm²).
+SUM_ZZ = 2
+#: Sum of the column (px).
+SUM_X = 3
+#: Sum of the row (px).
+SUM_Y = 4
+#: Sum of column x depth (px mm).
+SUM_XZ = 5
+#: Sum of row x depth (px mm).
+SUM_YZ = 6
+#: Key of the label (band index, or the key image's value at its pixels); not additive.
+KEY = 7
+#: Number of additive columns (0 .. N_SUMS - 1).
+N_SUMS = 7
+#: Number of columns of the table.
+N_COLUMNS = 8
+
+
+@njit(cache=True, inline="always")
+def flush_run(
+    sums: NDArray[np.float64],
+    boxes: NDArray[np.int32],
+    i: int,
+    c: float,
+    sz: float,
+    szz: float,
+    sx: float,
+    sxz: float,
+    y: int,
+    x0: int,
+    x1: int,
+    k: float | np.float32,
+) -> None:
+    """Add one run of label ``i`` along row ``y`` (columns ``x0..x1``) to the tables.
+
+    ``c, sz, szz, sx, sxz`` are the run's count and sums of Z, Z², x and xZ; the row terms
+    follow from them since ``y`` is constant along the run. The key is overwritten (every
+    pixel of a label has the same key).
+    """
+    sums[i, COUNT] += c
+    sums[i, SUM_Z] += sz
+    sums[i, SUM_ZZ] += szz
+    sums[i, SUM_X] += sx
+    sums[i, SUM_Y] += c * y
+    sums[i, SUM_XZ] += sxz
+    sums[i, SUM_YZ] += sz * y
+    sums[i, KEY] = k
+    if x0 < boxes[i, 0]:
+        boxes[i, 0] = x0
+    if x1 > boxes[i, 2]:
+        boxes[i, 2] = x1
+    boxes[i, 3] = y  # rows are scanned in order: the latest row is the lowest
+
+
+@njit(cache=True)
+def _stats(
+    labels: NDArray[np.int32], n: int, depth: NDArray[np.float32], key: NDArray[np.float32]
+) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+    # one raster pass for every label's sums and box, whatever the label count (the bincount
+    # route needs seven passes plus find_objects)
+    h, w = labels.shape
+    sums = np.zeros((n + 1, N_COLUMNS), np.float64)
+    box = np.empty((n + 1, 4), np.int64)
+    box[:, 0] = w
+    box[:, 1] = h
+    box[:, 2] = -1
+    box[:, 3] = -1
+    for y in range(h):
+        for x in range(w):
+            i = labels[y, x]
+            if i == 0:
+                continue
+            z = np.float64(depth[y, x])
+            sums[i, COUNT] += 1.0
+            sums[i, SUM_Z] += z
+            sums[i, SUM_ZZ] += z * z
+            sums[i, SUM_X] += x
+            sums[i, SUM_Y] += y
+            sums[i, SUM_XZ] += x * z
+            sums[i, SUM_YZ] += y * z
+            sums[i, KEY] = key[y, x]
+            if x < box[i, 0]:
+                box[i, 0] = x
+            if y < box[i, 1]:
+                box[i, 1] = y
+            if x > box[i, 2]:
+                box[i, 2] = x
+            if y > box[i, 3]:
+                box[i, 3] = y
+    return sums, box
+
+
+def label_stats_fused(
+    labels: NDArray[np.int32], n: int, depth_mm: NDArray[np.float32], key: NDArray[Any]
+) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+    """Per-label sums and inclusive boxes in one pass.
+
+    Parameters
+    ----------
+    labels : ndarray of int32, shape (H, W)
+        Label map, 0 = none, labels 1..n.
+    n : int
+        Largest label.
+    depth_mm : ndarray of float32, shape (H, W)
+        Depth (mm).
+    key : ndarray, shape (H, W)
+        Value stored in the :data:`KEY` column (the last pixel's, in raster order).
+
+    Returns
+    -------
+    sums : ndarray of float64, shape (n + 1, N_COLUMNS)
+        The table of this module's columns.
+    boxes : ndarray of int64, shape (n + 1, 4)
+        (x0, y0, x1, y1) inclusive; row 0 unused.
+    """
+    return _stats(
+        np.ascontiguousarray(labels, np.int32),
+        int(n),
+        np.ascontiguousarray(depth_mm, np.float32),
+        np.ascontiguousarray(key, np.float32),
+    )
