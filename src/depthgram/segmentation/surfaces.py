@@ -26,6 +26,7 @@ from numba import njit
 from numpy.typing import NDArray
 
 from depthgram.segmentation.label import ACTIVE, BLOCK, HOLE
+from depthgram.segmentation.label.stats import relabel_stats
 from depthgram.segmentation.label.unionfind import resolve as _resolve
 from depthgram.segmentation.label.unionfind import union as _union
 from depthgram.segmentation.order_stats import kth_smallest, next_smallest
@@ -703,11 +704,10 @@ def keep_large(
     """Components of at least ``min_px`` pixels renumbered 1..m in order, with the sums and
     inclusive boxes of :func:`depthgram.segmentation.label.label_stats_fused` (key 0).
 
-    One count and one pass that relabels and sums, for numpy's bincount, the relabelling pass
-    and the statistics pass: the sums are added pixel by pixel in raster order as there, so
-    they are the same numbers.
+    One count, then one pass that relabels and sums
+    (:func:`depthgram.segmentation.label.stats.relabel_stats`), for numpy's bincount, the
+    relabelling pass and the statistics pass.
     """
-    h, w = labels.shape
     count = _count_labels(labels, n)
     lut = np.zeros(n + 1, np.int32)
     m = 0
@@ -715,56 +715,7 @@ def keep_large(
         if count[i] >= min_px:
             m += 1
             lut[i] = m
-    out = np.zeros((h, w), np.int32)
-    sums = np.zeros((m + 1, 8), np.float64)
-    box = np.empty((m + 1, 4), np.int64)
-    box[:, 0] = w
-    box[:, 1] = h
-    box[:, 2] = -1
-    box[:, 3] = -1
-    for y in range(h):
-        x = 0
-        while x < w:
-            i = lut[labels[y, x]]
-            if i == 0:
-                x += 1
-                continue
-            # a run of one label: its sums stay in registers and are added to in the same
-            # order as pixel by pixel (the same numbers), stored once at the run's end
-            x_start = x
-            c = sums[i, 0]
-            sz = sums[i, 1]
-            szz = sums[i, 2]
-            sx = sums[i, 3]
-            sy = sums[i, 4]
-            sxz = sums[i, 5]
-            syz = sums[i, 6]
-            while x < w and lut[labels[y, x]] == i:
-                out[y, x] = i
-                z = np.float64(depth[y, x])
-                c += 1.0
-                sz += z
-                szz += z * z
-                sx += x
-                sy += y
-                sxz += x * z
-                syz += y * z
-                x += 1
-            sums[i, 0] = c
-            sums[i, 1] = sz
-            sums[i, 2] = szz
-            sums[i, 3] = sx
-            sums[i, 4] = sy
-            sums[i, 5] = sxz
-            sums[i, 6] = syz
-            if x_start < box[i, 0]:
-                box[i, 0] = x_start
-            if y < box[i, 1]:
-                box[i, 1] = y
-            if x - 1 > box[i, 2]:
-                box[i, 2] = x - 1
-            if y > box[i, 3]:
-                box[i, 3] = y
+    out, sums, box = relabel_stats(labels, lut, m, depth)
     return out, m, sums, box
 
 
