@@ -3,13 +3,12 @@
 Range flow (v_radial, time to collision) and the sound's approach cue only mean something
 between frames of one recording. A folder of stills of different scenes (NVlabs' or OSD's
 tabletop pictures) read in file order looks like a video to the tracker, which then reads
-velocities between different scenes. Two frames of one recording share most of what they see:
-consecutive frames of the 7-Scenes kitchen (hand-held, ~30 frames/s) agree on 94-99 % of the
-pixels both see (depth within 2 % or 15 mm), the simulated crossing at 30 frames/s on 77 %
-or more; unrelated stills agree on 2-9 %, and different pictures from one tripod over one
-table on 52-91 %. Hence two thresholds: :data:`MIN_AGREE` for any pair, and the stricter
-:data:`MIN_AGREE_UNTIMED` for frames that carry no time (a folder of images without a rate),
-where a user is likeliest to hand over stills.
+velocities between different scenes. Two frames of one recording share most of what they see
+(their depths agree on most pixels both see), unrelated stills very little, and different
+pictures from one tripod over one table somewhere between (the agreement measured on real
+recordings and stills is in docs/design-notes.md). Hence two thresholds: :data:`MIN_AGREE`
+for any pair, and the stricter :data:`MIN_AGREE_UNTIMED` for frames that carry no time (a
+folder of images without a rate), where a user is likeliest to hand over stills.
 """
 
 from __future__ import annotations

@@ -75,18 +75,17 @@ class SegmentConfig:
     gap_pixels : str
         What becomes of pixels between two bands (past one band's trailing cut, before the next
         band's leading cut): ``nearest`` (default) gives them to the band on their side of the
-        histogram minimum; ``background`` leaves them out, as the paper does. Measured on the
-        seeded simulator ``table`` scene with ``slices`` (``benchmarks/table1.py --readings``):
-        background 95.8 % area at 98.2 % precision, nearest 97.8 % at 98.3 %.
+        histogram minimum; ``background`` leaves them out, as the paper does (the two are
+        compared by ``benchmarks/table1.py --readings``; docs/design-notes.md).
     smooth_bins : float
         Gaussian smoothing of the histogram before peak search (bins, sigma); 0 disables.
     min_prominence : float
         Peak prominence needed, as a fraction of the valid pixel count (0..1), so that noise
         makes no peaks.
     min_area_fraction : float
-        Smallest object kept, as a share of the frame's pixels (0..1). 0.3 % (920 px at
-        640 x 480) keeps a ball of 0.5 % of the frame in front of a wall (issue 12); on 21 real
-        frames it adds 30 objects to 248 against 0.5 %, 0.2 % would add 68.
+        Smallest object kept, as a share of the frame's pixels (0..1). The default 0.003
+        (920 px at 640 x 480) keeps a ball of 0.5 % of the frame in front of a wall (issue 12)
+        without the noise objects of a lower limit on real frames (docs/design-notes.md).
     min_area_px : int
         Smallest object kept, in pixels; the larger of the two limits applies.
     min_area : float or None
@@ -131,9 +130,8 @@ class SegmentConfig:
     paper_aperture_fraction : float
         ``paper`` method: slice thickness as a share of the image height (horizontal slices) or
         width (vertical slices). The paper asks for about 10 % of the
-        expected object dimension; walls and floors span about 30 % of the frame, hence 0.03.
-        On the simulator (176 x 132) 0.03 finds the corridor walls at IoU 0.81 / 0.82, 0.10
-        not at all (``benchmarks/table1.py --paper``).
+        expected object dimension; walls and floors span about 30 % of the frame, hence 0.03
+        (``benchmarks/table1.py --paper`` compares apertures; docs/design-notes.md).
     paper_aperture_px : int
         The same in pixels; when > 0 it replaces the fraction.
     paper_aperture : float or None
@@ -143,11 +141,10 @@ class SegmentConfig:
         ``1/Z = a u + b v + c`` (:func:`depthgram.segmentation.planes.find_planes`), so that a table
         top seen from above at a slant is a support whatever the camera's pitch; its pixels join
         the horizontal (or wall) supports of the orientation field. Planes are searched among
-        the pixels the field left facing, so the two complement each other: on the simulator
-        (level camera) planes alone lose the corridor's walls (area 95.6 % vs 98.9 %), on the
-        real NVlabs tabletop (camera pitched ~45 degrees) the field alone finds no support in
-        frames 0-3 and 6 and merges the table with everything on it
-        (``benchmarks/table1.py --tabletop``).
+        the pixels the field left facing, so the two complement each other: planes alone lose
+        the walls a level camera sees, the field alone misses a table top seen by a camera
+        pitched down and merges the table with everything on it (``benchmarks/table1.py
+        --tabletop``; docs/design-notes.md).
     plane_min_area : float
         Smallest support plane, as a fraction of the frame (0..1).
     plane_min_spread : float
@@ -338,7 +335,7 @@ def _step(old: float | None, px: int, fraction: float, length: int, rounding: An
 @lru_cache(maxsize=64)
 def _replaced(config: SegmentConfig, items: tuple[tuple[str, type, Any], ...]) -> SegmentConfig:
     # cached: a real-time caller passing ``method="threshold"`` on every frame would otherwise
-    # validate a new config each time (about 20 us, 4 % of a 176 x 132 frame)
+    # validate a new config each time, a noticeable share of a small frame's time
     overrides = {name: value for name, _, value in items}
     known = {f.name for f in fields(config)}
     unknown = sorted(set(overrides) - known)

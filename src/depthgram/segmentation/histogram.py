@@ -149,8 +149,8 @@ def _smooth_padded(counts: NDArray[np.int64], weights: NDArray[np.float64]) -> N
     # scipy's gaussian_filter1d (mode "reflect") with the same weights and the same order of
     # operations, so the same numbers (a test compares them on random histograms), written
     # into a zero-padded array for find_peaks. Compiled because on a histogram of a few
-    # hundred bins scipy.ndimage's call costs ten times its arithmetic: 40 us of a 500 us
-    # frame at 176 x 132.
+    # hundred bins scipy.ndimage's call overhead costs many times its arithmetic, which counts
+    # on small frames.
     n = counts.size
     r = (weights.size - 1) // 2
     out = np.zeros(n + 2)

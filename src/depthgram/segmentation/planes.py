@@ -302,7 +302,7 @@ def _score(
     tol: NDArray[np.float64],
 ) -> NDArray[np.int64]:
     # inliers of every hypothesis without the (hypotheses x points) temporaries of numpy
-    # broadcasting, which took 4 ms per search on a shared core
+    # broadcasting (docs/design-notes.md, "Segmentation kernels")
     out = np.zeros(coef.shape[0], np.int64)
     for k in range(coef.shape[0]):
         a, b, c = coef[k, 0], coef[k, 1], coef[k, 2]
@@ -344,8 +344,8 @@ def _plane_sums(
     use_want: bool,
 ) -> NDArray[np.float64]:
     # sums are gathered in registers along each run of one label in a row and added once per
-    # run (v is constant along a row, so its terms are v times the run's sums): 2-3x faster
-    # than adding nine values into the table at every pixel. With `use_want`, runs of labels
+    # run (v is constant along a row, so its terms are v times the run's sums) instead of
+    # adding nine values into the table at every pixel. With `use_want`, runs of labels
     # not wanted are stepped over (no division per pixel): a few supports among all objects.
     h, w = labels.shape
     out = np.zeros((n + 1, 9), np.float64)
@@ -472,7 +472,7 @@ def coplanar_groups(
     n = normal.shape[0] - 1
     ident = np.arange(n + 1, dtype=np.int32)
     # only pieces big enough for a reliable plane can join: compare those alone (a few),
-    # not all pairs of pieces (hundreds of noise specks: 0.2 ms per call at 640 x 480)
+    # not all pairs of pieces (hundreds of noise specks)
     big = np.flatnonzero(count >= min_fit_px)
     big = big[big > 0]
     if big.size < 2:
@@ -541,8 +541,8 @@ def _near(
     cy: float,
     tol_rel: float,
 ) -> None:
-    # per support, one loop over its box grown by a tenth; numpy built six box-sized
-    # temporaries per support (1.6 ms per frame at 640 x 480). Same float64 arithmetic.
+    # per support, one loop over its box grown by a tenth, where numpy built six box-sized
+    # temporaries per support. Same float64 arithmetic.
     h, w = depth.shape
     ucol = np.empty(w, np.float64)  # u of each column once (the same division, the same numbers)
     for x in range(w):

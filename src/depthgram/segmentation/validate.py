@@ -68,7 +68,7 @@ def _valid_pixels(
     depth: NDArray[np.float32], valid: NDArray[np.bool_], use_valid: bool, far: float
 ) -> tuple[NDArray[np.bool_], bool, int]:
     # one pass for the finite-and-positive test, the mask and "does any rejected pixel hold a
-    # nonzero value" (numpy needed four full-frame temporaries: 0.19 against 0.05 ms at 640 x 480)
+    # nonzero value", where numpy needs four full-frame temporaries
     h, w = depth.shape
     ok = np.empty((h, w), np.bool_)
     dirty = 0

@@ -47,13 +47,13 @@ def _label_runs(
     # across a bridged hole is found in O(1) instead of by walking back over the holes. A pixel
     # takes its left or upper neighbour's label; only a meeting of two labels costs a union.
     # With `stats`, sums are gathered per run of one label along a row and flushed once per run.
-    # (Band images have their own run-based labeller, _label_bands: a mode for them here, with
-    # its tests on runtime flags inside the pixel loop, made this loop 16-26 % slower.)
+    # (Band images have their own run-based labeller, bands._label_bands: a mode for them here
+    # would put tests on runtime flags inside this pixel loop.)
     h, w = state.shape
     lab = np.zeros((h, w), np.int32)
     # one provisional label per pixel at most; np.empty only reserves the memory, the pages
-    # of labels never used are never touched (growing the tables inside the loop instead made
-    # numba count references on every pixel: 3x slower)
+    # of labels never used are never touched (growing the tables inside the loop instead makes
+    # numba count references on every pixel)
     cap = h * w + 1
     parent = np.empty(cap, np.int32)
     sums = np.empty((cap if stats else 1, N_COLUMNS), np.float64)
