@@ -170,6 +170,7 @@ def threshold_stages(size: tuple[int, int], seed: int = 0) -> dict[str, float]:
     from depthgram.segmentation.config import SegmentConfig
     from depthgram.segmentation.histogram import bin_index, depth_bands
     from depthgram.segmentation.label import label_bands_stats
+    from depthgram.segmentation.label.stats import KEY
     from depthgram.segmentation.validate import check_depth
     from depthgram.sensor import simulate
 
@@ -180,7 +181,7 @@ def threshold_stages(size: tuple[int, int], seed: int = 0) -> dict[str, float]:
     bands = depth_bands(counts, edges, cfg)
     min_px = cfg.min_pixels(depth.size)
     labels, _, sums, boxes = label_bands_stats(bins, bands.lut, ok, None, depth, bridge=2, min_px=min_px)
-    st = Stats(sums[:, 0], sums[:, 1], sums[:, 2], sums[:, 3], sums[:, 4], sums[:, 5], sums[:, 6], boxes)
+    st = Stats.from_sums(sums, boxes, metric=True)
     return {
         "check input": _best_ms(partial(check_depth, f.depth, f.valid)),
         "range + bins + histogram": _best_ms(partial(bin_index, depth, ok, cfg, zero_outside=True)),
@@ -189,7 +190,7 @@ def threshold_stages(size: tuple[int, int], seed: int = 0) -> dict[str, float]:
             partial(label_bands_stats, bins, bands.lut, ok, None, depth, bridge=2, min_px=min_px)
         ),
         "objects": _best_ms(
-            partial(make_objects, labels, st, depth_labels=sums[:, 7].astype(np.int64), intrinsics=f.intrinsics)
+            partial(make_objects, labels, st, depth_labels=sums[:, KEY].astype(np.int64), intrinsics=f.intrinsics)
         ),
         "whole call": _best_ms(partial(segment, f.depth, valid=f.valid, intrinsics=f.intrinsics, method="threshold")),
     }

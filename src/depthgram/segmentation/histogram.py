@@ -6,8 +6,8 @@ last peak, up to the end). The band of a peak runs from a leading cut to a trail
 the peak (``cut_from="peak"``); pixels between bands are background in the paper
 (``gap_pixels="background"``), or go to the band on their side of the minimum (``nearest``).
 
-Both readings were measured on the simulator's seeded scenes (``benchmarks/table1.py
---readings``); the figures are in the notes of :func:`depthgram.segmentation.segment`.
+Both readings are compared on the simulator's seeded scenes by ``benchmarks/table1.py
+--readings`` (figures in docs/performance.md, the choice in docs/design-notes.md).
 """
 
 from __future__ import annotations

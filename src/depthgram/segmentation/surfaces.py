@@ -25,6 +25,7 @@ from numba import njit
 from numpy.typing import NDArray
 
 from depthgram.segmentation.label import ACTIVE, BLOCK, HOLE
+from depthgram.segmentation.label.stats import relabel_stats
 from depthgram.segmentation.label.unionfind import resolve as _resolve
 from depthgram.segmentation.label.unionfind import union as _union
 from depthgram.segmentation.sensor import SensorModel
@@ -636,9 +637,9 @@ def keep_large(
     """Components of at least ``min_px`` pixels renumbered 1..m in order, with the sums and
     inclusive boxes of :func:`depthgram.segmentation.label.label_stats_fused` (key 0).
 
-    One count and one pass that relabels and sums, for numpy's bincount, the relabelling pass
-    and the statistics pass: the sums are added pixel by pixel in raster order as there, so
-    they are the same numbers.
+    One count, then one pass that relabels and sums
+    (:func:`depthgram.segmentation.label.stats.relabel_stats`), for numpy's bincount, the
+    relabelling pass and the statistics pass.
     """
     h, w = labels.shape
     count = np.zeros(n + 1, np.int64)
@@ -651,33 +652,5 @@ def keep_large(
         if count[i] >= min_px:
             m += 1
             lut[i] = m
-    out = np.zeros((h, w), np.int32)
-    sums = np.zeros((m + 1, 8), np.float64)
-    box = np.empty((m + 1, 4), np.int64)
-    box[:, 0] = w
-    box[:, 1] = h
-    box[:, 2] = -1
-    box[:, 3] = -1
-    for y in range(h):
-        for x in range(w):
-            i = lut[labels[y, x]]
-            if i == 0:
-                continue
-            out[y, x] = i
-            z = np.float64(depth[y, x])
-            sums[i, 0] += 1.0
-            sums[i, 1] += z
-            sums[i, 2] += z * z
-            sums[i, 3] += x
-            sums[i, 4] += y
-            sums[i, 5] += x * z
-            sums[i, 6] += y * z
-            if x < box[i, 0]:
-                box[i, 0] = x
-            if y < box[i, 1]:
-                box[i, 1] = y
-            if x > box[i, 2]:
-                box[i, 2] = x
-            if y > box[i, 3]:
-                box[i, 3] = y
+    out, sums, box = relabel_stats(labels, lut, m, depth)
     return out, m, sums, box

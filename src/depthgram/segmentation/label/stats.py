@@ -38,6 +38,7 @@ __all__ = [
     "SUM_Z",
     "SUM_ZZ",
     "label_stats_fused",
+    "relabel_stats",
 ]
 
 #: Pixel count of the label.
@@ -98,13 +99,25 @@ def flush_run(
     boxes[i, 3] = y  # rows are scanned in order: the latest row is the lowest
 
 
-@njit(cache=True)
-def _stats(
-    labels: NDArray[np.int32], n: int, depth: NDArray[np.float32], key: NDArray[np.float32]
-) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
-    # one raster pass for every label's sums and box, whatever the label count (the bincount
-    # route needs seven passes plus find_objects)
+@njit(cache=True, inline="always")
+def _gather(
+    labels: NDArray[np.int32],
+    lut: NDArray[np.int32],
+    use_lut: bool,
+    n: int,
+    depth: NDArray[np.float32],
+    key: NDArray[np.float32],
+    use_key: bool,
+) -> tuple[NDArray[np.int32], NDArray[np.float64], NDArray[np.int64]]:
+    # One raster pass for every label's sums and box, whatever the label count (the bincount
+    # route needs seven passes plus find_objects). With `use_lut` each pixel's label goes
+    # through `lut` first and the renumbered map is written too (relabel fused with the
+    # statistics); with `use_key` the KEY column is filled. Inlined into its two callers with
+    # the flags constant, so neither pays for the other's tests.
     h, w = labels.shape
+    oh = h if use_lut else 1
+    ow = w if use_lut else 1
+    out = np.zeros((oh, ow), np.int32)
     sums = np.zeros((n + 1, N_COLUMNS), np.float64)
     box = np.empty((n + 1, 4), np.int64)
     box[:, 0] = w
@@ -114,8 +127,12 @@ def _stats(
     for y in range(h):
         for x in range(w):
             i = labels[y, x]
+            if use_lut:
+                i = lut[i]
             if i == 0:
                 continue
+            if use_lut:
+                out[y, x] = i
             z = np.float64(depth[y, x])
             sums[i, COUNT] += 1.0
             sums[i, SUM_Z] += z
@@ -124,7 +141,8 @@ def _stats(
             sums[i, SUM_Y] += y
             sums[i, SUM_XZ] += x * z
             sums[i, SUM_YZ] += y * z
-            sums[i, KEY] = key[y, x]
+            if use_key:
+                sums[i, KEY] = key[y, x]
             if x < box[i, 0]:
                 box[i, 0] = x
             if y < box[i, 1]:
@@ -133,7 +151,36 @@ def _stats(
                 box[i, 2] = x
             if y > box[i, 3]:
                 box[i, 3] = y
+    return out, sums, box
+
+
+@njit(cache=True)
+def _stats(
+    labels: NDArray[np.int32], n: int, depth: NDArray[np.float32], key: NDArray[np.float32]
+) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+    _, sums, box = _gather(labels, np.zeros(1, np.int32), False, n, depth, key, True)
     return sums, box
+
+
+@njit(cache=True)
+def relabel_stats(
+    labels: NDArray[np.int32], lut: NDArray[np.int32], m: int, depth: NDArray[np.float32]
+) -> tuple[NDArray[np.int32], NDArray[np.float64], NDArray[np.int64]]:
+    """``lut[labels]`` and the statistics table of it (``KEY`` left 0), in one pass.
+
+    Compiled, for compiled callers too. ``lut`` (int32) maps every label of ``labels`` to
+    0..m; the sums are added pixel by pixel in raster order, as :func:`label_stats_fused`
+    adds them on the renumbered map, so they are the same numbers.
+
+    Returns
+    -------
+    labels : ndarray of int32, shape (H, W)
+        ``lut[labels]``.
+    sums : ndarray of float64, shape (m + 1, N_COLUMNS)
+    boxes : ndarray of int64, shape (m + 1, 4)
+        Inclusive (x0, y0, x1, y1).
+    """
+    return _gather(labels, lut, True, m, depth, depth, False)
 
 
 def label_stats_fused(
