@@ -24,7 +24,18 @@ from depthgram.segmentation.label import (
     label_keyed_stats,
     label_stats_fused,
 )
-from depthgram.segmentation.label.stats import COUNT, KEY, SUM_X, SUM_XZ, SUM_Y, SUM_YZ, SUM_Z, SUM_ZZ
+from depthgram.segmentation.label.stats import (
+    COUNT,
+    KEY,
+    SUM_X,
+    SUM_XZ,
+    SUM_Y,
+    SUM_YZ,
+    SUM_Z,
+    SUM_ZZ,
+    relabel_stats,
+)
+from depthgram.segmentation.surfaces import keep_large
 
 measure = pytest.importorskip("skimage.measure", reason="scikit-image (dev extra) is the statistics oracle")
 
@@ -222,3 +233,26 @@ def test_objects_carry_regionprops_attributes() -> None:
         assert o.center_xy == pytest.approx((p.centroid[1], p.centroid[0]), rel=1e-12)
         assert o.depth == pytest.approx(p.intensity_mean, rel=1e-9)
         assert o.depth_std == pytest.approx(p.intensity_std, rel=1e-6, abs=1e-6 * o.depth)
+
+
+def test_relabel_with_statistics_equals_dropping_small_components_then_regionprops() -> None:
+    rng = np.random.default_rng(41)
+    for _ in range(60):
+        key, state, depth = _random_image(rng)
+        labels = _per_key_components(key, state == ACTIVE).astype(np.int32)
+        n = int(labels.max(initial=0))
+        min_px = int(rng.integers(1, 6))
+        out, m, sums, boxes = keep_large(labels, n, min_px, depth)
+        want = _drop_small(labels, min_px)
+        np.testing.assert_array_equal(out, want)
+        assert m == int(want.max(initial=0))
+        _assert_stats_match_regionprops(out, m, depth, sums, boxes)
+        assert not sums[:, KEY].any()  # keep_large leaves the key to its caller
+        # the same pass through an explicit table: labels renumbered, sums of the result
+        lut = np.zeros(n + 1, np.int32)
+        lut[1:] = rng.integers(0, 4, n)
+        got, gsums, gboxes = relabel_stats(labels, lut, 3, depth)
+        np.testing.assert_array_equal(got, lut[labels])
+        fsums, fboxes = label_stats_fused(got, 3, depth, np.zeros_like(depth))
+        np.testing.assert_array_equal(gsums, fsums)
+        np.testing.assert_array_equal(gboxes, fboxes)
