@@ -153,20 +153,22 @@ def truth_rows(
     min_fraction: float = 0.01,
     min_age: int = 3,
     config: TrackerConfig | None = None,
-    depth: str = "mean",
-) -> dict[str, float] | None:
+    depth: str = "core",
+) -> dict[str, object] | None:
     """The tracker against the true radial velocity of 7-Scenes' static objects, from the poses.
 
     Every object of at least ``min_fraction`` of the frame, from the ``min_age``-th frame of
     its track, is scored against :func:`depthgram.dynamics.evaluate.radial_velocity_from_poses`
     (central difference over the neighbouring frames' camera poses, 30 frames/s). ``depth``
-    ``median`` hands the tracker each object's median depth instead of its mean. Returns
-    None when ``../shared/data`` is absent.
+    ``core`` hands the tracker the frame's pixels (the depth change of each object's core),
+    ``plain`` only the objects (their mean depth), ``median`` each object's median depth.
+    Returns None when ``../shared/data`` is absent.
     """
     from pathlib import Path
 
     import cv2
 
+    from depthgram.dynamics.core import FramePixels
     from depthgram.dynamics.evaluate import radial_velocity_from_poses
     from depthgram.frame import Intrinsics, make_frame
     from depthgram.segmentation import segment
@@ -187,6 +189,7 @@ def truth_rows(
     err: list[float] = []
     tru: list[float] = []
     sig: list[float] = []
+    kinds: list[str] = []
     eligible = 0
     for k, p in enumerate(paths):
         raw = cv2.imread(str(p), cv2.IMREAD_UNCHANGED)
@@ -202,7 +205,8 @@ def truth_rows(
                 dataclasses.replace(o, depth=float(z), kind="object" if o.kind == "compound" else o.kind)
                 for o, z in zip(objects, np.atleast_1d(med), strict=True)
             )
-        upd = tracker.update(objects, k / fps, fr.size)
+        pixels = FramePixels(fr.depth, seg.labels) if depth == "core" else None
+        upd = tracker.update(objects, k / fps, fr.size, pixels)
         for m in upd.motions.values():
             age[m.track_id] = age.get(m.track_id, 0) + 1
         if k == 0 or k == len(paths) - 1:
@@ -221,6 +225,7 @@ def truth_rows(
                 continue
             err.append(m.v_radial - vt)
             tru.append(vt)
+            kinds.append(next(o.kind for o in big if o.id == oid))
             sig.append(np.nan if m.v_sigma is None else m.v_sigma)
     e, t = np.array(err), np.array(tru)
     p50, p95 = np.percentile(np.abs(e), [50, 95]) if e.size else (np.nan, np.nan)
@@ -229,6 +234,11 @@ def truth_rows(
         "within": within_share(e, t), "err_p50": float(p50), "err_p95": float(p95),
         "truth_p50": float(np.median(np.abs(t))) if t.size else float("nan"),
         "z_within_2sigma": float(np.mean(np.abs(e) <= 2 * np.array(sig))) if e.size else float("nan"),
+        "by_kind": {
+            kind: (within_share(e[sel], t[sel]), int(sel.sum()), float(np.median(np.abs(e[sel]))),
+                   float(np.percentile(np.abs(e[sel]), 95)))
+            for kind in sorted(set(kinds)) for sel in [np.array(kinds) == kind]
+        },
     }  # fmt: skip
 
 
@@ -239,6 +249,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument("--no-quality", action="store_true", help="timing only")
     p.add_argument(
         "--estimator", choices=("queue", "kalman"), default=None, help="velocity estimator (default: the config's)"
+    )
+    p.add_argument(
+        "--depth",
+        choices=("core", "plain", "median"),
+        default="core",
+        help="depth change per object: its core (pixels handed over, the pipeline's way), its mean or median depth",
     )
     args = p.parse_args(argv)
     cfg = TrackerConfig() if args.estimator is None else TrackerConfig(estimator=args.estimator)
@@ -257,7 +273,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             f"{r['within_25_30']:.3f} ({r['readings']} readings)  |err| p50 {r['err_p50']:.1f} "
             f"p95 {r['err_p95']:.1f} mm/s  id switches {r['switches']}  lost frames {r['lost']}  ids {r['ids']}"
         )
-    gt = truth_rows(frames, config=cfg)
+    gt = truth_rows(frames, config=cfg, depth=args.depth)
     if gt is None:
         print("7-Scenes ground truth: ../shared/data not found")
     else:
@@ -266,8 +282,12 @@ def main(argv: Sequence[str] | None = None) -> int:
             f"each track), {int(gt['frames'])} frames: within 25 %+30 mm/s {gt['within']:.3f} of "
             f"{int(gt['readings'])} readings ({int(gt['eligible'])} eligible)  |err| p50 {gt['err_p50']:.1f} "
             f"p95 {gt['err_p95']:.1f} mm/s  (|v_true| p50 {gt['truth_p50']:.1f})  "
-            f"|err| <= 2 v_sigma {gt['z_within_2sigma']:.3f}"
+            f"|err| <= 2 v_sigma {gt['z_within_2sigma']:.3f}  (depth: {args.depth})"
         )
+        by_kind = gt["by_kind"]
+        assert isinstance(by_kind, dict)
+        for kind, (w, n, e50, e95) in by_kind.items():
+            print(f"  {kind:9s} within {w:.3f} of {n:4d}  |err| p50 {e50:.0f} p95 {e95:.0f} mm/s")
     real = real_rows(frames)
     if real is None:
         print("real sequence: ../shared/data not found")

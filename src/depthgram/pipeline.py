@@ -20,7 +20,7 @@ from numpy.typing import NDArray
 
 from depthgram.act import ActConfig, Plan
 from depthgram.act import plan as plan_scene
-from depthgram.dynamics import Tracker, TrackerConfig
+from depthgram.dynamics import FramePixels, Tracker, TrackerConfig
 from depthgram.errors import InputError
 from depthgram.frame import Frame
 from depthgram.scene import TreeConfig, build_tree, to_sentence, tree_to_dict
@@ -380,7 +380,9 @@ class Pipeline:
         if still and self.track and self.config.stills is not True:
             self._tracker = Tracker(self.config.tracker)  # nothing carries over to the next frames
         if not still:
-            update = self._tracker.update(seg.objects, frame.time_s, frame.size)
+            # the pixels let the tracker read each object's depth change from its core
+            pixels = FramePixels(frame.depth, seg.labels)
+            update = self._tracker.update(seg.objects, frame.time_s, frame.size, pixels)
             seg = _relabel(seg, {oid: m.track_id for oid, m in update.motions.items()})
             motions = {m.track_id: m for m in update.motions.values()}
             occluded = tuple((dataclasses.replace(t.last, id=t.id), _occluded_motion(t)) for t in update.occluded)

@@ -2,12 +2,14 @@
 
 >>> from depthgram.dynamics import Tracker
 >>> tracker = Tracker()
->>> upd = tracker.update(segmentation.objects, frame.time_s, frame.size)  # doctest: +SKIP
+>>> pixels = FramePixels(frame.depth, segmentation.labels)  # optional: depth change from each core
+>>> upd = tracker.update(segmentation.objects, frame.time_s, frame.size, pixels)  # doctest: +SKIP
 >>> upd.motions[obj.id]  # doctest: +SKIP
 Motion(track_id=1, v_radial=-410.2, ttc=1.9, status='visible', v_sigma=21.5, fps_assumed=None)
 """
 
 from depthgram.dynamics.config import TrackerConfig
+from depthgram.dynamics.core import FramePixels, core_depth_change, image_shift
 from depthgram.dynamics.evaluate import BodyScore, TrackingScore, evaluate_tracking
 from depthgram.dynamics.flow import fit_radial_velocity, time_to_collision
 from depthgram.dynamics.match import assign, bbox_iou, match_cost
@@ -16,6 +18,7 @@ from depthgram.dynamics.tracker import STATUSES, Track, Tracker, TrackUpdate
 __all__ = [
     "STATUSES",
     "BodyScore",
+    "FramePixels",
     "Track",
     "TrackUpdate",
     "Tracker",
@@ -23,8 +26,10 @@ __all__ = [
     "TrackingScore",
     "assign",
     "bbox_iou",
+    "core_depth_change",
     "evaluate_tracking",
     "fit_radial_velocity",
+    "image_shift",
     "match_cost",
     "time_to_collision",
 ]

@@ -17,6 +17,7 @@ from numpy.typing import NDArray
 from scipy import ndimage
 
 from depthgram.dynamics.config import TrackerConfig
+from depthgram.dynamics.core import FramePixels
 from depthgram.dynamics.tracker import Tracker
 from depthgram.segmentation.objects import SceneObject
 
@@ -194,6 +195,7 @@ def evaluate_tracking(
     min_area: int = 100,
     settle: int = 3,
     segmenter: str = "segment",
+    core: bool = True,
 ) -> TrackingScore:
     """Simulate, segment and track a scene, and score the tracker against the truth.
 
@@ -221,6 +223,10 @@ def evaluate_tracking(
         ``segment``: :func:`depthgram.segmentation.segment`, the real pipeline; ``truth``: the
         simulator's instance map, a perfect segmentation, to score the tracker alone; a
         segmentation method's name (``slices``, ...): that method.
+    core : bool
+        Hand the tracker each frame's pixels, as the pipeline does, so that it reads each
+        object's depth change from its core (:mod:`depthgram.dynamics.core`); False: from
+        the objects' depths alone.
 
     Returns
     -------
@@ -242,7 +248,7 @@ def evaluate_tracking(
             method: dict[str, Any] = {} if segmenter == "segment" else {"method": segmenter}
             seg = segment(fr.depth, valid=fr.valid, intrinsics=fr.intrinsics, **method)
             labels, objects = seg.labels, seg.objects
-        upd = tracker.update(objects, fr.time_s, fr.size)
+        upd = tracker.update(objects, fr.time_s, fr.size, FramePixels(fr.depth, labels) if core else None)
         prim = primary_segments(labels, sf.instances)
         seg_area = {o.id: o.area for o in objects}
         queues = {t.last.id: t.queue for t in tracker.tracks if t.missed == 0}

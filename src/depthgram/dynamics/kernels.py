@@ -233,7 +233,11 @@ def step(
     first: bool,
     next_id: int,
     p: NDArray[np.float64],
-) -> tuple[NDArray[np.int64], NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_], NDArray[np.bool_], int]:
+    dcore: NDArray[np.float64],
+) -> tuple[
+    NDArray[np.int64], NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_], NDArray[np.bool_], int,
+    NDArray[np.float64],
+]:  # fmt: skip
     """Advance every track by one frame, in place; new tracks go to rows ``n..``.
 
     This is the project's own bookkeeping (queues, statuses, split/merge and border tests),
@@ -243,9 +247,15 @@ def step(
     area_tau_s. ``dt`` is this frame's time step (s): every rate and time constant is
     scaled by it, so the tracker behaves alike at any frame rate.
 
+    ``dcore`` is each object's depth change over its core since the previous frame (mm, NaN
+    where unknown; :func:`depthgram.dynamics.core.core_depth_change`). Where it is known, the
+    queue's new entry is the previous depth plus that change, and the whole queue is then
+    moved by a constant so that its newest entry is this frame's depth: the slope follows the
+    core, the depth stays the object's.
+
     Returns the track row of each object, the reported velocity and time to collision of
     every row, which rows die this frame, which rows restarted their queue (new tracks too),
-    and the number of new tracks.
+    the number of new tracks, and the constant each row's depths were moved by (mm).
     """
     border, area_rate, max_jump, fit_border, min_speed, min_hits, max_missed, jump_rate, c_tau, a_tau = p
     # Exponential smoothing with a time constant: the same weight per second at any rate.
@@ -263,6 +273,7 @@ def step(
         s[i, MISSED] += 1.0
     obj_row = np.full(m, -1, np.int64)
     restarted = np.zeros(n + m, np.bool_)
+    offset = np.zeros(n + m)
     z_ref_of = np.full(n + m, np.nan)
     for k in range(rows.shape[0]):
         i = rows[k]
@@ -278,6 +289,10 @@ def step(
         zo = f[c, F_Z]
         z_ok = np.isfinite(zo) and zo > 0
         z_new = zo if z_ok else s[i, DEPTH]
+        # The core's depth change, chained on the previous depth: in the previous frame's
+        # frame of reference, where the track's queue and prediction are.
+        chained = z_ok and np.isfinite(dcore[c]) and np.isfinite(s[i, DEPTH]) and s[i, MISSED] == 1
+        zq = s[i, DEPTH] + dcore[c] if chained else zo
         # Areas compared at the track's fitted depth, not this frame's mean depth: the area
         # change of an approaching object is then not read as entering, and the biased mean
         # depth of a partly visible object does not hide its area change either.
@@ -313,16 +328,17 @@ def step(
         # Partly hidden behind a nearer object while its visible area changes: the mean depth
         # of the visible part is biased, so the entry stays out of the fit (paper, case b).
         hidden = f[c, F_BEHIND] > 0 and abs(change) > thr
-        valid = z_ok and not (jump > max_jump) and (fit_border > 0 or status == VISIBLE) and not hidden
+        valid = z_ok and (chained or (not (jump > max_jump) and (fit_border > 0 or status == VISIBLE) and not hidden))
         # Only a track with a velocity has a path to leave: a new track's prediction is "still",
         # and an object closing fast would otherwise restart its queue on every frame and never
         # get a velocity (issue 13: 0 of 21 frames at 1.5 m/s, 30 frames/s).
-        restart = valid and has_v and np.isfinite(p_depth) and abs(zo - p_depth) > jump_rate * p_depth * el
+        restart = valid and has_v and np.isfinite(p_depth) and abs(zq - p_depth) > jump_rate * p_depth * el
         # The segment turned from a plain object into a compound or back (an oblique side
         # came into view or left it): its depth is now read another way (nearest part against
         # mean), so earlier entries measure another surface. Measured on `crossing`: the cart
         # read 500 mm/s on such a frame while standing still in depth.
-        restart = restart or (valid and s[i, READ] != f[c, F_READ])
+        # A core reading does not depend on how the depth is read.
+        restart = restart or (valid and not chained and s[i, READ] != f[c, F_READ])
         restarted[i] = restart
         if restart:
             # The mean depth left the predicted path by more than any motion explains: the
@@ -332,8 +348,14 @@ def step(
                 qz[i, j] = np.nan
             s[i, V] = np.nan
         if valid:
-            qz[i, nq - 1] = zo
+            qz[i, nq - 1] = zq
             s[i, READ] = f[c, F_READ]
+        if chained:
+            off = zo - zq
+            offset[i] = off
+            for j in range(nq):
+                qz[i, j] += off
+            s[i, ZFIT] += off
         dcx = (f[c, F_CX] - s[i, CX]) / el
         dcy = (f[c, F_CY] - s[i, CY]) / el
         # While the visible area changes (partial occlusion, entering, leaving, a split) the
@@ -429,7 +451,7 @@ def step(
             dead[i] = s[i, HITS] < min_hits or s[i, MISSED] > max_missed
         v_out[i] = vo
         ttc[i] = z_pred / -vo if (vo < -min_speed and z_pred > 0) else np.nan
-    return obj_row, v_out, ttc, dead, restarted[:nn], nn - n
+    return obj_row, v_out, ttc, dead, restarted[:nn], nn - n, offset[:nn]
 
 
 @njit(cache=True)
@@ -447,6 +469,7 @@ def estimate(
     krej: NDArray[np.int64],
     dt: float,
     p: NDArray[np.float64],
+    offset: NDArray[np.float64],
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
     """Radial velocity, time to collision and v_sigma of every live row (mm/s, s, mm/s).
 
@@ -460,7 +483,8 @@ def estimate(
     over ``dt`` for every track (occluded ones coast) and updated with each valid depth reading
     within ``innovation_gate`` standard deviations of its prediction; three outliers in a row
     restart it there. Either way a time to collision needs a closing speed of at least
-    ``ttc_min_sigmas`` v_sigma.
+    ``ttc_min_sigmas`` v_sigma. ``offset`` moves each row's filter depth along with its queue
+    (see :func:`step`).
     """
     use_kalman, sig1m, floor, accel, gate_k, ttc_k, min_speed, v_sigma0 = p
     nn = kx.shape[0]
@@ -498,7 +522,7 @@ def estimate(
                 kx[i, 0] = np.nan
                 kx[i, 1] = np.nan
             else:
-                kx[i, 0] += dt * kx[i, 1]
+                kx[i, 0] += dt * kx[i, 1] + offset[i]
                 p00, p01, p11 = kp[i, 0, 0], kp[i, 0, 1], kp[i, 1, 1]
                 kp[i, 0, 0] = p00 + 2 * dt * p01 + dt * dt * p11 + q * dt**4 / 4
                 kp[i, 0, 1] = p01 + dt * p11 + q * dt**3 / 2

@@ -19,8 +19,12 @@ from numpy.typing import NDArray
 from scipy.optimize import linear_sum_assignment
 
 from depthgram.dynamics.config import NOMINAL_FPS, TrackerConfig
+from depthgram.dynamics.core import FramePixels, core_depth_change, image_shift
 from depthgram.dynamics.kernels import (
+    CX,
+    CY,
     F_READ,
+    FORBIDDEN,
     HITS,
     ID,
     MISSED,
@@ -28,6 +32,10 @@ from depthgram.dynamics.kernels import (
     NFEAT,
     OCCLUDED,
     STATUS,
+    VX,
+    VY,
+    ZFIT,
+    V,
     estimate,
     mark_behind,
     predict_cost,
@@ -148,6 +156,14 @@ def _features(objects: Sequence[SceneObject]) -> NDArray[np.float64]:
 _NO_PAIRS = np.zeros(0, np.intp)
 
 
+def _scale(z_prev: float, dz: float) -> float:
+    """How much an object shrinks back into the previous frame: its predicted depth now over
+    its depth then (1 without a velocity). The prediction, not this frame's reading, so that a
+    segment that gains or loses a part does not scale its core."""
+    k = (z_prev + dz) / z_prev if z_prev > 0 and math.isfinite(dz) else 1.0
+    return k if 0.5 <= k <= 2.0 else 1.0
+
+
 def _motion(
     track_id: int, v: float, ttc: float, status: str, fps_assumed: float | None, v_sigma: float = math.nan
 ) -> Motion:
@@ -223,6 +239,7 @@ class Tracker:
         self._krej = np.zeros(16, np.int64)  # outliers rejected in a row
         self._last: list[SceneObject] = []
         self._motion: list[Motion] = []
+        self._pixels: FramePixels | None = None  # the previous frame's, when given
 
     # ------------------------------------------------------------------ public views
     @property
@@ -288,8 +305,19 @@ class Tracker:
         self._t_last = t
         return t
 
-    def update(self, objects: Sequence[SceneObject], time_s: float | None, frame_size: tuple[int, int]) -> TrackUpdate:
+    def update(
+        self,
+        objects: Sequence[SceneObject],
+        time_s: float | None,
+        frame_size: tuple[int, int],
+        pixels: FramePixels | None = None,
+    ) -> TrackUpdate:
         """Match this frame's objects to the tracks and read their motion.
+
+        Given the frame's ``pixels`` (depth and label map) on this and the previous update, an
+        object's depth change is read from its core, the pixels that stay in it
+        (:mod:`depthgram.dynamics.core`); otherwise, and for objects without a core, from
+        its depth alone.
 
         Parameters
         ----------
@@ -301,6 +329,9 @@ class Tracker:
             configured (each Motion then says which rate it assumed).
         frame_size : tuple of int
             (width, height) of the image (px), as :attr:`depthgram.frame.Frame.size`.
+        pixels : FramePixels, optional
+            This frame's depth (mm) and label map (``SceneObject.id`` per pixel), shape
+            (height, width).
 
         Returns
         -------
@@ -342,17 +373,18 @@ class Tracker:
             rows, cols = linear_sum_assignment(cost)
         else:
             rows = cols = _NO_PAIRS
+        dcore = self._core_changes(objects, pixels, rows, cols, cost, (width, height))
         params = self._step_params
-        obj_row, v_out, ttc, dead, restarted, k = step(
+        obj_row, v_out, ttc, dead, restarted, k, offset = step(
             s, self._qt, self._qz, n, f, rows, cols, cost, t_now, self._dt,
-            float(width), float(height), self._frame == 0, self._next_id, params,
+            float(width), float(height), self._frame == 0, self._next_id, params, dcore,
         )  # fmt: skip
         self._n = n + k
         self._next_id += k
         if k:  # placeholders, filled below
             self._last.extend([objects[0]] * k)
             self._motion.extend([Motion(0)] * k)
-        v_out, ttc, v_sig = self._estimate(n, restarted, v_out, ttc)
+        v_out, ttc, v_sig = self._estimate(n, restarted, v_out, ttc, offset)
 
         # Python objects only for what is returned.
         ids_l = s[: self._n, ID].astype(np.int64).tolist()
@@ -377,15 +409,68 @@ class Tracker:
             self._drop(~dead)
         return TrackUpdate(motions=motions, occluded=occluded, ended=ended)
 
+    def _core_changes(
+        self,
+        objects: tuple[SceneObject, ...],
+        pixels: FramePixels | None,
+        rows: NDArray[np.intp],
+        cols: NDArray[np.intp],
+        cost: NDArray[np.float64],
+        frame_size: tuple[int, int],
+    ) -> NDArray[np.float64]:
+        """Each object's core depth change since the previous frame (mm; NaN where unknown),
+        and keep this frame's pixels for the next update."""
+        prev, self._pixels = self._pixels, pixels
+        out = np.full(len(objects), np.nan)
+        if pixels is None:
+            return out
+        shape = (frame_size[1], frame_size[0])
+        if np.shape(pixels.depth_mm) != shape or np.shape(pixels.labels) != shape:
+            raise InputError(
+                f"tracker frame {self._frame}: pixels must be (height, width) = {shape} like frame_size, got "
+                f"depth {np.shape(pixels.depth_mm)} and labels {np.shape(pixels.labels)}"
+            )
+        if prev is None:
+            return out
+        s = self._s
+        # Pairs with a track seen in the previous frame: its last object is that frame's segment.
+        # The track's own image motion: its centre's move, and its smoothed image velocity,
+        # which holds while the outline changes (entering, leaving, partly hidden) (px).
+        dt = self._dt
+        pairs = {
+            objects[c].id: (
+                self._last[i].id,
+                objects[c].bbox_xy,
+                (
+                    (s[i, CX] - objects[c].center_xy[0], s[i, CY] - objects[c].center_xy[1]),
+                    (-s[i, VX] * dt, -s[i, VY] * dt),
+                ),
+                _scale(s[i, ZFIT], s[i, V] * dt),
+            )
+            for i, c in zip(rows.tolist(), cols.tolist(), strict=True)
+            if cost[i, c] < FORBIDDEN and s[i, MISSED] == 0
+        }
+        if not pairs:
+            return out
+        change = core_depth_change(prev, pixels, pairs, image_shift(prev.depth_mm, pixels.depth_mm))
+        for c, o in enumerate(objects):
+            out[c] = change.get(o.id, math.nan)
+        return out
+
     def _estimate(
-        self, n: int, restarted: NDArray[np.bool_], v_queue: NDArray[np.float64], ttc_queue: NDArray[np.float64]
+        self,
+        n: int,
+        restarted: NDArray[np.bool_],
+        v_queue: NDArray[np.float64],
+        ttc_queue: NDArray[np.float64],
+        offset: NDArray[np.float64],
     ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
         """Radial velocity, time to collision and v_sigma of every live row (mm/s, s, mm/s);
         see :func:`depthgram.dynamics.kernels.estimate`."""
         nn = self._n
         return estimate(
             self._s[:nn], self._qt[:nn], self._qz[:nn], n, restarted, v_queue, ttc_queue,
-            self._kx[:nn], self._kp[:nn], self._kn[:nn], self._krej[:nn], self._dt, self._estimate_params,
+            self._kx[:nn], self._kp[:nn], self._kn[:nn], self._krej[:nn], self._dt, self._estimate_params, offset,
         )  # fmt: skip
 
     def _drop(self, keep: NDArray[np.bool_]) -> None:

@@ -1,0 +1,114 @@
+"""The depth change of an object read from its core (issue 13, item 1), against exact truth."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy import ndimage
+
+from depthgram.dynamics import FramePixels, Tracker, TrackerConfig, core_depth_change, image_shift
+from depthgram.errors import InputError
+from depthgram.segmentation.objects import SceneObject
+
+W, H = 320, 240
+FPS = 30.0
+
+
+M = 60  # margin of the surface beyond the first view (px)
+_BUMPS = ndimage.gaussian_filter(np.random.default_rng(3).normal(0.0, 1.0, (H + 2 * M, W + 2 * M)), 4.0)
+_BUMPS *= 25.0 / _BUMPS.std()
+
+
+def _relief(u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """A slanted bumpy surface (mm over its base depth): rises 2 mm per px down the image, with
+    bumps of 25 mm; ``u``, ``v`` whole px within ``M`` of the first view."""
+    return 2.0 * v + _BUMPS[v.astype(int) + M, u.astype(int) + M]
+
+
+def _sliding_frames(n: int, slide_px: int, v_mm_s: float) -> list[np.ndarray]:
+    """A surface that fills the view, slides up the image by ``slide_px`` per frame (the
+    camera pans along it) and comes closer at ``v_mm_s``: each of its points closes at exactly
+    ``v_mm_s``, while the view shows ever deeper parts of the slope."""
+    u, v = np.meshgrid(np.arange(W, dtype=np.float64), np.arange(H, dtype=np.float64))
+    return [(1500.0 + v_mm_s * k / FPS + _relief(u, v + slide_px * k)).astype(np.float32) for k in range(n)]
+
+
+def _whole(depth: np.ndarray) -> SceneObject:
+    z = float(depth.mean())
+    return SceneObject(1, "floor", 0, z, float(depth.std()), W * H, 1.0, ((W - 1) / 2, (H - 1) / 2), (0, 0, W, H))
+
+
+def test_image_shift_finds_a_known_shift() -> None:
+    u, v = np.meshgrid(np.arange(W, dtype=np.float64), np.arange(H, dtype=np.float64))
+    prev = (2000.0 + _relief(u, v)).astype(np.float32)
+    now = (2000.0 + _relief(u - 5, v + 3)).astype(np.float32)  # the point at (x, y) was at (x - 5, y + 3)
+    dx, dy = image_shift(prev, now)
+    assert dx == pytest.approx(-5.0, abs=0.5) and dy == pytest.approx(3.0, abs=0.5)
+
+
+def test_core_change_of_a_sliding_surface_is_its_points_motion() -> None:
+    a, b = _sliding_frames(2, 3, -600.0)
+    labels = np.ones((H, W), np.int32)
+    change = core_depth_change(
+        FramePixels(a, labels), FramePixels(b, labels), {1: (1, (0, 0, W, H), (), 1.0)}, image_shift(a, b)
+    )
+    # every point came 20 mm closer; the mean depth of the view went 14 mm deeper
+    assert change[1] == pytest.approx(-20.0, abs=0.5)
+    assert float(b.mean() - a.mean()) == pytest.approx(-14.0, abs=0.5)
+
+
+@pytest.mark.parametrize("estimator", ["queue", "kalman"])
+def test_tracker_reads_the_surface_velocity_from_the_core_not_the_mean(estimator: str) -> None:
+    frames = _sliding_frames(12, 3, -600.0)
+    labels = np.ones((H, W), np.int32)
+
+    def run(with_pixels: bool) -> list[float]:
+        tr = Tracker(TrackerConfig(estimator=estimator))
+        out = []
+        for k, z in enumerate(frames):
+            upd = tr.update([_whole(z)], k / FPS, (W, H), FramePixels(z, labels) if with_pixels else None)
+            out.append(upd.motions[1].v_radial)
+        return out
+
+    core, plain = run(True), run(False)
+    # from the third frame after first sight: within 5 % of the true -600 mm/s
+    assert all(v is not None and abs(v + 600.0) <= 30.0 for v in core[3:]), core
+    # the mean depth alone reads the slope coming into view as motion: about -420 mm/s
+    assert all(v is not None and abs(v + 420.0) <= 30.0 for v in plain[4:]), plain
+
+
+def test_without_pixels_or_with_a_new_object_the_plain_depth_is_used() -> None:
+    frames = _sliding_frames(6, 0, -300.0)  # no slide: mean and core agree
+    labels = np.ones((H, W), np.int32)
+    tr = Tracker()
+    for k, z in enumerate(frames):
+        pixels = FramePixels(z, labels) if k % 2 == 0 else None  # handed over on every other frame only
+        upd = tr.update([_whole(z)], k / FPS, (W, H), pixels)
+    assert upd.motions[1].v_radial == pytest.approx(-300.0, abs=3.0)
+
+
+def test_pixels_of_another_size_than_the_frame_are_refused() -> None:
+    z = np.full((H, W), 1000.0, np.float32)
+    with pytest.raises(InputError, match="pixels must be"):
+        Tracker().update([_whole(z)], 0.0, (W, H), FramePixels(z[:, :10], np.ones((H, 10), np.int32)))
+
+
+def test_pipeline_hands_the_tracker_its_pixels() -> None:
+    pytest.importorskip("depthgram.sensor")
+    from depthgram import Pipeline
+    from depthgram.segmentation import segment
+    from depthgram.segmentation.sensor import estimate_sensor
+    from depthgram.sensor import simulate
+
+    frames = [sf.frame for sf in simulate("crossing", 30, size=(176, 132), fps=30, seed=2)]
+    got = [r.motions for r in Pipeline().run(frames, read_ahead=0)]
+    sensor = estimate_sensor(frames[0].depth, frames[0].valid)  # as the pipeline: once per 30 frames
+    for with_pixels in (True, False):
+        tr = Tracker()
+        want = []
+        for fr in frames:
+            seg = segment(fr.depth, valid=fr.valid, intrinsics=fr.intrinsics, sensor=sensor)
+            upd = tr.update(seg.objects, fr.time_s, fr.size, FramePixels(fr.depth, seg.labels) if with_pixels else None)
+            want.append({m.track_id: m.v_radial for m in upd.motions.values()})
+        same = all({t: m.v_radial for t, m in g.items()} == w for g, w in zip(got, want, strict=True))
+        assert same == with_pixels
