@@ -276,12 +276,12 @@ def test_a_pause_while_behind_ends_on_the_newest_frame_read_and_a_step_shows_the
         await asyncio.sleep(0)  # the pause is asked for while the frame is being read
         release.set()
         await asyncio.wait_for(pause, 20)
-        k, shown = player.index, page.slot[0]["index"] if page.slot else None
+        k, shown = player.index, page.slot.header["index"] if page.slot else None
         await asyncio.wait_for(player.step(), 20)
         state = player.state()
         await player.stop()
         assert k is not None and shown is not None and page.slot is not None
-        return k, shown, page.slot[0]["index"], state
+        return k, shown, page.slot.header["index"], state
 
     k, shown, stepped, state = asyncio.run(run())
     assert shown == k  # the page ends on the frame the pause reports ...
@@ -554,3 +554,77 @@ def test_a_live_source_cannot_be_rewound() -> None:
         r = client.post("/api/recordings/cam/seek", json={"index": 0})
         assert r.status_code == 422 and "cannot be rewound" in r.json()["error"]
         assert client.get("/api/recordings/cam").json()["seekable"] is False
+
+
+class _FakeClock:
+    def __init__(self) -> None:
+        self.now = 0.0
+
+    def __call__(self) -> float:
+        return self.now
+
+
+def test_pacer_drops_a_frame_only_when_its_slot_passed_more_than_a_period_ago() -> None:
+    from depthgram.views.player import Pacer
+
+    clock = _FakeClock()
+    pacer = Pacer(0.1, clock=clock)  # 10 frames/s, clock started at t = 0
+    assert pacer.wait_s() == 0.0 and not pacer.late()
+    pacer.advance()  # frame 1 due at 0.1 s
+    clock.now = 0.05
+    assert pacer.wait_s() == pytest.approx(0.05) and not pacer.late()
+    clock.now = 0.2  # exactly one period late: still shown
+    assert not pacer.late()
+    clock.now = 0.2001  # more than a period late: lost, as a live sensor loses it
+    assert pacer.late()
+    pacer.advance(0.3)  # a timestamp gap: frame due at 0.4 s
+    assert pacer.due == pytest.approx(0.4) and not pacer.late()
+
+
+def test_pacer_never_drops_from_a_source_slower_than_real_time() -> None:
+    from depthgram.views.player import Pacer
+
+    clock = _FakeClock()
+    pacer = Pacer(0.1, clock=clock)
+    pacer.note_read(0.15)  # reading a frame costs more than its period: skipping cannot catch up
+    clock.now = 1.0
+    assert not pacer.late()
+    pacer.advance()  # the backlog is forgotten: the next frame is due at most a period ago
+    assert pacer.due == pytest.approx(0.9) and not pacer.late()
+
+
+def test_player_moves_between_its_states_as_the_controls_say() -> None:
+    # playing -> paused (pause) -> seeking -> paused (seek shown) -> ended (the last frame stepped past)
+    from depthgram.views.player import Mode
+
+    async def run() -> list[str]:
+        player = _sim_player(playing=True, loop=False)
+        player.start()
+        player.connect()
+        seen = [player.mode.value]
+        await asyncio.wait_for(player.pause(), 20)
+        seen.append(player.mode.value)
+        seek = asyncio.create_task(player.seek(3))
+        await asyncio.sleep(0)
+        seen.append(player.mode.value)
+        await asyncio.wait_for(seek, 20)
+        seen.append(player.mode.value)
+        assert player.index == 3
+        await asyncio.wait_for(player.step(), 20)  # there is no frame 4: the recording ends
+        await asyncio.sleep(0.05)
+        seen.append(player.mode.value)
+        assert player.state()["ended"] is True and player.index == 3
+        await asyncio.wait_for(player.step(), 20)  # a step after the end starts again at frame 0
+        seen.append(player.mode.value)
+        assert player.index == 0
+        await player.stop()
+        return seen
+
+    assert asyncio.run(run()) == [
+        Mode.PLAYING.value,
+        "paused",
+        "seeking",
+        "paused",
+        "ended",
+        "paused",
+    ]

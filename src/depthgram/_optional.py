@@ -29,6 +29,7 @@ EXTRAS = {
     "mcap": "mcap",
     "mcap_protobuf": "mcap",
     "foxglove_schemas_protobuf": "mcap",
+    "foxglove": "foxglove",
 }
 
 

@@ -33,6 +33,7 @@ def run(args: argparse.Namespace) -> int:
 
     from depthgram.pipeline import Pipeline
     from depthgram.sources.prefetch import prefetch
+    from depthgram.views.player import Pacer
 
     if args.read_ahead < 0:
         print(f"depthgram run: --read-ahead must be >= 0, got {args.read_ahead}", file=sys.stderr)
@@ -43,7 +44,7 @@ def run(args: argparse.Namespace) -> int:
     period = None if args.fast or not fps else 1.0 / fps
     latencies: list[float] = []
     dropped = 0
-    first_time: float | None = None
+    last_time: float | None = None
     # frames are decoded in a thread beside the pipeline (as Pipeline.run does), as a sensor
     # delivers them; the loop is written out here because a live sensor drops late frames
     frames = prefetch(src, ahead=args.read_ahead)
@@ -58,20 +59,22 @@ def run(args: argparse.Namespace) -> int:
     gc.freeze()
     try:
         frames = itertools.chain([first], frames)
-        start = time.perf_counter()
+        # The viewer's player drops frames by the same rule (views/player.py), so the two compare.
+        pacer = Pacer(period or 1.0, clock=time.perf_counter)
+        start = pacer.due
         for i, frame in enumerate(progress(frames, total=source_len(src), desc=NAME, quiet=args.quiet)):
             if period is not None:
                 # A live sensor does not wait: a frame whose slot has passed while we were busy is lost.
                 t_frame = frame.time_s if frame.time_s is not None else i * period
-                if first_time is None:
-                    first_time = t_frame
-                due = start + (t_frame - first_time)
-                now = time.perf_counter()
-                if now > due + period:
+                if last_time is not None:
+                    pacer.advance(t_frame - last_time)
+                last_time = t_frame
+                if pacer.late():
                     dropped += 1
                     continue
-                if now < due:
-                    time.sleep(due - now)
+                wait = pacer.wait_s()
+                if wait > 0:
+                    time.sleep(wait)
             result = pipe.process(frame)
             latencies.append(result.latency_s)
             if args.print_sentences:

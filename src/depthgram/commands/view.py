@@ -51,6 +51,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         help="compress each frame's depth and labels (about 3 x smaller, for slow links)",
     )
     g.add_argument("--jpeg", action="store_true", help=argparse.SUPPRESS)  # deprecated: --compress
+    g.add_argument(
+        "--foxglove",
+        action="store_true",
+        help="serve the results to Foxglove (Open connection > Foxglove WebSocket, ws://HOST:PORT) "
+        "instead of the browser page: the topics of describe --mcap (needs depthgram[foxglove])",
+    )
 
 
 def access(host: str, allow_host: list[str], token: str | None) -> tuple[tuple[str, ...] | None, str | None]:
@@ -81,6 +87,8 @@ def run(args: argparse.Namespace) -> int:
 
     if not 0 <= args.port <= 65535:
         raise InputError(f"--port must be in 0..65535, got {args.port}")
+    if args.foxglove:
+        return run_foxglove(args)
     from depthgram._optional import needs_extra
 
     with needs_extra("view", "the browser viewer"):
@@ -139,6 +147,82 @@ def run(args: argparse.Namespace) -> int:
 
     threading.Thread(target=announce, daemon=True).start()
     asyncio.run(server.serve(sockets=[sock]))
+    return 0
+
+
+def run_foxglove(args: argparse.Namespace) -> int:
+    """Play the recording through the pipeline in real time and publish each frame to Foxglove.
+
+    Frames are dropped by the rule of ``depthgram run`` and the browser viewer
+    (:class:`depthgram.views.player.Pacer`); the recording starts again at its end unless
+    ``--no-loop``. A frame is only turned into messages while a client is subscribed.
+    """
+    import gc
+    import time
+
+    from depthgram.commands._common import load_config, open_input
+    from depthgram.errors import InputError
+    from depthgram.export.foxglove_live import FoxgloveServer
+    from depthgram.pipeline import Pipeline
+    from depthgram.sources.prefetch import prefetch
+    from depthgram.views.player import Pacer, check_speed
+
+    speed = check_speed(args.speed)
+    if args.host not in _LOOPBACK and not args.allow_host:
+        # The Foxglove protocol has no access token: beyond loopback anyone could watch.
+        print(
+            f"depthgram view: --foxglove on {args.host}: anyone on the network can connect (the "
+            "Foxglove protocol has no token)",
+            file=sys.stderr,
+        )
+    src = open_input(args)
+    pipe = Pipeline(load_config(args))
+    fps = float(args.fps or getattr(src, "fps", None) or 30.0)
+    server = FoxgloveServer(args.host, args.port)
+    host = f"[{args.host}]" if ":" in args.host else args.host
+    print(
+        f"depthgram view: serving {args.input} to Foxglove at ws://{host}:{server.port} "
+        "(in Foxglove: Open connection > Foxglove WebSocket; Ctrl-C stops)",
+        file=sys.stderr,
+    )
+    shown = dropped = 0
+    try:
+        while True:
+            pacer = Pacer(1.0 / (fps * speed))
+            pipe.reset()
+            frames = prefetch(iter(src), ahead=2)
+            any_frame = False
+            fresh = True
+            for frame in frames:
+                any_frame = True
+                if not fresh and pacer.late():
+                    dropped += 1
+                    pacer.advance()
+                    continue
+                wait = pacer.wait_s()
+                if wait > 0:
+                    time.sleep(wait)
+                server.publish(pipe.process(frame))
+                shown += 1
+                if shown == 1:
+                    gc.freeze()  # as run does: no full collection walks what is loaded by now
+                if fresh:
+                    # As in the browser viewer, the clock starts once the first frame is out:
+                    # start-up costs (compiled kernels) are not a backlog to drop frames for.
+                    pacer.start(pacer.clock() + pacer.period)
+                    fresh = False
+                else:
+                    pacer.advance()
+            if not any_frame:
+                raise InputError(f"{args.input}: the recording has no frame")
+            if args.no_loop or getattr(src, "live", False):
+                break
+    except KeyboardInterrupt:
+        pass
+    finally:
+        gc.unfreeze()
+        server.close()
+    print(f"depthgram view: {shown} frames processed, {dropped} dropped, {server.published} published", file=sys.stderr)
     return 0
 
 

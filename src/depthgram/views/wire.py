@@ -68,11 +68,15 @@ def pack_body(
     return body, _NAMES[lab_dtype]
 
 
-def pack_frame(header: dict[str, Any], body: bytes) -> bytes:
-    """One binary message: length-prefixed JSON header, padding to 4 bytes, body."""
-    head = json.dumps(header, separators=(",", ":")).encode("utf-8")
+def pack_frame(header: dict[str, Any] | str, body: bytes) -> bytes:
+    """One binary message: length-prefixed JSON header, padding to 4 bytes, body.
+
+    ``header`` is a dict, or already serialised as JSON text.
+    """
+    text = header if isinstance(header, str) else json.dumps(header, separators=(",", ":"))
+    head = text.encode("utf-8")
     pad = (-(4 + len(head))) % 4
-    return struct.pack("<I", len(head)) + head + b" " * pad + body
+    return b"".join((struct.pack("<I", len(head)), head, b" " * pad, body))
 
 
 def unpack_frame(data: bytes) -> tuple[dict[str, Any], NDArray[np.uint16], NDArray[np.unsignedinteger]]:

@@ -269,6 +269,7 @@ function drawDepth(f, s) {
   ctx.putImageData(image, 0, 0);
 }
 
+let barStrip = null; // ImageData of the colour bar's strip of colours
 function drawColourBar(msg) {
   const bar = $("colourbar");
   const g = bar.getContext("2d");
@@ -276,12 +277,17 @@ function drawColourBar(msg) {
   const H = bar.height;
   const top = 8, bottom = H - 8, x0 = 4, bw = 14;
   g.clearRect(0, 0, bar.width, H);
-  for (let y = top; y < bottom; y++) {
-    const t = (y - top) / (bottom - top - 1); // top = near (lo), bottom = far (hi)
-    const [r, gr, b] = colours[Math.round(255 * (1 - t))];
-    g.fillStyle = `rgb(${r},${gr},${b})`;
-    g.fillRect(x0, y, bw, 1);
+  if (!barStrip || barStrip.height !== bottom - top) {
+    // the strip of colours depends only on the bar's height: built once, copied each time
+    barStrip = g.createImageData(bw, bottom - top);
+    const px = new Uint32Array(barStrip.data.buffer);
+    for (let y = 0; y < bottom - top; y++) {
+      const t = y / (bottom - top - 1); // top = near (lo), bottom = far (hi)
+      const [r, gr, b] = colours[Math.round(255 * (1 - t))];
+      px.fill(((255 << 24) | (b << 16) | (gr << 8) | r) >>> 0, y * bw, (y + 1) * bw);
+    }
   }
+  g.putImageData(barStrip, x0, top);
   g.fillStyle = "#e6e6e6";
   g.font = "11px system-ui, sans-serif";
   g.textBaseline = "middle";
@@ -330,6 +336,36 @@ function showTimeline(msg) {
   $("position").textContent = `${msg.index} / ${msg.frames - 1}`;
 }
 
+// The text panels and the colour bar's scale are redrawn at most every PANEL_MS while playing:
+// nobody reads a table 30 times a second, and re-laying them out for every frame cost the page
+// more than drawing the picture (benchmarks/bench_viewer.py prints the browser's CPU time per
+// frame). A paused, stepped or sought frame, and the last one played, are always shown in full.
+const PANEL_MS = 250;
+let panelsAt = -Infinity; // when the panels were last redrawn (performance.now(), ms)
+let panelsDue = null; // timer that shows the newest frame's panels once PANEL_MS has passed
+let panelsMsg = null; // the newest frame not yet shown in the panels
+
+function flushText() {
+  panelsDue = null;
+  if (!panelsMsg) return;
+  const msg = panelsMsg;
+  panelsMsg = null;
+  panelsAt = performance.now();
+  drawColourBar(msg);
+  showPanels(msg);
+}
+
+function showText(msg) {
+  panelsMsg = msg;
+  const wait = PANEL_MS - (performance.now() - panelsAt);
+  if (!msg.playing || wait <= 0) {
+    if (panelsDue !== null) clearTimeout(panelsDue);
+    flushText();
+  } else if (panelsDue === null) {
+    panelsDue = setTimeout(flushText, wait);
+  }
+}
+
 async function onFrame(buf) {
   const t0 = performance.now();
   const f = await parseFrame(buf);
@@ -348,8 +384,7 @@ async function onFrame(buf) {
   msg.drawScale = s;
   drawOverlay(msg);
   last = f;
-  drawColourBar(msg);
-  showPanels(msg);
+  showText(msg);
   showStatus(msg);
   showTimeline(msg);
   if ($("show3d").checked) cloud.draw(f);
