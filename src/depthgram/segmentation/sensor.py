@@ -253,8 +253,8 @@ def _range_estimates(
         # a jump to another surface is not noise: keep differences within 5 % of depth
         a = d1s[lo:hi]
         nz = a[(a > 1e-6) & (a < lim)]
-        b = d2s[lo:hi]
-        b = b[np.abs(b) < lim]
+        c = d2s[lo:hi]
+        b = c[np.abs(c) < lim]
         lo = hi
         if nz.size < 20 or b.size < 20:
             continue
