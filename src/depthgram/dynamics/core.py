@@ -97,46 +97,72 @@ def image_shift(prev_depth_mm: NDArray[np.floating], depth_mm: NDArray[np.floati
     return -float(sx) * w / _SHIFT_W, -float(sy) * h / _SHIFT_H
 
 
-def _core_stats(
-    prev: FramePixels,
-    now: FramePixels,
-    oid: int,
-    pid: int,
-    box: tuple[int, int, int, int],
-    shift: tuple[float, float],
-    scale: float,
-) -> tuple[int, float, float, int]:
-    """Core of object ``oid`` (this frame) against ``pid`` (previous frame) under an image
-    motion: its size (px), mean depth change (mm), spread of the change (mm) and the object's
-    valid pixels.
+#: Pixels of an object's core read per candidate motion: larger objects are read on a grid
+#: of every k-th row and column (their mean change needs no more).
+_CORE_SAMPLE_PX = 3000
+
+
+class _Core:
+    """One object's pixels this frame and the part of the previous frame its motions can reach.
 
     The pixel ``p`` of this frame was at ``c + (p - c) * scale + shift`` in the previous one,
     ``c`` the box's centre: an object coming closer grows in the image about itself, and
     reading its previous depth at the same pixel would read a point further out on its
-    surface. The previous depth is read bilinearly, from four pixels that all belong to
-    ``pid``: on a steep flank (a cylinder's side) half a pixel is tens of millimetres.
+    surface. The previous depth is read bilinearly, from four pixels that all belong to the
+    track's previous segment: on a steep flank (a cylinder's side) half a pixel is tens of
+    millimetres.
     """
-    x0, y0, x1, y1 = box
-    z1 = np.asarray(now.depth_mm[y0:y1, x0:x1], dtype=np.float32)
-    core = (np.asarray(now.labels[y0:y1, x0:x1]) == oid) & (z1 > 0)
-    area = int(core.sum())
-    if area == 0:
-        return 0, math.nan, math.nan, 0
-    cx, cy = 0.5 * (x0 + x1 - 1), 0.5 * (y0 + y1 - 1)
-    xs = (np.arange(x0, x1, dtype=np.float32) - cx) * scale + cx + shift[0]
-    ys = (np.arange(y0, y1, dtype=np.float32) - cy) * scale + cy + shift[1]
-    map_x = np.ascontiguousarray(np.broadcast_to(xs[None, :], z1.shape), dtype=np.float32)
-    map_y = np.ascontiguousarray(np.broadcast_to(ys[:, None], z1.shape), dtype=np.float32)
-    z_prev = np.asarray(prev.depth_mm, dtype=np.float32)
-    mine = ((np.asarray(prev.labels) == pid) & (z_prev > 0)).astype(np.float32)
-    z0 = cv2.remap(z_prev, map_x, map_y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=0)
-    inside = cv2.remap(mine, map_x, map_y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=0)
-    d = z1 - z0
-    core &= (inside > 0.999) & (np.abs(d) <= _EDGE_FRACTION * z1)
-    dc = d[core].astype(np.float64)
-    if dc.size == 0:
-        return 0, math.nan, math.nan, area
-    return int(dc.size), float(dc.mean()), float(dc.std()), area
+
+    def __init__(
+        self,
+        prev: FramePixels,
+        now: FramePixels,
+        oid: int,
+        pid: int,
+        box: tuple[int, int, int, int],
+        motions: Sequence[tuple[float, float]],
+        scale: float,
+    ) -> None:
+        x0, y0, x1, y1 = box
+        h, w = np.shape(now.labels)
+        step = max(1, math.isqrt(max((x1 - x0) * (y1 - y0), 1) // _CORE_SAMPLE_PX))
+        z1 = np.asarray(now.depth_mm[y0:y1:step, x0:x1:step], dtype=np.float32)
+        self.own = (np.asarray(now.labels[y0:y1:step, x0:x1:step]) == oid) & (z1 > 0)
+        self.z1 = z1
+        self.area = int(np.count_nonzero(self.own)) * step * step
+        cx, cy = 0.5 * (x0 + x1 - 1), 0.5 * (y0 + y1 - 1)
+        self.xs = (np.arange(x0, x1, step, dtype=np.float32) - cx) * scale + cx
+        self.ys = (np.arange(y0, y1, step, dtype=np.float32) - cy) * scale + cy
+        # the previous frame's window that every motion can reach, with a pixel to spare
+        dxs = [m[0] for m in motions]
+        dys = [m[1] for m in motions]
+        self.wx0 = max(math.floor(float(self.xs[0]) + min(dxs)) - 1, 0) if self.xs.size else 0
+        self.wy0 = max(math.floor(float(self.ys[0]) + min(dys)) - 1, 0) if self.ys.size else 0
+        wx1 = min(math.ceil(float(self.xs[-1]) + max(dxs)) + 2, w) if self.xs.size else 0
+        wy1 = min(math.ceil(float(self.ys[-1]) + max(dys)) + 2, h) if self.ys.size else 0
+        if wx1 <= self.wx0 or wy1 <= self.wy0:
+            self.z0 = self.mine = np.zeros((1, 1), np.float32)
+            return
+        z0 = np.asarray(prev.depth_mm[self.wy0 : wy1, self.wx0 : wx1], dtype=np.float32)
+        self.z0 = np.ascontiguousarray(z0)
+        lab0 = np.asarray(prev.labels[self.wy0 : wy1, self.wx0 : wx1])
+        self.mine = ((lab0 == pid) & (z0 > 0)).astype(np.float32)
+
+    def stats(self, shift: tuple[float, float]) -> tuple[int, float, float]:
+        """Core size (sampled px), mean depth change (mm) and its spread (mm) under ``shift``."""
+        if self.area == 0:
+            return 0, math.nan, math.nan
+        shape = self.z1.shape
+        map_x = np.ascontiguousarray(np.broadcast_to(self.xs[None, :] + (shift[0] - self.wx0), shape), np.float32)
+        map_y = np.ascontiguousarray(np.broadcast_to(self.ys[:, None] + (shift[1] - self.wy0), shape), np.float32)
+        z0 = cv2.remap(self.z0, map_x, map_y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+        inside = cv2.remap(self.mine, map_x, map_y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+        d = self.z1 - z0
+        core = self.own & (inside > 0.999) & (np.abs(d) <= _EDGE_FRACTION * self.z1)
+        dc = d[core].astype(np.float64)
+        if dc.size == 0:
+            return 0, math.nan, math.nan
+        return int(dc.size), float(dc.mean()), float(dc.std())
 
 
 def core_depth_change(
@@ -187,11 +213,19 @@ def core_depth_change(
         return {}
     out: dict[int, float] = {}
     for oid, (pid, box, owns, scale) in pairs.items():
-        n, mean, spread, area = _core_stats(prev, now, oid, pid, box, shift, scale)
-        ok = n >= min_px and n >= min_share * area
+        core = _Core(prev, now, oid, pid, box, [shift, *owns], scale)
+        n, mean, spread = core.stats(shift)
+        # sizes on the sampled grid, compared with the area on it
+        k = max(core.area // max(int(np.count_nonzero(core.own)), 1), 1)
+        ok = n * k >= min_px and n * k >= min_share * core.area
+        tried = [shift]
         for own in owns:
-            n2, mean2, spread2, _ = _core_stats(prev, now, oid, pid, box, own, scale)
-            if n2 >= min_px and n2 >= min_share * area and (not ok or spread2 < prefer * spread):
+            # a motion within a quarter pixel of one tried reads the same core
+            if any(abs(own[0] - t[0]) + abs(own[1] - t[1]) < 0.25 for t in tried):
+                continue
+            tried.append(own)
+            n2, mean2, spread2 = core.stats(own)
+            if n2 * k >= min_px and n2 * k >= min_share * core.area and (not ok or spread2 < prefer * spread):
                 n, mean, spread, ok = n2, mean2, spread2 / prefer, True
         if ok:
             out[oid] = mean
