@@ -12,6 +12,10 @@ from depthgram.errors import InputError
 from depthgram.scene.tree import Motion
 from depthgram.segmentation.objects import SceneObject
 
+#: The paper's queue slope (equation 13 and its least-squares extension): tests of its exact
+#: values name it, since the default estimator is the Kalman filter.
+QUEUE = TrackerConfig(estimator="queue")
+
 W, H = 640, 480
 FPS = 30.0
 
@@ -37,7 +41,7 @@ def approaching(speed: float, z0: float, n: int, noise: float, seed: int = 0) ->
 
 
 def test_approach_velocity_and_ttc_noise_free() -> None:
-    tr = Tracker()
+    tr = Tracker(QUEUE)
     objs = approaching(-600.0, 2000.0, 8, noise=0.0)
     for k, o in enumerate(objs):
         m = tr.update([o], k / FPS, (W, H)).motions[3]
@@ -56,7 +60,7 @@ def test_approach_velocity_with_depth_noise(seed: int) -> None:
     # frames in a hundred may exceed it, none by far.
     truth = -400.0
     tol = max(0.05 * abs(truth), 2.0 * FPS)  # 5 % or 2 mm/frame, whichever larger
-    tr = Tracker()
+    tr = Tracker(QUEUE)
     errors, ttc_rel = [], []
     for k, o in enumerate(approaching(truth, 2500.0, 60, noise=2.0, seed=seed)):
         m = tr.update([o], k / FPS, (W, H)).motions[3]
@@ -73,7 +77,7 @@ def test_approach_velocity_with_depth_noise(seed: int) -> None:
 
 
 def test_receding_object_has_no_ttc() -> None:
-    tr = Tracker()
+    tr = Tracker(QUEUE)
     for k, o in enumerate(approaching(+500.0, 800.0, 5, noise=0.0)):
         m = tr.update([o], k / FPS, (W, H)).motions[3]
     assert m.v_radial == pytest.approx(500.0) and m.ttc is None
@@ -81,12 +85,12 @@ def test_receding_object_has_no_ttc() -> None:
 
 def test_frames_without_timestamps_take_the_configured_rate_or_warn() -> None:
     objs = approaching(-300.0, 1500.0, 6, noise=0.0)  # 10 mm per frame at 30 frames/s
-    tr = Tracker(TrackerConfig(fps=15.0))  # the same frames at 15 frames/s: 150 mm/s
+    tr = Tracker(TrackerConfig(estimator="queue", fps=15.0))  # the same frames at 15 frames/s: 150 mm/s
     for o in objs:
         m = tr.update([o], None, (W, H)).motions[3]
     assert m.v_radial == pytest.approx(-150.0)
     assert m.ttc == pytest.approx(objs[-1].depth / 150.0)  # s
-    tr = Tracker()
+    tr = Tracker(QUEUE)
     with pytest.warns(UserWarning, match="--fps") as record:
         for o in objs:
             m = tr.update([o], None, (W, H)).motions[3]
@@ -141,7 +145,7 @@ def test_two_objects_crossing_one_behind_the_other() -> None:
 
 
 def test_occluded_entries_are_skipped_in_the_fit() -> None:
-    tr = Tracker(TrackerConfig(queue_length=4))
+    tr = Tracker(TrackerConfig(estimator="queue", queue_length=4))
     zs = {0: 2020.0, 1: 2010.0, 2: 2000.0, 3: 1990.0, 5: 1970.0}  # frame 4 missing
     for k in range(6):
         upd = tr.update([box(1, 320, 240, 50, 50, zs[k])] if k in zs else [], k / FPS, (W, H))
@@ -220,7 +224,7 @@ def test_one_frame_split_keeps_identity_of_the_bigger_part() -> None:
 
 
 def test_one_frame_merge_keeps_both_identities_and_velocity() -> None:
-    tr = Tracker()
+    tr = Tracker(QUEUE)
     for k in range(8):
         za = 1500.0 - 10 * k  # big object approaching 300 mm/s
         if k == 4:  # merged with its small neighbour at 1600 mm for one frame
@@ -285,7 +289,7 @@ def test_motions_are_ordinary_motion_objects() -> None:
 def test_depth_jump_restarts_the_queue_instead_of_reading_speed() -> None:
     # A still object whose segment suddenly covers a surface 300 mm behind (15 %, inside
     # the matching gate): without the restart the fit would read metres per second.
-    tr = Tracker()
+    tr = Tracker(QUEUE)
     vs = []
     for k in range(10):
         z = 2000.0 if k < 5 else 2300.0
@@ -294,7 +298,7 @@ def test_depth_jump_restarts_the_queue_instead_of_reading_speed() -> None:
     assert m.track_id == 1
     assert vs[5] is None  # one valid entry after the restart
     assert all(v == pytest.approx(0.0, abs=1e-9) for v in vs[6:])
-    off = Tracker(TrackerConfig(max_depth_jump_rate=float("inf")))
+    off = Tracker(TrackerConfig(estimator="queue", max_depth_jump_rate=float("inf")))
     for k in range(7):
         z = 2000.0 if k < 5 else 2300.0
         m = off.update([box(1, 320, 240, 80, 80, z)], k / FPS, (W, H)).motions[1]

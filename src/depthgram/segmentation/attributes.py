@@ -49,8 +49,11 @@ class Stats:
 
     @classmethod
     def from_sums(cls, sums: NDArray[np.float64], boxes: NDArray[Any] | None, *, metric: bool) -> Stats:
-        """From the statistics table of :mod:`depthgram.segmentation.label.stats` (one row per
-        label); the two metric sums are kept only when ``metric`` (intrinsics known)."""
+        """Build from the statistics table of :mod:`depthgram.segmentation.label.stats`.
+
+        The table has one row per label; the two metric sums are kept only when ``metric``
+        (intrinsics known).
+        """
         return cls(
             sums[:, COUNT], sums[:, SUM_Z], sums[:, SUM_ZZ], sums[:, SUM_X], sums[:, SUM_Y],
             sums[:, SUM_XZ] if metric else None, sums[:, SUM_YZ] if metric else None, boxes,
@@ -58,7 +61,7 @@ class Stats:
 
 
 def label_stats(labels: NDArray[np.int32], depth_mm: NDArray[np.floating], n: int, *, metric: bool = False) -> Stats:
-    """Sums and boxes per label over the pixels with a label > 0, in one compiled pass.
+    """Return sums and boxes per label over the pixels with a label > 0, in one compiled pass.
 
     Parameters
     ----------

@@ -296,7 +296,7 @@ class SegmentConfig:
             raise bad("max_planes", self.max_planes, "an integer number of planes in [0, 20]")
 
     def with_overrides(self, **overrides: Any) -> SegmentConfig:
-        """A copy with some fields replaced; unknown names raise :class:`InputError`."""
+        """Return a copy with some fields replaced; unknown names raise :class:`InputError`."""
         if not overrides:
             return self
         # the type is part of the key: 2 and 2.0 are equal, but only one may pass the checks

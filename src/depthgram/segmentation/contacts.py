@@ -74,8 +74,10 @@ def side_faces(
 
 
 def _best_contact(contact: NDArray[np.int64], needed: NDArray[np.float64]) -> dict[int, int]:
-    """``{facing id: support id}``: for each facing row the support it touches most, when that
-    contact (px) reaches ``needed[facing id]``."""
+    """Return ``{facing id: support id}``, the support each facing row touches most.
+
+    A pair is kept only when that contact (px) reaches ``needed[facing id]``.
+    """
     out: dict[int, int] = {}
     if contact.size == 0:
         return out

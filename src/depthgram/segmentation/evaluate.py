@@ -89,7 +89,7 @@ class Evaluation:
     tolerance: float
 
     def score(self, truth_id: int) -> ObjectScore:
-        """The scores of one ground-truth object."""
+        """Return the scores of one ground-truth object."""
         for s in self.objects:
             if s.truth_id == truth_id:
                 return s

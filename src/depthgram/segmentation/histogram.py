@@ -135,7 +135,7 @@ def _cuts(
 
 @lru_cache(maxsize=16)
 def _gaussian_weights(sigma: float) -> NDArray[np.float64]:
-    """The kernel ``gaussian_filter1d`` uses for ``sigma``: its response to a unit impulse."""
+    """Return the kernel ``gaussian_filter1d`` uses for ``sigma``: its response to a unit impulse."""
     radius = int(4.0 * sigma + 0.5)  # gaussian_filter1d's default truncate=4.0
     impulse = np.zeros(2 * radius + 1)
     impulse[radius] = 1.0

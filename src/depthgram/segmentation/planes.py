@@ -68,7 +68,7 @@ class Plane:
 
 
 def plane_normal(coef: tuple[float, float, float], cam: Intrinsics) -> NDArray[np.float64]:
-    """Unit normal (camera frame: x right, y down, z forward) of a plane, turned toward the sensor.
+    """Return the unit normal (camera frame: x right, y down, z forward) of a plane, turned toward the sensor.
 
     With normalised coordinates ``u' = (u - cx) / fx``: ``1/Z = a fx u' + b fy v' + (c + a cx +
     b cy)``; for a plane ``n . P = d`` this is ``-(n . ray) / d``, so ``n`` is minus that vector.
@@ -94,7 +94,7 @@ def plane_residual_mask(
     tol_rel: float,
     step: int = 1,
 ) -> NDArray[np.bool_]:
-    """Valid pixels within ``max(tol_mm, tol_rel Z)`` of the plane's predicted depth.
+    """Return the valid pixels within ``max(tol_mm, tol_rel Z)`` of the plane's predicted depth.
 
     ``step`` > 1: the image is every ``step``-th pixel of every ``step``-th row of the frame the
     plane was fitted in (coefficients in full-frame pixels).
@@ -131,7 +131,7 @@ def find_planes(
     seed: int = 0,
     search: NDArray[np.bool_] | None = None,
 ) -> list[Plane]:
-    """The dominant oblique planes of a depth image, largest first.
+    """Return the dominant oblique planes of a depth image, largest first.
 
     Parameters
     ----------
@@ -426,7 +426,7 @@ _NO_WANT = np.ones(1, np.bool_)
 
 
 def planes_from_sums(sums: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
-    """Unit normals, offsets (mm) and pixel counts from the sums of :func:`plane_sums` (row 0 unused).
+    """Return unit normals, offsets (mm) and pixel counts from the sums of :func:`plane_sums` (row 0 unused).
 
     The sums are additive, so the plane of a union of pieces comes from the sum of their rows
     without another pass over the image.

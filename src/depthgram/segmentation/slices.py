@@ -41,7 +41,7 @@ def slice_parts(
     intrinsics: Intrinsics | None,
     first_id: int,
 ) -> tuple[SceneObject, ...]:
-    """The slice segments of one compound object, nearest first, as ``part`` objects.
+    """Return the slice segments of one compound object, nearest first, as ``part`` objects.
 
     Parameters
     ----------
@@ -155,8 +155,11 @@ def _part_sums(
 
 
 def support_kind(cls: int, centroid_y_mm: float, is_lowest: bool) -> str:
-    """Kind of a support component: ``wall``; ``floor`` (lowest horizontal below the camera);
-    ``ceiling`` (horizontal above it); ``compound`` (other horizontal supports: table tops)."""
+    """Return the kind of a support component.
+
+    ``wall``; ``floor`` (lowest horizontal below the camera); ``ceiling`` (horizontal above it);
+    ``compound`` (other horizontal supports: table tops).
+    """
     if cls == VERTICAL:
         return "wall"
     if cls == HORIZONTAL and centroid_y_mm < 0:
@@ -231,7 +234,7 @@ def support_pieces(
     bridge: int,
     min_fit_px: int,
 ) -> tuple[NDArray[np.int32], int, NDArray[np.float64], NDArray[np.int64], NDArray[np.float64]]:
-    """The supports of one orientation class: depth-continuous pieces, coplanar ones joined.
+    """Return the supports of one orientation class: depth-continuous pieces, coplanar ones joined.
 
     The pixels of class ``cls`` are labelled while depth stays continuous between neighbours
     (within ``jump_rel`` of the depth, across at most ``bridge`` px of holes), and pieces of one

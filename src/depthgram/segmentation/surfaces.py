@@ -18,6 +18,7 @@ The depth bands of the histogram still name each object's ``depth_label`` (the g
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import cv2
 import numpy as np
@@ -28,6 +29,7 @@ from depthgram.segmentation.label import ACTIVE, BLOCK, HOLE
 from depthgram.segmentation.label.stats import relabel_stats
 from depthgram.segmentation.label.unionfind import resolve as _resolve
 from depthgram.segmentation.label.unionfind import union as _union
+from depthgram.segmentation.order_stats import kth_smallest, next_smallest
 from depthgram.segmentation.sensor import SensorModel
 
 __all__ = [
@@ -527,10 +529,8 @@ def merge_openings(
     n = z_mean.size - 1
     if n < 2:
         return None
-    h, w = labels.shape
     objs = boxes
     parent = np.arange(n + 1)
-    kernel = cv2.getStructuringElement(cv2.MORPH_RECT, (2 * ring_px + 1, 2 * ring_px + 1))
     width = (objs[:, 2] - objs[:, 0] + 1) * z_mean / focal_px
     # cheap tests first, for every pair (R, A) at once: some nearer A that holds R's columns, R
     # no deeper behind it than it is wide (the ring below costs a dilation of R's box). As one
@@ -543,40 +543,10 @@ def merge_openings(
     maybe[:, 0] = False
     np.fill_diagonal(maybe, False)
     todo = np.flatnonzero(maybe.any(axis=1) & (objs[:, 2] >= 0))
-    for r in todo[todo > 0].tolist():
-        x0, y0, x1, y1 = objs[r]
-        ys = slice(max(0, y0 - ring_px), min(h, y1 + ring_px + 1))
-        xs = slice(max(0, x0 - ring_px), min(w, x1 + ring_px + 1))
-        lab = labels[ys, xs]
-        z = depth_mm[ys, xs]
-        mine = (lab == r).astype(np.uint8)
-        ring = (cv2.dilate(mine, kernel) > 0) & (mine == 0) & (z > 0)
-        if not ring.any():
-            continue
-        zr = z_mean[r]
+    todo = todo[todo > 0]
+    if todo.size:
         jump = float(np.max(jump_mm)) if np.ndim(jump_mm) else float(jump_mm)
-        owners = lab[ring]
-        zring = z[ring]
-        # ring pixels at R's own depth that are not A's: R would continue into something else
-        level = np.abs(zring - zr) <= jump
-        cand = np.bincount(owners[(owners != r) & (owners > 0)], minlength=n + 1)
-        a = int(np.argmax(cand)) if cand.any() else 0
-        if a == 0:
-            continue
-        on_a = owners == a
-        share_a = on_a.mean()
-        if share_a < min_share or np.median(zring[on_a]) >= zr:
-            continue
-        if (level & ~on_a).mean() > 0.15:
-            continue
-        ax0, _, ax1, _ = objs[a]
-        margin = 0.15 * (ax1 - ax0 + 1)
-        if x0 < ax0 - margin or x1 > ax1 + margin:
-            continue
-        width_mm = (ax1 - ax0 + 1) * z_mean[a] / focal_px
-        if zr - z_mean[a] > width_mm:
-            continue
-        parent[r] = a
+        _opening_parents(labels, depth_mm, objs, z_mean, todo, parent, ring_px, jump, min_share, focal_px)
     if (parent == np.arange(n + 1)).all():
         return None
     roots = parent.copy()
@@ -590,6 +560,106 @@ def merge_openings(
     new[keep] = np.arange(1, keep.size + 1, dtype=np.int32)
     out: NDArray[np.int32] = new[roots]
     return out
+
+
+@njit(cache=True)
+def _opening_parents(
+    labels: NDArray[np.int32],
+    depth: NDArray[np.float32],
+    objs: NDArray[np.int64],
+    z_mean: NDArray[np.float64],
+    todo: NDArray[np.intp],
+    parent: NDArray[np.intp],
+    ring_px: int,
+    jump: float,
+    min_share: float,
+    focal_px: float,
+) -> None:
+    # the ring tests of merge_openings for each candidate R, in one compiled pass per R's box
+    # (numpy and OpenCV: a dozen calls per R, most of the time at small sizes). The ring is
+    # R's box dilated by ring_px (a square), without R, where there is a reading.
+    h, w = labels.shape
+    n = z_mean.size - 1
+    cand = np.zeros(n + 1, np.int64)
+    for r in todo:
+        x0, y0, x1, y1 = objs[r, 0], objs[r, 1], objs[r, 2], objs[r, 3]
+        ya, yb = max(0, y0 - ring_px), min(h, y1 + ring_px + 1)
+        xa, xb = max(0, x0 - ring_px), min(w, x1 + ring_px + 1)
+        bh, bw = yb - ya, xb - xa
+        # square dilation by a summed-area table of R's pixels: a pixel is in the ring when the
+        # square around it holds one (read only for pixels that are not R's, with a reading)
+        sat = np.zeros((bh + 1, bw + 1), np.int32)
+        for y in range(bh):
+            acc = 0
+            for x in range(bw):
+                acc += labels[ya + y, xa + x] == r
+                sat[y + 1, x + 1] = sat[y, x + 1] + acc
+        zr = z_mean[r]
+        n_ring = 0
+        n_level = 0
+        cand[:] = 0
+        ring_own = np.empty(bh * bw, np.int32)
+        ring_z = np.empty(bh * bw, np.float32)
+        for y in range(bh):
+            qa, qb = max(0, y - ring_px), min(bh, y + ring_px + 1)
+            for x in range(bw):
+                o = labels[ya + y, xa + x]
+                z = depth[ya + y, xa + x]
+                if o == r or not z > 0:
+                    continue
+                pa, pb = max(0, x - ring_px), min(bw, x + ring_px + 1)
+                if sat[qb, pb] - sat[qa, pb] - sat[qb, pa] + sat[qa, pa] == 0:
+                    continue
+                ring_own[n_ring] = o
+                ring_z[n_ring] = z
+                n_ring += 1
+                if o > 0:
+                    cand[o] += 1
+        if n_ring == 0:
+            continue
+        a = 0
+        best = 0
+        for i in range(1, n + 1):
+            if cand[i] > best:
+                best = cand[i]
+                a = i
+        if a == 0:
+            continue
+        on_a = np.empty(best, np.float32)
+        k = 0
+        for i in range(n_ring):
+            if ring_own[i] == a:
+                on_a[k] = ring_z[i]
+                k += 1
+            # ring pixels at R's own depth that are not A's: R would continue into something else
+            elif abs(np.float64(ring_z[i]) - zr) <= jump:
+                n_level += 1
+        if best / n_ring < min_share or _median32(on_a) >= zr:
+            continue
+        if n_level / n_ring > 0.15:
+            continue
+        ax0, ax1 = objs[a, 0], objs[a, 2]
+        margin = 0.15 * (ax1 - ax0 + 1)
+        if x0 < ax0 - margin or x1 > ax1 + margin:
+            continue
+        width_mm = (ax1 - ax0 + 1) * z_mean[a] / focal_px
+        if zr - z_mean[a] > width_mm:
+            continue
+        parent[r] = a
+
+
+@njit(cache=True)
+def _median32(a: NDArray[np.float32]) -> Any:
+    # np.median of float32 values, in float32 as numpy computes it (the mean of the two middle
+    # values of an even count)
+    n = a.size
+    h = n // 2
+    if n % 2:
+        return kth_smallest(a, h)
+    # the order statistics come back as float64 (exact); their mean is taken in float32
+    lo = np.float32(kth_smallest(a, h - 1))
+    hi = np.float32(next_smallest(a, h - 1))
+    return (lo + hi) / np.float32(2.0)
 
 
 @njit(cache=True)
@@ -615,10 +685,7 @@ def loosen_small(labels: NDArray[np.int32], n: int, facing: NDArray[np.bool_], m
     mask, their labels set to 0 (in place). One count and one pass for numpy's bincount,
     gather and two masked writes."""
     h, w = labels.shape
-    count = np.zeros(n + 1, np.int64)
-    for y in range(h):
-        for x in range(w):
-            count[labels[y, x]] += 1
+    count = _count_labels(labels, n)
     small = count < min_px
     small[0] = True
     loose = np.zeros((h, w), np.bool_)
@@ -641,11 +708,7 @@ def keep_large(
     (:func:`depthgram.segmentation.label.stats.relabel_stats`), for numpy's bincount, the
     relabelling pass and the statistics pass.
     """
-    h, w = labels.shape
-    count = np.zeros(n + 1, np.int64)
-    for y in range(h):
-        for x in range(w):
-            count[labels[y, x]] += 1
+    count = _count_labels(labels, n)
     lut = np.zeros(n + 1, np.int32)
     m = 0
     for i in range(1, n + 1):
@@ -654,3 +717,21 @@ def keep_large(
             lut[i] = m
     out, sums, box = relabel_stats(labels, lut, m, depth)
     return out, m, sums, box
+
+
+@njit(cache=True)
+def _count_labels(labels: NDArray[np.int32], n: int) -> NDArray[np.int64]:
+    # pixels per label, a run of one label counted at once (one store per run, not a chain
+    # of increments of one counter through memory)
+    h, w = labels.shape
+    count = np.zeros(n + 1, np.int64)
+    for y in range(h):
+        x = 0
+        while x < w:
+            v = labels[y, x]
+            x0 = x
+            x += 1
+            while x < w and labels[y, x] == v:
+                x += 1
+            count[v] += x - x0
+    return count

@@ -39,5 +39,5 @@ def band_image(
 def threshold_labels(
     band: NDArray[np.float32], state: NDArray[np.int8], config: SegmentConfig
 ) -> tuple[NDArray[np.int32], int]:
-    """Connected same-band components (one pass for all bands), holes of up to ``fill_holes_px`` bridged."""
+    """Return connected same-band components (one pass for all bands), holes of up to ``fill_holes_px`` bridged."""
     return label_keyed(band, state, tol=0.0, bridge=config.fill_holes_px)
