@@ -15,7 +15,7 @@ from numpy.typing import NDArray
 __all__ = ["kth_smallest", "next_smallest"]
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def kth_smallest(a: NDArray[np.floating], k: int) -> float:
     """The ``k``-th smallest value of ``a`` (0-based), reordering ``a`` in place so that
     ``a[k + 1:] >= a[k]``: ``np.partition(a, k)[k]``.
@@ -52,7 +52,7 @@ def kth_smallest(a: NDArray[np.floating], k: int) -> float:
     return float(a[k])
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def next_smallest(a: NDArray[np.floating], k: int) -> float:
     """The ``(k + 1)``-th smallest value of ``a`` after :func:`kth_smallest` (``a``, ``k``)
     left the larger values right of ``k``."""

@@ -170,7 +170,7 @@ def estimate_sensor(
     return SensorModel("auto", s0, s2, n0, n2)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _triples(
     depth: NDArray[np.float32], valid: NDArray[np.bool_], rows: int
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
@@ -197,7 +197,7 @@ def _triples(
     return z[:k], d1[:k], d2[:k]
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _median(a: NDArray[np.float64]) -> float:
     # np.median of a 1-D array (reordered in place)
     n = a.size
@@ -208,7 +208,7 @@ def _median(a: NDArray[np.float64]) -> float:
     return (lo + next_smallest(a, h - 1)) / 2.0
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _percentile20(a: NDArray[np.float64]) -> float:
     # np.percentile(a, 20) (method linear) with numpy's arithmetic (_lerp from the nearer end)
     n = a.size
@@ -223,14 +223,14 @@ def _percentile20(a: NDArray[np.float64]) -> float:
     return hi - diff * (1.0 - t) if t >= 0.5 else lo + diff * t
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _median_sorted(a: NDArray[np.float64]) -> float:
     n = a.size
     h = n // 2
     return float(a[h]) if n % 2 else float((a[h - 1] + a[h]) / 2.0)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _range_estimates(
     z: NDArray[np.float64],
     d1: NDArray[np.float64],

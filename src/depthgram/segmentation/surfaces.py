@@ -124,7 +124,7 @@ def concave_creases(
     return _creases(ws, den, ok, c32, np.float32(0.5 * k * k), int(scale_px), geom, noise_scale)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _inverse(z: NDArray[np.float32], valid: NDArray[np.bool_]) -> tuple[NDArray[np.float32], NDArray[np.float32]]:
     h, w = z.shape
     inv = np.zeros((h, w), np.float32)
@@ -138,7 +138,7 @@ def _inverse(z: NDArray[np.float32], valid: NDArray[np.bool_]) -> tuple[NDArray[
     return inv, m
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _creases(
     ws: NDArray[np.float32],
     den: NDArray[np.float32],
@@ -199,7 +199,7 @@ def _creases(
     return out
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _upsample2(sub: NDArray[np.bool_], valid: NDArray[np.bool_]) -> NDArray[np.bool_]:
     # each pixel of the half-resolution map repeated 2 x 2, where there is a reading
     h, w = valid.shape

@@ -125,30 +125,58 @@ def _gather(
     box[:, 2] = -1
     box[:, 3] = -1
     for y in range(h):
-        for x in range(w):
+        x = 0
+        while x < w:
             i = labels[y, x]
             if use_lut:
                 i = lut[i]
             if i == 0:
+                x += 1
                 continue
-            if use_lut:
-                out[y, x] = i
-            z = np.float64(depth[y, x])
-            sums[i, COUNT] += 1.0
-            sums[i, SUM_Z] += z
-            sums[i, SUM_ZZ] += z * z
-            sums[i, SUM_X] += x
-            sums[i, SUM_Y] += y
-            sums[i, SUM_XZ] += x * z
-            sums[i, SUM_YZ] += y * z
+            # a run of one label: its sums stay in registers, added to pixel by pixel in the same
+            # order (the same numbers), and are stored once at the run's end
+            x_start = x
+            c = sums[i, COUNT]
+            sz = sums[i, SUM_Z]
+            szz = sums[i, SUM_ZZ]
+            sx = sums[i, SUM_X]
+            sy = sums[i, SUM_Y]
+            sxz = sums[i, SUM_XZ]
+            syz = sums[i, SUM_YZ]
+            while True:
+                if use_lut:
+                    out[y, x] = i
+                z = np.float64(depth[y, x])
+                c += 1.0
+                sz += z
+                szz += z * z
+                sx += x
+                sy += y
+                sxz += x * z
+                syz += y * z
+                x += 1
+                if x == w:
+                    break
+                j = labels[y, x]
+                if use_lut:
+                    j = lut[j]
+                if j != i:
+                    break
+            sums[i, COUNT] = c
+            sums[i, SUM_Z] = sz
+            sums[i, SUM_ZZ] = szz
+            sums[i, SUM_X] = sx
+            sums[i, SUM_Y] = sy
+            sums[i, SUM_XZ] = sxz
+            sums[i, SUM_YZ] = syz
             if use_key:
-                sums[i, KEY] = key[y, x]
-            if x < box[i, 0]:
-                box[i, 0] = x
+                sums[i, KEY] = key[y, x - 1]
+            if x_start < box[i, 0]:
+                box[i, 0] = x_start
             if y < box[i, 1]:
                 box[i, 1] = y
-            if x > box[i, 2]:
-                box[i, 2] = x
+            if x - 1 > box[i, 2]:
+                box[i, 2] = x - 1
             if y > box[i, 3]:
                 box[i, 3] = y
     return out, sums, box
