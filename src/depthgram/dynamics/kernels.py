@@ -71,6 +71,7 @@ def fit_rows(
 @njit(cache=True)
 def cost_kernel(
     tc: NDArray[np.float64],
+    tc_seen: NDArray[np.float64],
     tz: NDArray[np.float64],
     ta: NDArray[np.float64],
     tb: NDArray[np.float64],
@@ -88,7 +89,9 @@ def cost_kernel(
     """Compiled body of :func:`match_cost`; ``params`` from :func:`cost_params`.
 
     ``te`` is each track's time since its last detection and ``dt`` this frame's step (s):
-    the gates are rates, so they admit the same physical motion at any frame rate.
+    the gates are rates, so they admit the same physical motion at any frame rate. ``tc_seen``
+    is the predicted centre of the part last seen, which differs from ``tc`` while an object
+    is partly hidden; the nearer of the two counts.
 
     Hand-written loops because the tracker calls it every frame on matrices of a few dozen
     entries, where numpy's per-call overhead of some twenty array expressions would cost
@@ -108,7 +111,9 @@ def cost_kernel(
             # Cheapest gates first: most pairs are far apart and need no log or sqrt.
             dx = tc[i, 0] - oc[j, 0]
             dy = tc[i, 1] - oc[j, 1]
-            d2 = dx * dx + dy * dy
+            sx = tc_seen[i, 0] - oc[j, 0]
+            sy = tc_seen[i, 1] - oc[j, 1]
+            d2 = min(dx * dx + dy * dy, sx * sx + sy * sy)
             if not d2 <= r * r:
                 continue
             dz = abs(oz[j] - tz[i]) / zg
@@ -136,7 +141,9 @@ def cost_kernel(
 # VX, VY in px/s; TSEEN the time of the last detection (s).
 ID, HITS, MISSED, STATUS, CX, CY, VX, VY, X0, Y0, X1, Y1 = range(12)
 DEPTH, ZFIT, AREA, MAREA, LABEL, V, READ, TSEEN = range(12, 20)
-NCOL = 20
+# OX, OY: the centre of the part last seen (px), CX, CY while the whole object was in view.
+OX, OY = 20, 21
+NCOL = 22
 # Columns of the per-object feature array; F_READ says how its depth was read (0: mean depth,
 # 1: nearest part of a compound), see depthgram.dynamics.tracker.track_depth.
 F_CX, F_CY, F_Z, F_AREA, F_LABEL, F_X0, F_BEHIND, F_READ = 0, 1, 2, 3, 4, 5, 9, 10
@@ -177,6 +184,7 @@ def predict_cost(
 ) -> NDArray[np.float64]:
     """Predict each track forward by the time since its last detection, then cost all pairs."""
     pc = np.empty((n, 2))
+    po = np.empty((n, 2))
     pb = np.empty((n, 4))
     pz = np.empty(n)
     te = np.empty(n)
@@ -187,6 +195,8 @@ def predict_cost(
         dy = s[i, VY] * el
         pc[i, 0] = s[i, CX] + dx
         pc[i, 1] = s[i, CY] + dy
+        po[i, 0] = s[i, OX] + dx
+        po[i, 1] = s[i, OY] + dy
         pb[i, 0] = s[i, X0] + dx
         pb[i, 1] = s[i, Y0] + dy
         pb[i, 2] = s[i, X1] + dx
@@ -200,7 +210,7 @@ def predict_cost(
             v = s[i, V] if np.isfinite(s[i, V]) else 0.0
             pz[i] = s[i, ZFIT] + v * el
     return cost_kernel(
-        pc, pz, s[:n, AREA], pb, s[:n, LABEL], te,
+        pc, po, pz, s[:n, AREA], pb, s[:n, LABEL], te,
         f[:, 0:2], f[:, F_Z], f[:, F_AREA], f[:, F_X0 : F_X0 + 4], f[:, F_LABEL], diagonal_px, dt, p,
     )  # fmt: skip
 
@@ -369,8 +379,19 @@ def step(
             else:
                 s[i, VX] = dcx
                 s[i, VY] = dcy
-        s[i, CX] = f[c, F_CX]
-        s[i, CY] = f[c, F_CY]
+        if hidden:
+            # The visible part of an object going behind (or coming out from behind) a nearer
+            # one is off its centre, on the side that is still in view: it moves the other way
+            # than the object, or not at all. The centre keeps its predicted path instead, so
+            # that the object is looked for where it comes out (measured on `crossing`: the
+            # cart's sliver came out 46 px from the sliver it went in as, 2 px beyond the gate).
+            s[i, CX] += s[i, VX] * el
+            s[i, CY] += s[i, VY] * el
+        else:
+            s[i, CX] = f[c, F_CX]
+            s[i, CY] = f[c, F_CY]
+        s[i, OX] = f[c, F_CX]
+        s[i, OY] = f[c, F_CY]
         for q in range(4):
             s[i, X0 + q] = f[c, F_X0 + q]
         s[i, DEPTH] = z_new
@@ -407,6 +428,8 @@ def step(
         s[i, STATUS] = status
         s[i, CX] = f[c, F_CX]
         s[i, CY] = f[c, F_CY]
+        s[i, OX] = f[c, F_CX]
+        s[i, OY] = f[c, F_CY]
         s[i, VX] = 0.0
         s[i, VY] = 0.0
         for q in range(4):

@@ -112,8 +112,9 @@ def match_cost(
 
     nt = np.asarray(track_depth).size
     no = np.asarray(obj_depth).size
+    center = f(track_center, (nt, 2))
     return cost_kernel(
-        f(track_center, (nt, 2)), f(track_depth, (nt,)), f(track_area, (nt,)), f(track_bbox, (nt, 4)),
+        center, center, f(track_depth, (nt,)), f(track_area, (nt,)), f(track_bbox, (nt, 4)),
         f(track_label, (nt,)), f(track_elapsed_s, (nt,)),
         f(obj_center, (no, 2)), f(obj_depth, (no,)), f(obj_area, (no,)), f(obj_bbox, (no, 4)),
         f(obj_label, (no,)), float(diagonal_px), float(dt_s), cost_params(config),
