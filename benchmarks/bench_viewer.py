@@ -35,8 +35,8 @@ import time
 from pathlib import Path
 from typing import Any
 
-from depthgram.pipeline import Config
-from depthgram.sources import open_source
+from depthgram.cli import build_parser
+from depthgram.commands._common import load_config, open_input
 from depthgram.views.server import Player, ViewerConfig, create_app, recording_name
 from depthgram.views.wire import unpack_frame
 
@@ -157,10 +157,15 @@ def view_once(spec: str, fps: float, page: str, compress: bool, sound: bool) -> 
     """Play ``spec`` once in the viewer; its counts and costs."""
     import uvicorn
 
-    src = open_source(spec)
+    # The recording and settings exactly as `depthgram view SPEC --fps RATE` opens them (and as
+    # `depthgram run` does): with the rate, frames carry times and the tracker its real rate.
+    args = build_parser().parse_args(["view", spec, "--fps", f"{fps:g}"])
+    src = open_input(args)
     n = len(src)  # type: ignore[arg-type]
     viewer = ViewerConfig(fps=fps, loop=False, playing=True, compress=compress)
-    player = Player(lambda: iter(src), recording_name(spec), Config(), viewer, frames=n, fps=getattr(src, "fps", None))
+    player = Player(
+        lambda: iter(src), recording_name(spec), load_config(args), viewer, frames=n, fps=getattr(src, "fps", None)
+    )
     sock = socket.socket()
     sock.bind(("127.0.0.1", 0))
     port = sock.getsockname()[1]
