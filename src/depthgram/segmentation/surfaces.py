@@ -721,17 +721,10 @@ def keep_large(
 
 @njit(cache=True)
 def _count_labels(labels: NDArray[np.int32], n: int) -> NDArray[np.int64]:
-    # pixels per label, a run of one label counted at once (one store per run, not a chain
-    # of increments of one counter through memory)
+    # pixels per label
     h, w = labels.shape
     count = np.zeros(n + 1, np.int64)
     for y in range(h):
-        x = 0
-        while x < w:
-            v = labels[y, x]
-            x0 = x
-            x += 1
-            while x < w and labels[y, x] == v:
-                x += 1
-            count[v] += x - x0
+        for x in range(w):
+            count[labels[y, x]] += 1
     return count
