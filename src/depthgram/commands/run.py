@@ -15,6 +15,7 @@ HELP = "play a recording at its frame rate (or --fast) and report per-frame late
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
+    """Add this command's options to ``p``."""
     add_pipeline_arguments(p)
     p.add_argument("--fast", action="store_true", help="as fast as possible instead of the recording's rate")
     p.add_argument(
@@ -29,6 +30,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    """Run the command on parsed ``args``; return the exit status."""
     import numpy as np
 
     from depthgram.pipeline import Pipeline

@@ -15,6 +15,7 @@ _LOOPBACK = ("127.0.0.1", "localhost", "::1")
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
+    """Add this command's options to ``p``."""
     p.epilog = (
         "--fps also sets the playback rate at speed 1 (default: the recording's own rate, else 30 "
         "frames/s). One server plays one recording; every open page shares its playback controls."
@@ -78,6 +79,7 @@ def access(host: str, allow_host: list[str], token: str | None) -> tuple[tuple[s
 
 
 def run(args: argparse.Namespace) -> int:
+    """Run the command on parsed ``args``; return the exit status."""
     import asyncio
     import threading
     import webbrowser
@@ -227,7 +229,7 @@ def run_foxglove(args: argparse.Namespace) -> int:
 
 
 def bind_port(host: str, port: int) -> socket.socket:
-    """A listening socket on ``host``:``port``, or an :class:`InputError` saying what to do.
+    """Return a listening socket on ``host``:``port``, or an :class:`InputError` saying what to do.
 
     The viewer binds it itself (uvicorn then serves on it) so that a port in use is a one-line
     message instead of uvicorn's log and exit.

@@ -121,13 +121,13 @@ SCENE_SCHEMA = {
 
 
 def colour(object_id: int, alpha: float = 1.0) -> Color:
-    """The colour of an object (by id, so a track keeps its colour)."""
+    """Return the colour of an object (by id, so a track keeps its colour)."""
     r, g, b = _PALETTE[(object_id - 1) % len(_PALETTE)]
     return Color(r=r, g=g, b=b, a=alpha)
 
 
 def assumed_intrinsics(width: int, height: int) -> Intrinsics:
-    """A pinhole camera of :data:`_ASSUMED_FOV_DEG` horizontal field of view, centred (px)."""
+    """Return a pinhole camera of :data:`_ASSUMED_FOV_DEG` horizontal field of view, centred (px)."""
     f = (width / 2.0) / math.tan(math.radians(_ASSUMED_FOV_DEG / 2.0))
     return Intrinsics(f, f, (width - 1) / 2.0, (height - 1) / 2.0)
 
@@ -190,8 +190,10 @@ MESSAGE_TYPES: dict[str, type[Message]] = {
 
 
 def protobuf_schema(message_class: type[Message]) -> bytes:
-    """The schema of a protobuf message class as Foxglove and MCAP want it: a serialised
-    ``FileDescriptorSet`` of its file and every file it depends on."""
+    """Return the schema of a protobuf message class as Foxglove and MCAP want it.
+
+    A serialised ``FileDescriptorSet`` of its file and every file it depends on.
+    """
     fds = FileDescriptorSet()
     seen: set[str] = set()
 
@@ -214,7 +216,7 @@ class TopicMessage:
     message: Message | dict[str, Any]
 
     def encode(self) -> bytes:
-        """The message's bytes on the wire (protobuf, or UTF-8 JSON)."""
+        """Return the message's bytes on the wire (protobuf, or UTF-8 JSON)."""
         if isinstance(self.message, dict):
             return json.dumps(self.message).encode()
         return bytes(self.message.SerializeToString())

@@ -17,8 +17,9 @@ __all__ = ["kth_smallest", "next_smallest"]
 
 @njit(cache=True, nogil=True)
 def kth_smallest(a: NDArray[np.floating], k: int) -> float:
-    """The ``k``-th smallest value of ``a`` (0-based), reordering ``a`` in place so that
-    ``a[k + 1:] >= a[k]``: ``np.partition(a, k)[k]``.
+    """Return the ``k``-th smallest value of ``a`` (0-based), reordering ``a`` in place so that ``a[k + 1:] >= a[k]``.
+
+    ``np.partition(a, k)[k]``.
 
     Three-way partitions (below, equal to, above a median-of-three pivot), so repeated
     values cost one pass.
@@ -54,6 +55,8 @@ def kth_smallest(a: NDArray[np.floating], k: int) -> float:
 
 @njit(cache=True, nogil=True)
 def next_smallest(a: NDArray[np.floating], k: int) -> float:
-    """The ``(k + 1)``-th smallest value of ``a`` after :func:`kth_smallest` (``a``, ``k``)
-    left the larger values right of ``k``."""
+    """Return the ``(k + 1)``-th smallest value of ``a``.
+
+    Valid after :func:`kth_smallest` (``a``, ``k``) left the larger values right of ``k``.
+    """
     return float(a[k + 1 :].min())

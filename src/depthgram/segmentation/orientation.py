@@ -245,7 +245,7 @@ def _jumps_rows(z: NDArray[np.float32], valid: NDArray[np.bool_], rel: np.float3
 
 
 def _one_sided(inv: NDArray[np.float32], valid: NDArray[np.bool_], step: int) -> NDArray[np.float32]:
-    """Derivative along rows (per px), the smaller of the forward and backward differences.
+    """Return the derivative along rows (per px), the smaller of the forward and backward differences.
 
     Beside an occlusion edge one of the two differences crosses the edge; the smaller one stays
     on the pixel's own surface, so a floor pixel next to a box keeps the floor's slope. Pixels

@@ -66,15 +66,18 @@ class SensorModel:
         return self.sigma_0 + self.sigma_2 * np.square(z_mm)
 
     def resolution(self, z_mm: float | NDArray[np.floating]) -> float | NDArray[np.floating]:
-        """The smallest depth difference (mm) the sensor tells apart at ``z_mm``: the larger
-        of one quantisation step and two noise deviations (a difference of two readings)."""
+        """Return the smallest depth difference (mm) the sensor tells apart at ``z_mm``.
+
+        The larger of one quantisation step and two noise deviations (a difference of two readings).
+        """
         return np.maximum(self.step(z_mm), 2.0 * self.sigma(z_mm))
 
     def tolerance(self, k: float) -> tuple[float, float]:
-        """``(a, b)`` of the join tolerance ``a + b * z**2`` (mm): ``k`` resolutions.
+        """Return ``(a, b)`` of the join tolerance ``a + b * z**2`` (mm): ``k`` resolutions.
 
         Each term takes the larger of its step and noise parts, so the tolerance is at least
-        ``k * resolution(z)`` at every depth."""
+        ``k * resolution(z)`` at every depth.
+        """
         return k * max(self.step_0, 2.0 * self.sigma_0), k * max(self.step_2, 2.0 * self.sigma_2)
 
     def describe(self) -> str:
@@ -111,7 +114,7 @@ PROFILES["xtion"] = PROFILES["primesense"] = PROFILES["kinect-v1"]
 
 
 def sensor_model(name: str) -> SensorModel:
-    """The named profile; raises :class:`InputError` naming the known ones."""
+    """Return the named profile; raises :class:`InputError` naming the known ones."""
     try:
         return PROFILES[name]
     except KeyError:

@@ -219,8 +219,11 @@ def _creases_numpy(
     geom: np.float32,
     noise_scale: np.float32,
 ) -> NDArray[np.bool_]:
-    """:func:`concave_creases` at full resolution in numpy: the reference of the compiled
-    :func:`_creases`, and the route for a sensor model whose arithmetic it does not know."""
+    """:func:`concave_creases` at full resolution in numpy.
+
+    The reference of the compiled :func:`_creases`, and the route for a sensor model whose
+    arithmetic it does not know.
+    """
     h, w = depth_mm.shape
     inv = np.zeros((h, w), np.float32)
     np.divide(np.float32(1000.0), depth_mm, out=inv, where=valid)
@@ -664,8 +667,11 @@ def _median32(a: NDArray[np.float32]) -> Any:
 
 @njit(cache=True)
 def surface_state(valid: NDArray[np.bool_], facing: NDArray[np.bool_], creases: NDArray[np.bool_]) -> NDArray[np.int8]:
-    """Labeller state of :func:`label_surfaces`: facing pixels off a crease are active, other
-    readings block, pixels without a reading are holes (one pass for numpy's four)."""
+    """Labeller state of :func:`label_surfaces`.
+
+    Facing pixels off a crease are active, other readings block, pixels without a reading are holes
+    (one pass for numpy's four).
+    """
     h, w = valid.shape
     out = np.empty((h, w), np.int8)
     for y in range(h):
@@ -681,9 +687,11 @@ def surface_state(valid: NDArray[np.bool_], facing: NDArray[np.bool_], creases: 
 
 @njit(cache=True)
 def loosen_small(labels: NDArray[np.int32], n: int, facing: NDArray[np.bool_], min_px: int) -> NDArray[np.bool_]:
-    """Facing pixels without a label or in a component under ``min_px`` pixels: returned as a
-    mask, their labels set to 0 (in place). One count and one pass for numpy's bincount,
-    gather and two masked writes."""
+    """Facing pixels without a label or in a component under ``min_px`` pixels.
+
+    Returned as a mask, their labels set to 0 (in place). One count and one pass for numpy's
+    bincount, gather and two masked writes.
+    """
     h, w = labels.shape
     count = _count_labels(labels, n)
     small = count < min_px
@@ -701,8 +709,10 @@ def loosen_small(labels: NDArray[np.int32], n: int, facing: NDArray[np.bool_], m
 def keep_large(
     labels: NDArray[np.int32], n: int, min_px: int, depth: NDArray[np.float32]
 ) -> tuple[NDArray[np.int32], int, NDArray[np.float64], NDArray[np.int64]]:
-    """Components of at least ``min_px`` pixels renumbered 1..m in order, with the sums and
-    inclusive boxes of :func:`depthgram.segmentation.label.label_stats_fused` (key 0).
+    """Renumber the components of at least ``min_px`` pixels 1..m in order, with their statistics.
+
+    The sums and inclusive boxes are those of
+    :func:`depthgram.segmentation.label.label_stats_fused` (key 0).
 
     One count, then one pass that relabels and sums
     (:func:`depthgram.segmentation.label.stats.relabel_stats`), for numpy's bincount, the

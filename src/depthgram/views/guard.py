@@ -72,7 +72,7 @@ def _default_port(scheme: str) -> str:
 
 
 def same_origin(headers: Any, scheme: str) -> bool:
-    """True when a request carries no ``Origin`` (not from a web page) or comes from this server's own page.
+    """Return true when a request carries no ``Origin`` (not from a web page) or comes from this server's own page.
 
     Browsers let any web site open a WebSocket to 127.0.0.1 or send a simple POST there; the
     Origin they attach is the only way to tell our page from someone else's. Scheme, host and
@@ -145,6 +145,7 @@ class Guard:
         await _json_error(status, message)(scope, receive, send)
 
     async def __call__(self, scope: Any, receive: Any, send: Any) -> None:
+        """Pass a request on to the app, or answer it with an error when the checks refuse it."""
         if scope["type"] not in ("http", "websocket"):
             await self.app(scope, receive, send)
             return

@@ -36,7 +36,7 @@ __all__ = [
 
 
 def _figure(size_in: tuple[float, float], dpi: int = 100) -> Figure:
-    """A figure of ``size_in`` (inches) drawn by Agg, outside pyplot."""
+    """Return a figure of ``size_in`` (inches) drawn by Agg, outside pyplot."""
     fig = Figure(figsize=size_in, dpi=dpi)
     FigureCanvasAgg(fig)
     return fig
@@ -48,7 +48,7 @@ DEPTH_PERCENTILES = (2.0, 98.0)
 
 
 def depth_limits(frame: Frame) -> tuple[float, float]:
-    """The depth range (mm) of the colour scale: the :data:`DEPTH_PERCENTILES` of the valid pixels."""
+    """Return the depth range (mm) of the colour scale: the :data:`DEPTH_PERCENTILES` of the valid pixels."""
     if not frame.valid.any():
         return 0.0, 1.0
     step = max(1, int(np.sqrt(frame.depth.size / 40_000)))  # a strided sample: same limits, a tenth of the time
@@ -60,7 +60,7 @@ def depth_limits(frame: Frame) -> tuple[float, float]:
 
 
 def overlay_image(frame: Frame, seg: Segmentation, *, scale: int = 0, outline_px: int = 0) -> NDArray[np.uint8]:
-    """The depth frame in colour (near warm, far cool, invalid black) with object outlines.
+    """Return the depth frame in colour (near warm, far cool, invalid black) with object outlines.
 
     Parameters
     ----------
@@ -154,7 +154,7 @@ def place_labels(
 
 
 def label_anchor(labels: NDArray[np.integer], object_id: int) -> tuple[float, float]:
-    """The object's pixel farthest from its outline: inside it even when it wraps another object.
+    """Return the object's pixel farthest from its outline: inside it even when it wraps another object.
 
     The image center of a wall with a hand in front of it lies on the hand; text placed there
     would sit on the wrong object and on the hand's own label.
@@ -234,7 +234,7 @@ def draw_overlay(
 
 
 def draw_histogram(hist: Histogram, path: str | Path, *, title: str = "global depth histogram") -> None:
-    """The depth histogram with its peaks and thresholds marked (the paper's Figs. 3 and 5)."""
+    """Return the depth histogram with its peaks and thresholds marked (the paper's Figs. 3 and 5)."""
     fig = _figure((7, 3.2))
     ax = fig.subplots()
     centers = 0.5 * (hist.edges[:-1] + hist.edges[1:])

@@ -114,7 +114,7 @@ class Pacer:
         return max(0.0, self.due - now)
 
     def advance(self, gap_s: float | None = None, now: float | None = None) -> None:
-        """The next frame is due ``gap_s`` (default: one period) after the last one.
+        """Make the next frame due ``gap_s`` (default: one period) after the last one.
 
         From a slow source the backlog is forgotten instead: the next frame is due at most
         one period ago, so it is never late.
@@ -181,7 +181,7 @@ class ViewerConfig:
 
 
 def check_speed(value: Any) -> float:
-    """A speed factor in (0, 16] as a float; :class:`InputError` otherwise."""
+    """Return a speed factor in (0, 16] as a float; :class:`InputError` otherwise."""
     if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
         raise InputError(f"speed must be a number, got {value!r}")
     if not 0 < value <= _MAX_SPEED:
@@ -197,7 +197,7 @@ def recording_name(spec: str) -> str:
 
 
 def tree_lines(tree_dict: dict[str, Any]) -> list[dict[str, Any]]:
-    """The scene tree as an indented list: ``{"level", "id", "kind", "depth", "area"}`` per node.
+    """Return the scene tree as an indented list: ``{"level", "id", "kind", "depth", "area"}`` per node.
 
     ``tree_dict`` is :func:`depthgram.scene.tree_to_dict`'s output, whose nodes are already in
     depth-first order, so each node's level is its parent's plus one.
@@ -248,6 +248,7 @@ class Page:
         self.notices: list[dict[str, Any]] = []  # sent after the newest frame, never dropped
 
     def offer(self, delivery: Delivery, audio: str | None) -> None:
+        """Put the newest frame in the page's slot, dropping one the page has not taken yet."""
         if self.slot is not None:
             self.dropped += 1  # the page is behind: the older frame is never sent
         self.slot = delivery
@@ -257,6 +258,7 @@ class Page:
         self.wake.set()
 
     def notify(self, message: dict[str, Any]) -> None:
+        """Queue a notice for the page; notices are never dropped."""
         self.notices.append(message)
         self.wake.set()
 
@@ -489,7 +491,7 @@ class Player:
         self.config = self.config.replace(segment=values)
 
     def connect(self) -> Page:
-        """A new page: it gets every frame from now on."""
+        """Add and return a new page: it gets every frame from now on."""
         page = Page()
         with self._cv:
             self.clients.add(page)
@@ -497,6 +499,7 @@ class Player:
         return page
 
     def disconnect(self, page: Page) -> None:
+        """Stop sending frames to ``page``."""
         with self._cv:
             self.clients.discard(page)
 
@@ -688,7 +691,7 @@ class Player:
             c.offer(delivery, audio)
 
     def _end(self, step: asyncio.Future[None] | None) -> None:
-        """The recording ended (not looping): tell the pages, answer the steps waiting for a frame."""
+        """Mark the recording ended (not looping): tell the pages, answer the steps waiting for a frame."""
         self._finished = True
         with self._cv:
             if self.mode is not Mode.SEEKING:

@@ -76,7 +76,7 @@ def create_app(
     token: str | None = None,
     max_body: int = MAX_BODY_BYTES,
 ) -> FastAPI:
-    """The FastAPI application serving one :class:`Player`.
+    """Return the FastAPI application serving one :class:`Player`.
 
     The player's loop starts with the app (its lifespan) and stops with it.
 

@@ -33,7 +33,7 @@ _DTYPES = {v: k for k, v in _NAMES.items()}
 
 
 def colour_table() -> list[list[int]]:
-    """The depth colours as 256 RGB triples: entry ``i`` is for ``i / 255`` of the way from far to near.
+    """Return the depth colours as 256 RGB triples: entry ``i`` is for ``i / 255`` of the way from far to near.
 
     OpenCV's TURBO map, as :func:`depthgram.views.pictures.overlay_image` uses it (near warm, far cool).
     """
@@ -57,7 +57,7 @@ def depth_range_mm(depth: NDArray[np.floating], valid: NDArray[np.bool_]) -> tup
 def pack_body(
     depth: NDArray[np.floating], valid: NDArray[np.bool_], labels: NDArray[np.integer], compress: bool
 ) -> tuple[bytes, str]:
-    """The body of a frame message and the label image's dtype name (``uint8``, ``uint16`` or ``uint32``)."""
+    """Return the body of a frame message and the label image's dtype name (``uint8``, ``uint16`` or ``uint32``)."""
     d16 = np.rint(np.clip(depth, 0, 65535)).astype("<u2")
     d16[~valid] = 0
     top = int(labels.max()) if labels.size else 0
@@ -80,7 +80,7 @@ def pack_frame(header: dict[str, Any] | str, body: bytes) -> bytes:
 
 
 def unpack_frame(data: bytes) -> tuple[dict[str, Any], NDArray[np.uint16], NDArray[np.unsignedinteger]]:
-    """The header, depth image (uint16 mm) and label image of a message made by :func:`pack_frame`."""
+    """Return the header, depth image (uint16 mm) and label image of a message made by :func:`pack_frame`."""
     (n,) = struct.unpack_from("<I", data, 0)
     header = json.loads(data[4 : 4 + n].decode("utf-8"))
     start = 4 + n + (-(4 + n)) % 4
