@@ -16,10 +16,18 @@ from depthgram.frame import Intrinsics
 from depthgram.segmentation.attributes import label_stats
 from depthgram.segmentation.binning import band_state, bin_pixels, depth_range
 from depthgram.segmentation.contacts import front_faces
-from depthgram.segmentation.label import ACTIVE, BLOCK, HOLE, label_bands_stats, label_keyed, label_keyed_stats
+from depthgram.segmentation.label import (
+    ACTIVE,
+    BLOCK,
+    HOLE,
+    label_bands_stats,
+    label_keyed,
+    label_keyed_planes,
+    label_keyed_stats,
+)
 from depthgram.segmentation.objects import SceneObject
 from depthgram.segmentation.orientation import _jumps, _jumps_cols, _one_sided, _one_sided_cols, upsample_classes
-from depthgram.segmentation.planes import near_planes, planes_from_sums
+from depthgram.segmentation.planes import near_planes, plane_sums, planes_from_sums
 from depthgram.segmentation.slices import slice_parts, support_pieces
 from depthgram.segmentation.validate import check_depth
 from reference import (
@@ -62,6 +70,31 @@ def test_keyed_stats_equal_label_then_bincount_reference() -> None:
             ys, xs = np.nonzero(labels == i)
             assert tuple(boxes[i]) == (xs.min(), ys.min(), xs.max(), ys.max())
             assert sums[i, 7] == key[ys[0], xs[0]]  # the key of the component
+
+
+def test_keyed_planes_equal_keyed_stats_then_plane_sums_exactly() -> None:
+    # the fused route must give the very numbers of the two passes it replaces (golden cases
+    # compare outputs bit for bit), not merely close ones
+    rng = np.random.default_rng(11)
+    for t in range(200):
+        key, state, depth = _random_keyed(rng, smooth=t % 2 == 0)
+        if t % 3 == 0:  # depth as its own key with a relative tolerance, as the supports use it
+            key = depth.copy()
+        bridge = int(rng.integers(0, 4))
+        min_px = int(rng.integers(1, 5))
+        fx, fy = (float(v) for v in rng.random(2) * 500 + 100)
+        cx, cy = float(rng.random() * key.shape[1]), float(rng.random() * key.shape[0])
+        want = label_keyed_stats(key, state, depth, rel=0.05, bridge=bridge, min_px=min_px)
+        planes_want = plane_sums(want[0], want[1], depth, fx, fy, cx, cy)
+        labels, n, sums, boxes, planes = label_keyed_planes(
+            key, state, depth, fx, fy, cx, cy, rel=0.05, bridge=bridge, min_px=min_px
+        )
+        np.testing.assert_array_equal(labels, want[0])
+        assert n == want[1]
+        np.testing.assert_array_equal(sums, want[2])
+        np.testing.assert_array_equal(boxes, want[3])
+        np.testing.assert_array_equal(planes, planes_want)
+        assert planes.shape == (n + 1, 9)
 
 
 def test_keyed_labels_by_hand() -> None:

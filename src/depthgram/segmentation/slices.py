@@ -21,11 +21,11 @@ from numpy.typing import NDArray
 
 from depthgram.frame import Intrinsics
 from depthgram.segmentation.attributes import Stats, make_objects
-from depthgram.segmentation.label import ACTIVE, BLOCK, HOLE, label_keyed_stats, relabel
+from depthgram.segmentation.label import ACTIVE, BLOCK, HOLE, label_keyed_planes, relabel
 from depthgram.segmentation.label.stats import COUNT, KEY, N_SUMS, SUM_X, SUM_XZ, SUM_Y, SUM_YZ, SUM_Z, SUM_ZZ
 from depthgram.segmentation.objects import SceneObject
 from depthgram.segmentation.orientation import HORIZONTAL, VERTICAL
-from depthgram.segmentation.planes import coplanar_groups, plane_sums, planes_from_sums
+from depthgram.segmentation.planes import coplanar_groups, planes_from_sums
 
 __all__ = ["add_labels", "drop_pieces", "slice_parts", "support_kind", "support_pieces"]
 
@@ -240,7 +240,8 @@ def support_pieces(
     (within ``jump_rel`` of the depth, across at most ``bridge`` px of holes), and pieces of one
     plane cut apart by occluders are joined
     (:func:`depthgram.segmentation.planes.coplanar_groups`). One labelling pass gathers the
-    statistics table (:mod:`depthgram.segmentation.label.stats`), one pass the plane sums;
+    statistics table (:mod:`depthgram.segmentation.label.stats`), its relabelling pass the
+    plane sums (:func:`depthgram.segmentation.label.keyed.label_keyed_planes`);
     pieces joined into one plane add their rows (the sums are additive), so neither is taken
     again on the merged labels.
 
@@ -252,8 +253,9 @@ def support_pieces(
         Statistics (``KEY`` 0), inclusive boxes and plane sums per component (row 0 unused).
     """
     state = _class_state(valid, classes, np.int8(cls))
-    labels, n, sums, boxes = label_keyed_stats(depth_mm, state, depth_mm, rel=jump_rel, bridge=bridge)
-    planes = plane_sums(labels, n, depth_mm, cam.fx, cam.fy, cam.cx, cam.cy)
+    labels, n, sums, boxes, planes = label_keyed_planes(
+        depth_mm, state, depth_mm, cam.fx, cam.fy, cam.cx, cam.cy, rel=jump_rel, bridge=bridge
+    )
     if n < 2:
         return labels, n, sums, boxes, planes
     normal, off, count = planes_from_sums(planes)

@@ -19,7 +19,7 @@ The public names are re-exported here.
 from __future__ import annotations
 
 from depthgram.segmentation.label.bands import label_bands_stats
-from depthgram.segmentation.label.keyed import ACTIVE, BLOCK, HOLE, label_keyed, label_keyed_stats
+from depthgram.segmentation.label.keyed import ACTIVE, BLOCK, HOLE, label_keyed, label_keyed_planes, label_keyed_stats
 from depthgram.segmentation.label.renumber import relabel
 from depthgram.segmentation.label.stats import label_stats_fused
 
@@ -29,6 +29,7 @@ __all__ = [
     "HOLE",
     "label_bands_stats",
     "label_keyed",
+    "label_keyed_planes",
     "label_keyed_stats",
     "label_stats_fused",
     "relabel",

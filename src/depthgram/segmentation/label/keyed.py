@@ -23,9 +23,9 @@ from numba import njit
 from numpy.typing import NDArray
 
 from depthgram.segmentation.label.stats import N_COLUMNS, flush_run
-from depthgram.segmentation.label.unionfind import resolve, union
+from depthgram.segmentation.label.unionfind import resolve, resolve_tables, union
 
-__all__ = ["ACTIVE", "BLOCK", "HOLE", "label_keyed", "label_keyed_stats"]
+__all__ = ["ACTIVE", "BLOCK", "HOLE", "label_keyed", "label_keyed_planes", "label_keyed_stats"]
 
 #: Pixel states for :func:`label_keyed`: a hole may be bridged, an active pixel is labelled,
 #: a blocking pixel (valid, but not part of any component) stops a bridge.
@@ -221,6 +221,107 @@ def label_keyed_stats(
     lab, parent, nxt, ps, pb = _label_runs(k, s, float(tol), float(rel), int(bridge), z, True)
     labels, n, sums, boxes = resolve(lab, parent, nxt, ps, pb, int(min_px), True)
     return labels, int(n), sums, boxes
+
+
+@njit(cache=True)
+def _relabel_planes(
+    lab: NDArray[np.int32],
+    final: NDArray[np.int32],
+    n: int,
+    depth: NDArray[np.float32],
+    fx: float,
+    fy: float,
+    cx: float,
+    cy: float,
+) -> NDArray[np.float64]:
+    # The relabelling pass of resolve, gathering on the way the plane sums that
+    # planes._plane_sums takes from the final labels: the same runs of one final label along a
+    # row, the same float64 operations in the same order, hence the same numbers, without a
+    # second pass over the image. (Kept beside planes._plane_sums: a change there is a change
+    # here; tests/test_segment_kernels.py compares the two.)
+    h, w = lab.shape
+    out = np.zeros((n + 1, 9), np.float64)
+    ucol = np.empty(w, np.float64)
+    for x in range(w):
+        ucol[x] = (x - cx) / fx
+    for y in range(h):
+        v = (y - cy) / fy
+        row = lab[y]
+        run = 0
+        c = 0.0
+        su = 0.0
+        suu = 0.0
+        sq = 0.0
+        suq = 0.0
+        for x in range(w):
+            i = final[row[x]]
+            row[x] = i
+            if i != run:
+                if run != 0:
+                    out[run, 0] += suu
+                    out[run, 1] += v * su
+                    out[run, 2] += su
+                    out[run, 3] += v * v * c
+                    out[run, 4] += v * c
+                    out[run, 5] += c
+                    out[run, 6] += suq
+                    out[run, 7] += v * sq
+                    out[run, 8] += sq
+                run = i
+                c = 0.0
+                su = 0.0
+                suu = 0.0
+                sq = 0.0
+                suq = 0.0
+            if i != 0:
+                u = ucol[x]
+                q = 1.0 / depth[y, x]
+                c += 1.0
+                su += u
+                suu += u * u
+                sq += q
+                suq += u * q
+        if run != 0:
+            out[run, 0] += suu
+            out[run, 1] += v * su
+            out[run, 2] += su
+            out[run, 3] += v * v * c
+            out[run, 4] += v * c
+            out[run, 5] += c
+            out[run, 6] += suq
+            out[run, 7] += v * sq
+            out[run, 8] += sq
+    return out
+
+
+def label_keyed_planes(
+    key: NDArray[Any],
+    state: NDArray[np.int8],
+    depth_mm: NDArray[np.float32],
+    fx: float,
+    fy: float,
+    cx: float,
+    cy: float,
+    *,
+    tol: float = 0.0,
+    rel: float = 0.0,
+    bridge: int = 0,
+    min_px: int = 1,
+) -> tuple[NDArray[np.int32], int, NDArray[np.float64], NDArray[np.int64], NDArray[np.float64]]:
+    """:func:`label_keyed_stats` and the plane sums of its components, gathered while relabelling.
+
+    Returns what ``label_keyed_stats`` returns, then the table of
+    :func:`depthgram.segmentation.planes.plane_sums` on the returned labels (same numbers),
+    shape (n + 1, 9), for pixel focal lengths ``fx``, ``fy`` and principal point ``cx``, ``cy``
+    (px).
+    """
+    k = np.ascontiguousarray(key, dtype=np.float32)
+    s = np.ascontiguousarray(state, dtype=np.int8)
+    z = np.ascontiguousarray(depth_mm, dtype=np.float32)
+    lab, parent, nxt, ps, pb = _label_runs(k, s, float(tol), float(rel), int(bridge), z, True)
+    final, n, sums, boxes = resolve_tables(lab, parent, nxt, ps, pb, int(min_px), True)
+    planes = _relabel_planes(lab, final, int(n), z, float(fx), float(fy), float(cx), float(cy))
+    return lab, int(n), sums, boxes, planes
 
 
 #: Stand-in for the depth image :func:`_label_runs` does not read without statistics.

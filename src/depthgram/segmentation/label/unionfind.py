@@ -14,7 +14,7 @@ from numpy.typing import NDArray
 
 from depthgram.segmentation.label.stats import COUNT, KEY, N_COLUMNS, N_SUMS
 
-__all__ = ["find", "resolve", "union"]
+__all__ = ["find", "resolve", "resolve_tables", "union"]
 
 
 @njit(cache=True, inline="always")
@@ -60,6 +60,31 @@ def resolve(
     relabelling pass over ``lab`` (rewritten in place and returned). Without ``stats`` the
     returned sums are zeros and the boxes are unset.
     """
+    final, n, sums, boxes = resolve_tables(lab, parent, nxt, psums, pboxes, min_px, stats)
+    h, w = lab.shape
+    # final[0] is 0: one branch-free gather per pixel, with unsigned indices so that it
+    # vectorises (a test-and-branch version does not)
+    uw = np.uint64(w)
+    for y in range(h):
+        row = lab[y]
+        for x in range(uw):
+            row[x] = final[np.uint64(row[x])]
+    return lab, n, sums, boxes
+
+
+@njit(cache=True)
+def resolve_tables(
+    lab: NDArray[np.int32],
+    parent: NDArray[np.int32],
+    nxt: int,
+    psums: NDArray[np.float64],
+    pboxes: NDArray[np.int32],
+    min_px: int,
+    stats: bool,
+) -> tuple[NDArray[np.int32], int, NDArray[np.float64], NDArray[np.int64]]:
+    """:func:`resolve` without its relabelling pass: the final label of each provisional one
+    (``final[0]`` is 0), n, and the sums and boxes per final label, for a caller that rewrites
+    ``lab`` itself (gathering more per run on the way)."""
     final = np.zeros(nxt, np.int32)
     n = 0
     for i in range(1, nxt):
@@ -105,11 +130,4 @@ def resolve(
     boxes[0, 1] = h
     boxes[0, 2] = -1
     boxes[0, 3] = -1
-    # final[0] is 0: one branch-free gather per pixel, with unsigned indices so that it
-    # vectorises (a test-and-branch version does not)
-    uw = np.uint64(w)
-    for y in range(h):
-        row = lab[y]
-        for x in range(uw):
-            row[x] = final[np.uint64(row[x])]
-    return lab, n, sums, boxes
+    return final, n, sums, boxes
