@@ -157,7 +157,7 @@ def _segment(
 
 
 def frame_sensor(depth: NDArray[np.float32], ok: NDArray[np.bool_], cfg: SegmentConfig) -> SensorModel:
-    """The sensor model of ``cfg.sensor``: a named profile, or estimated from this frame."""
+    """Return the sensor model of ``cfg.sensor``: a named profile, or estimated from this frame."""
     if cfg.sensor == "auto":
         return estimate_sensor(depth, ok)
     return sensor_model(cfg.sensor)
@@ -383,8 +383,10 @@ def _below_camera(
     cam: Intrinsics,
     compounds: list[tuple[int, SceneObject]],
 ) -> tuple[dict[int, float], dict[int, float]]:
-    """How far (mm) each horizontal support lies below the camera (negative above it: a
-    ceiling), and the share of the frame's readings seen beneath its plane.
+    """Return each horizontal support's height below the camera and the readings beneath it.
+
+    The height is in mm (negative above the camera: a ceiling); the readings beneath are the
+    share of the frame's readings seen beneath the support's plane.
 
     The centroid's Y says it for a level camera only: a camera pitched down at a table sees the
     table's centroid above its optical axis. The support's fitted plane says it for any pitch:

@@ -82,9 +82,11 @@ def resolve_tables(
     min_px: int,
     stats: bool,
 ) -> tuple[NDArray[np.int32], int, NDArray[np.float64], NDArray[np.int64]]:
-    """:func:`resolve` without its relabelling pass: the final label of each provisional one
-    (``final[0]`` is 0), n, and the sums and boxes per final label, for a caller that rewrites
-    ``lab`` itself (gathering more per run on the way)."""
+    """:func:`resolve` without its relabelling pass.
+
+    The final label of each provisional one (``final[0]`` is 0), n, and the sums and boxes per final
+    label, for a caller that rewrites ``lab`` itself (gathering more per run on the way).
+    """
     final = np.zeros(nxt, np.int32)
     n = 0
     for i in range(1, nxt):
