@@ -110,7 +110,9 @@ def format_rows(rows: Sequence[BenchRow]) -> str:
     return "\n".join(lines)
 
 
-def real_rows(methods: Sequence[str] = ("threshold", "slices")) -> list[tuple[str, tuple[int, int], str, float, float]]:
+def real_rows(
+    methods: Sequence[str] = ("threshold", "slices", "surfaces"),
+) -> list[tuple[str, tuple[int, int], str, float, float]]:
     """(recording, size, method, ms, invalid share) for the first frame of each real recording.
 
     Real frames have dropouts (holes) and more depth bands than the simulator's; empty when
