@@ -356,6 +356,25 @@ def test_empty_folder_and_glob(tmp_path: Path) -> None:
         open_source(str(tmp_path / "nothing*.png"))
 
 
+def test_folder_of_folders_names_the_subfolder_with_depth(tmp_path: Path) -> None:
+    # Datasets nest frames (OSD: disparity/ beside image_color/); the error says where to look.
+    root = tmp_path / "dataset"
+    for sub in ("image_color", "disparity", "notes"):
+        (root / sub).mkdir(parents=True)
+    cv2.imwrite(str(root / "image_color" / "a.png"), np.zeros((4, 4, 3), np.uint8))
+    cv2.imwrite(str(root / "disparity" / "a.png"), np.full((4, 4), 1000, np.uint16))
+    (root / "notes" / "readme.txt").write_text("x")
+    with pytest.raises(InputError, match=r"no depth frames in this folder") as err:
+        open_source(root)
+    said = str(err.value)
+    assert said.index("disparity") < said.index("image_color")  # the depth-named one first
+    assert "notes" not in said
+    (tmp_path / "flat").mkdir()
+    with pytest.raises(InputError) as err:
+        open_source(tmp_path / "flat")
+    assert "subfolders" not in str(err.value)
+
+
 def test_mixed_sizes_name_both_frames(tmp_path: Path) -> None:
     make_folder(tmp_path, 2, prefix="a")
     write_png(tmp_path / "a2.png", np.ones((5, 5), np.uint16))

@@ -33,8 +33,23 @@ def list_frames(folder: Path) -> list[Path]:
     if not files:
         raise InputError(
             f"{folder}: no depth frames in this folder (expected {', '.join(sorted(IMAGE_SUFFIXES))} files)"
+            + _subfolder_hint(folder)
         )
     return sorted(files, key=lambda p: natural_key(p.name))
+
+
+def _subfolder_hint(folder: Path) -> str:
+    """Return a hint naming the subfolders that do hold frame files (datasets nest them), or ''."""
+    found = [
+        d
+        for d in sorted(folder.iterdir(), key=lambda p: natural_key(p.name))
+        if d.is_dir() and any(f.is_file() and f.suffix.lower() in IMAGE_SUFFIXES for f in d.iterdir())
+    ]
+    if not found:
+        return ""
+    # A subfolder named for depth is the likely one; name it first.
+    found.sort(key=lambda d: not any(k in d.name.lower() for k in ("depth", "disparity")))
+    return "; these subfolders hold image files: " + ", ".join(str(d) for d in found[:4])
 
 
 class FilesSource(Source):
