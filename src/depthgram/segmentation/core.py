@@ -15,6 +15,7 @@ from depthgram.segmentation.config import SegmentConfig
 from depthgram.segmentation.contacts import front_faces, side_faces
 from depthgram.segmentation.histogram import Bands, bin_index, depth_bands
 from depthgram.segmentation.label import label_bands_stats, label_stats_fused, relabel
+from depthgram.segmentation.label.stats import COUNT, KEY, N_SUMS, SUM_Z, SUM_ZZ
 from depthgram.segmentation.objects import Histogram, SceneObject, Segmentation
 from depthgram.segmentation.orientation import (
     FACING,
@@ -43,7 +44,7 @@ from depthgram.segmentation.validate import check_depth_far
 
 __all__ = ["segment"]
 
-#: The defaults, built once: validating a config costs about 10 us, 2 % of a small frame.
+#: The defaults, built once: validating a config on every call is a visible share of a small frame.
 _DEFAULTS = SegmentConfig()
 
 
@@ -103,23 +104,9 @@ def segment(
     (``floor``, ``ceiling``, ``wall``, ``compound``) made of slice ``part``s. ``region``: region
     growing, see :func:`depthgram.segmentation.region_grow`.
 
-    Measured on the seeded simulator (176 x 132, ``benchmarks/table1.py --readings``; area =
-    share of true area labelled by segments assigned to the right object, and precision):
-
-    - The 10 % rule read as "cut 10 % of the peak-to-minimum distance before the minimum"
-      (``cut_from="minimum"``, default) keeps objects whole: ``table`` 95.8 % area at 98.2 %
-      precision with gap pixels left as background (the paper's choice) and 97.8 % at 98.3 %
-      when they go to the nearest band (``gap_pixels="nearest"``, default). Read as "10 % past
-      the peak" (``cut_from="peak"``) it keeps a sliver of each object: 32.5 % area with
-      thresholding alone, 67.4 % with slicing. Only the first reading is compatible with the
-      paper's 91 %; thresholding alone with background gaps gives 80.7 % here (83.3 % with
-      nearest), the rest lost to objects merged with the table top.
-    - Depth-dependent bins change nothing on the simulator (97.8 / 98.3 % on ``table``); on the
-      real 7-Scenes frame they label 92.2 % of valid pixels instead of 89.5 %. Off by default.
-    - Speed (``benchmarks/bench_segmentation.py``, one core of a 2.5 GHz Xeon, with attributes):
-      thresholding about 2,280 frames/s at 176 x 132, 347 at 640 x 480 and 111 at 1280 x 720
-      (6.3x one ``np.bincount`` pass at 640 x 480); slicing about 178, 48 and 21; region
-      growing about 1,430, 121 and 43.
+    Why the defaults read the paper as they do (the 10 % rule, gap pixels, depth-dependent
+    bins) is in ``docs/design-notes.md``; accuracy and speed per method are printed by
+    ``depthgram bench`` and collected in ``docs/performance.md``.
     """
     if isinstance(depth_mm, Frame):
         valid = depth_mm.valid if valid is None else valid
@@ -180,7 +167,7 @@ def _facing_objects(
         bins, bands.lut, ok, include, depth, bridge=cfg.fill_holes_px, min_px=cfg.min_pixels(depth.size)
     )
     stats = Stats.from_sums(sums, boxes, metric=intrinsics is not None)
-    objects = make_objects(labels, stats, depth_labels=sums[:, 7].astype(np.int64), intrinsics=intrinsics)
+    objects = make_objects(labels, stats, depth_labels=sums[:, KEY].astype(np.int64), intrinsics=intrinsics)
     return labels, objects, bands, sums, boxes
 
 
@@ -225,17 +212,17 @@ def _surface_objects(
     loose = loosen_small(labels, n, facing, min_px)
     labels = reattach(labels, depth, loose, tol_0=t0, tol_2=t2, slope_per_px=slope, max_px=4 * r + 1)
     labels, n, sums, boxes = keep_large(labels, n, min_px, depth)
-    mean = sums[:, 1] / np.maximum(sums[:, 0], 1.0)
+    mean = sums[:, SUM_Z] / np.maximum(sums[:, COUNT], 1.0)
     step = t0 + t2 * float(np.median(mean[1:])) ** 2 if n else t0
     joined = merge_openings(labels, depth, boxes, mean, focal_px=cam.fx, ring_px=2 * r, jump_mm=4.0 * step)
     if joined is not None:
         labels = relabel(labels, joined)
         n = int(joined.max())
         sums, boxes = label_stats_fused(labels, n, depth, np.zeros(depth.shape, np.float32))
-        mean = sums[:, 1] / np.maximum(sums[:, 0], 1.0)
-    sums[:, 7] = bands.depth_label(mean)
+        mean = sums[:, SUM_Z] / np.maximum(sums[:, COUNT], 1.0)
+    sums[:, KEY] = bands.depth_label(mean)
     stats = Stats.from_sums(sums, boxes, metric=intrinsics is not None)
-    objects = make_objects(labels, stats, depth_labels=sums[:, 7].astype(np.int64), intrinsics=intrinsics)
+    objects = make_objects(labels, stats, depth_labels=sums[:, KEY].astype(np.int64), intrinsics=intrinsics)
     return labels, objects, bands, sums, boxes
 
 
@@ -278,7 +265,7 @@ def _slices(
     first_support = next_id
     # statistics of every id (facing objects, then supports) stacked: later steps add rows
     # instead of taking them again from the label map
-    all_sums = [fsums[:, :7]]
+    all_sums = [fsums[:, :N_SUMS]]
     all_boxes = [fboxes]
     cls_of: dict[int, int] = {}
     for cls, lab, n, sums, boxes in support_maps:
@@ -398,7 +385,7 @@ def _below_camera(
     if not any(c == HORIZONTAL for c, _ in compounds):
         return out, beneath
     # the planes of the horizontal supports only: the others' sums and solves were thrown away
-    # (each row's sums and solve are those of plane_fits on the whole map)
+    # (each row's sums and solve are those of a plane fit on the whole map)
     ids = np.array([o.id for c, o in compounds if c == HORIZONTAL], np.intp)
     want = np.zeros(n + 1, np.bool_)
     want[ids] = True
@@ -480,9 +467,9 @@ def _support_class(
             lab, n, sums, boxes, planes = support_pieces(
                 depth, ok, classes, cls, cam, jump_rel=cfg.jump_rel, bridge=cfg.fill_holes_px, min_fit_px=fit_px
             )
-    counts = sums[:, 0]
-    mean = sums[:, 1] / np.maximum(counts, 1)
-    std = np.sqrt(np.maximum(sums[:, 2] / np.maximum(counts, 1) - mean * mean, 0))
+    counts = sums[:, COUNT]
+    mean = sums[:, SUM_Z] / np.maximum(counts, 1)
+    std = np.sqrt(np.maximum(sums[:, SUM_ZZ] / np.maximum(counts, 1) - mean * mean, 0))
     small = (counts < min_px) | (std < cfg.min_spread * mean)
     small[0] = False
     if not small.any():

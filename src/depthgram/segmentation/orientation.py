@@ -295,7 +295,7 @@ def _one_sided_cols(inv: NDArray[np.float32], valid: NDArray[np.bool_], step: in
 @njit(cache=True)
 def _jumps_cols(z: NDArray[np.float32], valid: NDArray[np.bool_], rel: np.float32) -> NDArray[np.bool_]:
     # _jumps_rows along columns (same float32 tests), a whole row of columns at a time, without
-    # the transposed copies in and out (6x faster at 320 x 240)
+    # the transposed copies in and out, which cost more than the tests
     h, w = z.shape
     out = np.zeros((h, w), np.bool_)
     if h < 2:
@@ -341,8 +341,8 @@ def upsample_classes(cls: NDArray[np.int8], valid: NDArray[np.bool_], k: int) ->
 
 @njit(cache=True)
 def _upsample(cls: NDArray[np.int8], valid: NDArray[np.bool_], k: int) -> NDArray[np.int8]:
-    # one pass for numpy's two repeats, crop, masked write and copy (0.4 ms at 640 x 480)
-    # (a table of source columns: an integer division per pixel made it 10x slower)
+    # one pass for numpy's two repeats, crop, masked write and copy
+    # (a table of source columns: an integer division per pixel made it several times slower)
     h, w = valid.shape
     out = np.empty((h, w), np.int8)
     src = np.empty(w, np.int64)

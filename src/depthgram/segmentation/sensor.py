@@ -133,9 +133,8 @@ def estimate_sensor(
     valid : ndarray of bool
         Pixels with a reading.
     max_samples : int
-        Most pixel pairs read (an even subsample of rows), so that the estimate costs well under
-        a few milliseconds (2.4 ms at 640 x 480; on the YCB-Video frames 20,000 samples give the
-        same model as 60,000).
+        Most pixel pairs read (an even subsample of rows), so that the estimate stays a small
+        share of a frame; on the YCB-Video frames 20,000 samples gave the same model as 60,000.
 
     Returns
     -------

@@ -537,7 +537,7 @@ def merge_openings(
     width = (objs[:, 2] - objs[:, 0] + 1) * z_mean / focal_px
     # cheap tests first, for every pair (R, A) at once: some nearer A that holds R's columns, R
     # no deeper behind it than it is wide (the ring below costs a dilation of R's box). As one
-    # n x n test instead of a dozen numpy calls per surface: 0.5 ms of 0.6 at 176 x 132.
+    # n x n test instead of a dozen numpy calls per surface, which dominated small frames.
     margin_all = 0.15 * (objs[:, 2] - objs[:, 0] + 1)
     zr_col = z_mean[:, None]
     maybe = (z_mean[None, :] < zr_col) & (zr_col - z_mean[None, :] <= width[None, :])
