@@ -112,3 +112,50 @@ def test_pipeline_hands_the_tracker_its_pixels() -> None:
             want.append({m.track_id: m.v_radial for m in upd.motions.values()})
         same = all({t: m.v_radial for t, m in g.items()} == w for g, w in zip(got, want, strict=True))
         assert same == with_pixels
+
+
+def test_depth_from_mean_ignores_the_pixels_and_core_reads_them() -> None:
+    frames = _sliding_frames(10, 3, -600.0)
+    labels = np.ones((H, W), np.int32)
+
+    def run(config: TrackerConfig, with_pixels: bool) -> list[tuple[float | None, float | None, float | None]]:
+        tr = Tracker(config)
+        out = []
+        for k, z in enumerate(frames):
+            m = tr.update([_whole(z)], k / FPS, (W, H), FramePixels(z, labels) if with_pixels else None).motions[1]
+            out.append((m.v_radial, m.v_sigma, m.ttc))
+        return out
+
+    objects_only = run(TrackerConfig(), False)
+    # "mean" with the pixels handed over: exactly the objects-only behaviour
+    assert run(TrackerConfig(depth_from="mean"), True) == objects_only
+    # "core" (the default) reads the core: the points' true -600 mm/s, not the mean's -420
+    core = run(TrackerConfig(depth_from="core"), True)
+    assert core == run(TrackerConfig(), True) and core != objects_only
+    assert all(v is not None and abs(v + 600.0) <= 30.0 for v, _, _ in core[3:]), core
+
+
+@pytest.mark.parametrize("bad", ["median", "", 1, None])
+def test_depth_from_takes_core_or_mean_only(bad: object) -> None:
+    with pytest.raises(InputError, match="depth_from"):
+        TrackerConfig(depth_from=bad)  # type: ignore[arg-type]
+
+
+def test_pipeline_with_depth_from_mean_hands_over_no_pixels() -> None:
+    pytest.importorskip("depthgram.sensor")
+    from depthgram import Config, Pipeline
+    from depthgram.segmentation import segment
+    from depthgram.segmentation.sensor import estimate_sensor
+    from depthgram.sensor import simulate
+
+    frames = [sf.frame for sf in simulate("crossing", 30, size=(176, 132), fps=30, seed=2)]
+    cfg = Config().replace(tracker={"depth_from": "mean"})
+    assert 'depth_from = "mean"' in cfg.dumps()
+    got = [{t: m.v_radial for t, m in r.motions.items()} for r in Pipeline(cfg).run(frames, read_ahead=0)]
+    sensor = estimate_sensor(frames[0].depth, frames[0].valid)
+    tr = Tracker()  # the default ("core"), given no pixels: the objects-only reading
+    want = []
+    for fr in frames:
+        seg = segment(fr.depth, valid=fr.valid, intrinsics=fr.intrinsics, sensor=sensor)
+        want.append({m.track_id: m.v_radial for m in tr.update(seg.objects, fr.time_s, fr.size).motions.values()})
+    assert got == want

@@ -381,7 +381,8 @@ class Pipeline:
             self._tracker = Tracker(self.config.tracker)  # nothing carries over to the next frames
         if not still:
             # the pixels let the tracker read each object's depth change from its core
-            pixels = FramePixels(frame.depth, seg.labels)
+            use_core = cfg.tracker.depth_from == "core"
+            pixels = FramePixels(frame.depth, seg.labels) if use_core else None
             update = self._tracker.update(seg.objects, frame.time_s, frame.size, pixels)
             seg = _relabel(seg, {oid: m.track_id for oid, m in update.motions.items()})
             motions = {m.track_id: m for m in update.motions.values()}

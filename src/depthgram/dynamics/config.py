@@ -112,6 +112,15 @@ class TrackerConfig:
         A time to collision (and the warnings built on it) is given only when the closing
         speed is at least this many ``v_sigma`` (dimensionless): otherwise the velocity is
         not known well enough and ttc is None.
+    depth_from : str
+        Where each object's depth change between frames (mm) is read: ``core``, over the
+        object's core, the pixels in it now that, moved back by the image motion, were in the
+        same track's segment in the previous frame, so pixels entering or leaving its outline
+        do not move it (:mod:`depthgram.dynamics.core`; compare on 7-Scenes' posed truth with
+        ``benchmarks/bench_tracking.py --depth core|mean``); or ``mean``, the change of the
+        object's mean depth alone, as the paper. ``core`` needs each frame's depth and label
+        map and costs about 5 ms per 640x480 frame; ``mean`` needs neither (the pipeline then
+        does not hand them over), for small computers.
     """
 
     queue_length: int = 4
@@ -142,6 +151,7 @@ class TrackerConfig:
     accel_sigma: float = 3000.0
     innovation_gate: float = 4.0
     ttc_min_sigmas: float = 1.5
+    depth_from: str = "core"
 
     def __post_init__(self) -> None:
         for name in ("queue_length", "min_hits", "max_missed", "border_px"):
@@ -166,6 +176,7 @@ class TrackerConfig:
         _check(self.max_depth_rate > 0, "max_depth_rate", self.max_depth_rate, "> 0 (1/s)")
         _check(self.center_tau_s > 0, "center_tau_s", self.center_tau_s, "> 0 s")
         _check(self.estimator in ("kalman", "queue"), "estimator", self.estimator, "'kalman' or 'queue'")
+        _check(self.depth_from in ("core", "mean"), "depth_from", self.depth_from, "'core' or 'mean'")
         _check(self.innovation_gate > 0, "innovation_gate", self.innovation_gate, "> 0")
         _check(
             self.depth_sigma_mm + self.depth_sigma_floor_mm > 0,

@@ -314,10 +314,10 @@ class Tracker:
     ) -> TrackUpdate:
         """Match this frame's objects to the tracks and read their motion.
 
-        Given the frame's ``pixels`` (depth and label map) on this and the previous update, an
-        object's depth change is read from its core, the pixels that stay in it
-        (:mod:`depthgram.dynamics.core`); otherwise, and for objects without a core, from
-        its depth alone.
+        Given the frame's ``pixels`` (depth and label map) on this and the previous update, and
+        ``config.depth_from == "core"``, an object's depth change is read from its core, the
+        pixels that stay in it (:mod:`depthgram.dynamics.core`); otherwise, and for objects
+        without a core, from its mean depth alone.
 
         Parameters
         ----------
@@ -331,7 +331,7 @@ class Tracker:
             (width, height) of the image (px), as :attr:`depthgram.frame.Frame.size`.
         pixels : FramePixels, optional
             This frame's depth (mm) and label map (``SceneObject.id`` per pixel), shape
-            (height, width).
+            (height, width). Ignored (not even checked) when ``config.depth_from == "mean"``.
 
         Returns
         -------
@@ -353,6 +353,8 @@ class Tracker:
         if len({o.id for o in objects}) != len(objects):
             ids = sorted(o.id for o in objects)
             raise InputError(f"tracker frame {self._frame + 1}: duplicate SceneObject ids {ids}")
+        if cfg.depth_from == "mean":
+            pixels = None
         t_now = self._clock(time_s)
         fps_assumed = self._fps_assumed
         f = _features(objects)
