@@ -109,7 +109,7 @@ class Config:
         return cls.from_dict(data, where=str(p))
 
     def dumps(self) -> str:
-        """The configuration as TOML text."""
+        """Return the configuration as TOML text."""
         import tomli_w
 
         return tomli_w.dumps(self.to_dict())
@@ -119,7 +119,7 @@ class Config:
         Path(path).write_text(self.dumps(), encoding="utf-8")
 
     def replace(self, **sections: Mapping[str, Any]) -> Config:
-        """A copy with some settings changed, e.g. ``cfg.replace(segment={"min_area": 50})``."""
+        """Return a copy with some settings changed, e.g. ``cfg.replace(segment={"min_area": 50})``."""
         data = self.to_dict()
         for name, values in sections.items():
             if name not in _SECTIONS:
@@ -128,7 +128,7 @@ class Config:
         return Config.from_dict(data)
 
     def with_stills(self, stills: bool | str) -> Config:
-        """A copy with the ``stills`` setting changed."""
+        """Return a copy with the ``stills`` setting changed."""
         return dataclasses.replace(self, stills=stills)
 
 
@@ -212,7 +212,7 @@ class SceneResult:
         return to_sentence(self.tree)
 
     def to_record(self) -> dict[str, Any]:
-        """The JSON line of ``depthgram describe``."""
+        """Return the JSON line of ``depthgram describe``."""
         f = self.frame
         tree = tree_to_dict(self.tree)
         nodes = {n["id"]: n for n in tree["nodes"]}
@@ -335,7 +335,7 @@ class Pipeline:
         return reason
 
     def _sensor_model(self, frame: Frame) -> SensorModel | None:
-        """The camera's sensor model, estimated from the stream every ``_SENSOR_EVERY`` frames.
+        """Return the camera's sensor model, estimated from the stream every ``_SENSOR_EVERY`` frames.
 
         A camera's depth step and noise do not change from frame to frame, while estimating
         them costs a fair share of a frame's segmentation (docs/design-notes.md).

@@ -128,8 +128,8 @@ def run(args: argparse.Namespace) -> int:
             port=args.port,
             log_level="warning",
             ws_max_size=MAX_BODY_BYTES,
-            # frames are raw arrays: deflating ~1 MB each on the
-            # event loop cost ~100 ms a frame on 7-Scenes
+            # frames are raw arrays: deflating each on the event loop
+            # cost more than the whole pipeline (docs/design-notes.md, the viewer)
             ws_per_message_deflate=False,
         )
     )

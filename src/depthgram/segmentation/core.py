@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -240,7 +240,45 @@ def _slices(
     cfg: SegmentConfig,
     sensor: SensorModel | None = None,
 ) -> Segmentation:
+    """Segment with supports (``slices`` and ``surfaces``), in five named steps.
+
+    1. :func:`_pixel_classes`: each pixel facing the sensor, on a horizontal or on a vertical
+       surface (orientation field and dominant planes).
+    2. :func:`_support_class` per wanted direction: the supports (floor, table tops, walls).
+    3. The objects among the facing pixels: :func:`_surface_objects` or :func:`_facing_objects`.
+    4. :func:`_stack_supports` and :func:`_fold_faces`: supports join the label map after the
+       objects, and a box's front or side face joins the support it belongs to.
+    5. :func:`_compound_objects`: ids 1..n again, each support's kind and its slice parts.
+    """
     cam = intrinsics or default_intrinsics(depth.shape)
+    classes, wanted = _pixel_classes(depth, ok, cam, cfg)
+    min_px = cfg.min_pixels(depth.size)
+    # supports first: a piece of surface too small to matter goes back to the facing pixels
+    support_maps = [_support_class(depth, ok, classes, cls, cam, cfg, min_px) for cls in wanted]
+    facing = classes == FACING
+    if cfg.method == "surfaces":
+        sensor = sensor or frame_sensor(depth, ok, cfg)
+        labels, objects, bands, fsums, fboxes = _surface_objects(depth, ok, facing, intrinsics, cam, cfg, sensor)
+    else:
+        labels, objects, bands, fsums, fboxes = _facing_objects(depth, ok, facing, intrinsics, cfg)
+    stack = _stack_supports(labels, objects, fsums, fboxes, support_maps, cam)
+    below, beneath = _below_camera(labels, stack.next_id - 1, depth, cam, stack.compounds)
+    fronts = _fold_faces(labels, depth, objects, stack, below, cfg)
+    labels, objects = _compound_objects(
+        labels, depth, objects, stack, fronts, below, beneath, bands, intrinsics, cam, cfg
+    )
+    return Segmentation(
+        labels, tuple(objects), bands.histogram, cfg.method, bands_mm=bands.limits_mm(), classes=classes
+    )
+
+
+def _pixel_classes(
+    depth: NDArray[np.float32], ok: NDArray[np.bool_], cam: Intrinsics, cfg: SegmentConfig
+) -> tuple[NDArray[np.int8], list[int]]:
+    """Return each pixel's orientation class and the support classes the config slices.
+
+    Classes of directions the config does not slice are turned back into facing pixels.
+    """
     classes = _orientation(depth, ok, cam, cfg)
     if cfg.support_planes and cfg.max_planes:
         _add_support_planes(depth, ok, classes, cam, cfg)
@@ -252,19 +290,34 @@ def _slices(
     for cls in (HORIZONTAL, VERTICAL):
         if cls not in wanted:
             classes[classes == cls] = FACING
-    min_px = cfg.min_pixels(depth.size)
-    # supports first: a piece of surface too small to matter goes back to the facing pixels
-    support_maps = [_support_class(depth, ok, classes, cls, cam, cfg, min_px) for cls in wanted]
-    facing = classes == FACING
-    if cfg.method == "surfaces":
-        sensor = sensor or frame_sensor(depth, ok, cfg)
-        labels, objects, bands, fsums, fboxes = _surface_objects(depth, ok, facing, intrinsics, cam, cfg, sensor)
-    else:
-        labels, objects, bands, fsums, fboxes = _facing_objects(depth, ok, facing, intrinsics, cfg)
+    return classes, wanted
+
+
+@dataclass
+class _Stack:
+    """Statistics of every id, facing objects first and then supports, stacked.
+
+    Later steps add rows instead of taking them again from the label map.
+    """
+
+    sums: NDArray[np.float64]  # (next_id, N_SUMS): the statistics table's sums per id
+    boxes: NDArray[np.int64]  # (next_id, 4) inclusive boxes per id
+    first_support: int  # id of the first support
+    next_id: int  # one past the last id
+    compounds: list[tuple[int, SceneObject]]  # (orientation class, support object) per support
+
+
+def _stack_supports(
+    labels: NDArray[np.int32],
+    objects: list[SceneObject],
+    fsums: NDArray[np.float64],
+    fboxes: NDArray[np.int64],
+    support_maps: list[tuple[int, NDArray[np.int32], int, NDArray[np.float64], NDArray[np.int64]]],
+    cam: Intrinsics,
+) -> _Stack:
+    """Add the supports' labels after the facing objects' (in place) and stack their statistics."""
     next_id = len(objects) + 1
     first_support = next_id
-    # statistics of every id (facing objects, then supports) stacked: later steps add rows
-    # instead of taking them again from the label map
     all_sums = [fsums[:, :N_SUMS]]
     all_boxes = [fboxes]
     cls_of: dict[int, int] = {}
@@ -273,40 +326,75 @@ def _slices(
             continue
         add_labels(labels, lab, next_id - 1)
         cls_of.update((i, cls) for i in range(next_id, next_id + n))
-        all_sums.append(sums[1:, :7])
+        all_sums.append(sums[1:, :N_SUMS])
         all_boxes.append(boxes[1:])
         next_id += n
     total = np.concatenate(all_sums)
     total_boxes = np.concatenate(all_boxes)
     sup_stats = _stats_rows(total, total_boxes, np.r_[0, first_support:next_id])
     compounds = [(cls_of[o.id], o) for o in make_objects(labels, sup_stats, intrinsics=cam, first_id=first_support)]
-    below, beneath = _below_camera(labels, next_id - 1, depth, cam, compounds)
-    # only supports seen from above (floor, table tops) can have a front face below them
+    return _Stack(total, total_boxes, first_support, next_id, compounds)
+
+
+def _fold_faces(
+    labels: NDArray[np.int32],
+    depth: NDArray[np.float32],
+    objects: list[SceneObject],
+    stack: _Stack,
+    below: dict[int, float],
+    cfg: SegmentConfig,
+) -> dict[int, int]:
+    """Return ``{face id: support id}`` and add each face's statistics to its support's (in place).
+
+    A front face stands below a support seen from above (a table's front under its top); a
+    side face is a small vertical support beside a facing object (a box at an angle).
+    """
+    compounds = stack.compounds
     horizontal_ids = np.array([o.id for c, o in compounds if c == HORIZONTAL and below[o.id] > 0], np.int32)
     widths = np.array([0] + [o.bbox_xy[2] - o.bbox_xy[0] for o in objects], np.float64)
     fronts = front_faces(labels, depth, widths, horizontal_ids, jump_rel=cfg.jump_rel)
-    # small vertical supports beside a facing object are that object's side (a box at an angle)
     side_ids = np.array(
         [o.id for c, o in compounds if c == VERTICAL and o.area < cfg.side_max_area * depth.size], np.int32
     )
     heights = np.array([0] + [o.bbox_xy[3] - o.bbox_xy[1] for o in objects], np.float64)
-    mean_depth = np.zeros(next_id)
+    mean_depth = np.zeros(stack.next_id)
     for o in (*objects, *(o for _, o in compounds)):
         mean_depth[o.id] = o.depth
     for f, sup in side_faces(labels, depth, heights, side_ids, mean_depth, jump_rel=cfg.jump_rel).items():
         fronts.setdefault(f, sup)
+    for f, sup in fronts.items():
+        stack.sums[sup] += stack.sums[f]
+        stack.boxes[sup, :2] = np.minimum(stack.boxes[sup, :2], stack.boxes[f, :2])
+        stack.boxes[sup, 2:] = np.maximum(stack.boxes[sup, 2:], stack.boxes[f, 2:])
+    return fronts
+
+
+def _compound_objects(
+    labels: NDArray[np.int32],
+    depth: NDArray[np.float32],
+    objects: list[SceneObject],
+    stack: _Stack,
+    fronts: dict[int, int],
+    below: dict[int, float],
+    beneath: dict[int, float],
+    bands: Bands,
+    intrinsics: Intrinsics | None,
+    cam: Intrinsics,
+    cfg: SegmentConfig,
+) -> tuple[NDArray[np.int32], list[SceneObject]]:
+    """Return the label map and objects with ids 1..n again, supports with kinds and parts.
+
+    Facing objects come first; a folded face takes its support's id.
+    """
+    compounds = stack.compounds
     with_front = set(fronts.values())
-    fold = np.arange(next_id, dtype=np.int32)
+    fold = np.arange(stack.next_id, dtype=np.int32)
     for f, sup in fronts.items():
         fold[f] = sup
-        total[sup] += total[f]
-        total_boxes[sup, :2] = np.minimum(total_boxes[sup, :2], total_boxes[f, :2])
-        total_boxes[sup, 2:] = np.maximum(total_boxes[sup, 2:], total_boxes[f, 2:])
     objects = [o for o in objects if o.id not in fronts]
-    # ids 1..n again after front faces were folded into their supports: facing objects first
     old = [o.id for o in objects] + [o.id for _, o in compounds]
     remap = {oid: new for new, oid in enumerate(old, start=1)}
-    renum = np.zeros(next_id, np.int32)
+    renum = np.zeros(stack.next_id, np.int32)
     renum[old] = np.arange(1, len(old) + 1, dtype=np.int32)
     labels = relabel(labels, renum[fold] if fronts else renum)
     objects = [replace(o, id=remap[o.id]) for o in objects]
@@ -320,13 +408,12 @@ def _slices(
         key=lambda o: below[o.id],
         default=None,
     )
-    recount = _stats_rows(total, total_boxes, np.array([0, *old]))
+    recount = _stats_rows(stack.sums, stack.boxes, np.array([0, *old]))
     part_id = len(objects) + len(compounds) + 1
     keep_metric = intrinsics is not None
     merged = {o.id: o for o in make_objects(labels, recount, intrinsics=cam)}
     for cls, o in compounds:
-        new_id = remap[o.id]
-        whole = merged[new_id]
+        whole = merged[remap[o.id]]
         kind = support_kind(cls, below[o.id], lowest is not None and o.id == lowest.id)
         if o.id in with_front:
             kind = "compound"  # a top with a face below it, or a face with its side: a table, a box
@@ -352,9 +439,7 @@ def _slices(
                 area_mm2=whole.area_mm2 if keep_metric else None,
             )
         )
-    return Segmentation(
-        labels, tuple(objects), bands.histogram, cfg.method, bands_mm=bands.limits_mm(), classes=classes
-    )
+    return labels, objects
 
 
 #: A horizontal support with more than this share of the frame's readings lying beneath its

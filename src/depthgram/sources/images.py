@@ -83,8 +83,7 @@ def _stderr_captured() -> Iterator[list[str]]:
 
 #: Largest frame read (pixels) unless the environment variable ``DEPTHGRAM_MAX_PIXELS`` says
 #: otherwise: 25 million (5000 x 5000) is 20x a 1280 x 720 depth camera, and processing one
-#: frame takes about 40 bytes per pixel, 1 GB here. A 20000 x 20000 frame used to end in a
-#: MemoryError after 5 GB, a 0.9 MB PNG of such size took 8.8 GB (issue 18.6).
+#: frame takes about 40 bytes per pixel, 1 GB here (docs/design-notes.md: frames, issue 18.6).
 MAX_PIXELS = 25_000_000
 
 
