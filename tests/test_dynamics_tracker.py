@@ -356,3 +356,30 @@ def test_compound_depth_ignores_one_nearer_sliver_at_its_edge() -> None:
     assert track_depth(compound(2000.0, 2040.0, 2080.0)) == 2000.0
     assert track_depth(compound(2131.0, 2190.0)) == 2131.0
     assert track_depth(o) == 2150.0  # a plain object: its mean depth
+
+
+def test_parameter_vectors_carry_each_setting_under_its_name() -> None:
+    import math
+
+    from depthgram.dynamics import kernels as K
+    from depthgram.dynamics.tracker import estimate_params, step_params
+
+    cfg = TrackerConfig(estimator="queue", max_depth_jump_rate=0.7, border_px=3, center_tau_s=0.05, min_hits=2)
+    sp, ep = step_params(cfg), estimate_params(cfg)
+    assert sp.shape == (K.N_STEP_PARAMS,) and ep.shape == (K.N_ESTIMATE_PARAMS,)
+    assert (sp[K.SP_MAX_DEPTH_JUMP_RATE], sp[K.SP_BORDER_PX], sp[K.SP_CENTER_TAU_S], sp[K.SP_MIN_HITS]) == (
+        0.7, 3.0, 0.05, 2.0,
+    )  # fmt: skip
+    assert ep[K.EP_USE_KALMAN] == 0.0 and ep[K.EP_MIN_SPEED] == cfg.min_speed
+    # the filter judges jumps by its own innovation gate: the queue's jump test is off
+    kalman = TrackerConfig(estimator="kalman", max_depth_jump_rate=0.7)
+    assert math.isinf(step_params(kalman)[K.SP_MAX_DEPTH_JUMP_RATE]) and estimate_params(kalman)[K.EP_USE_KALMAN] == 1
+
+
+def test_status_codes_and_names_agree() -> None:
+    from depthgram.dynamics import STATUSES
+    from depthgram.dynamics import kernels as K
+
+    assert STATUSES == ("visible", "entering", "leaving", "occluded")
+    assert [STATUSES[int(s)] for s in K.Status] == [s.name.lower() for s in K.Status]
+    assert (K.VISIBLE, K.ENTERING, K.LEAVING, K.OCCLUDED) == tuple(int(s) for s in K.Status)

@@ -12,6 +12,8 @@ numpy's per-call overhead of some fifty array expressions costs more than the ar
 
 from __future__ import annotations
 
+from enum import IntEnum
+
 import numpy as np
 from numba import njit
 from numpy.typing import NDArray
@@ -20,8 +22,19 @@ from numpy.typing import NDArray
 #: matrices where a row has no finite entry; pairs at this cost are dropped afterwards.
 FORBIDDEN = 1e9
 
-#: Status codes, indices into :data:`depthgram.dynamics.tracker.STATUSES`.
-VISIBLE, ENTERING, LEAVING, OCCLUDED = range(4)
+
+class Status(IntEnum):
+    """A track's status this frame; its value is the code in the state table's ``STATUS`` column
+    and its lower-case name the :class:`depthgram.scene.tree.Motion` status."""
+
+    VISIBLE = 0  # detected, whole in view
+    ENTERING = 1  # detected at the image border, growing into view
+    LEAVING = 2  # detected at the image border, shrinking out of view
+    OCCLUDED = 3  # not detected this frame, alive within max_missed
+
+
+# Plain ints for the compiled kernels (numba freezes module globals as constants).
+VISIBLE, ENTERING, LEAVING, OCCLUDED = (int(x) for x in Status)
 
 
 @njit(cache=True)
@@ -137,13 +150,37 @@ def cost_kernel(
     return cost
 
 
-# Columns of the track state array.
-# VX, VY in px/s; TSEEN the time of the last detection (s).
-ID, HITS, MISSED, STATUS, CX, CY, VX, VY, X0, Y0, X1, Y1 = range(12)
-DEPTH, ZFIT, AREA, MAREA, LABEL, V, READ, TSEEN = range(12, 20)
-# OX, OY: the centre of the part last seen (px), CX, CY while the whole object was in view.
-OX, OY = 20, 21
+# The track state table: one row per live track, these columns. This module owns them (the
+# kernels below and depthgram.dynamics.tracker index by these names only); numba's cache
+# is per source file, so they live here rather than in a module the kernels would import.
+ID = 0  # track id, from 1
+HITS = 1  # frames with a detection
+MISSED = 2  # frames since the last detection (0: detected this frame)
+STATUS = 3  # a Status code
+CX, CY = 4, 5  # centre of the object as last detected (px)
+VX, VY = 6, 7  # smoothed image velocity of the centre (px/s)
+X0, Y0, X1, Y1 = 8, 9, 10, 11  # bbox as last detected, half-open (px)
+DEPTH = 12  # depth as last read (mm; see tracker.track_depth)
+ZFIT = 13  # fitted depth at the last detection (mm)
+AREA = 14  # area as last detected (px)
+MAREA = 15  # running depth-compensated area A z^2 (px mm^2), against which splits are judged
+LABEL = 16  # depth label as last detected
+V = 17  # radial velocity of the queue fit (mm/s; NaN: none yet)
+READ = 18  # how the depth was read: 0 mean depth, 1 nearest part of a compound (F_READ)
+TSEEN = 19  # time of the last detection (s)
+OX, OY = 20, 21  # centre of the part last seen (px); CX, CY while the whole object was in view
 NCOL = 22
+
+# The parameter vector of `step`, built by depthgram.dynamics.tracker.step_params.
+(
+    SP_BORDER_PX, SP_BORDER_AREA_RATE, SP_MAX_AREA_JUMP, SP_FIT_BORDER_ENTRIES, SP_MIN_SPEED,
+    SP_MIN_HITS, SP_MAX_MISSED, SP_MAX_DEPTH_JUMP_RATE, SP_CENTER_TAU_S, SP_AREA_TAU_S, N_STEP_PARAMS,
+) = range(11)  # fmt: skip
+# The parameter vector of `estimate`, built by depthgram.dynamics.tracker.estimate_params.
+(
+    EP_USE_KALMAN, EP_DEPTH_SIGMA_MM, EP_DEPTH_SIGMA_FLOOR_MM, EP_ACCEL_SIGMA, EP_INNOVATION_GATE,
+    EP_TTC_MIN_SIGMAS, EP_MIN_SPEED, EP_V_SIGMA0, N_ESTIMATE_PARAMS,
+) = range(9)  # fmt: skip
 # Columns of the per-object feature array; F_READ says how its depth was read (0: mean depth,
 # 1: nearest part of a compound), see depthgram.dynamics.tracker.track_depth.
 F_CX, F_CY, F_Z, F_AREA, F_LABEL, F_X0, F_BEHIND, F_READ = 0, 1, 2, 3, 4, 5, 9, 10
@@ -252,9 +289,8 @@ def step(
 
     This is the project's own bookkeeping (queues, statuses, split/merge and border tests),
     hand-written in one compiled pass because it runs every frame on a few dozen rows.
-    ``p`` holds border_px, border_area_rate (1/s), max_area_jump, fit_border_entries,
-    min_speed (mm/s), min_hits, max_missed, max_depth_jump_rate (1/s), center_tau_s,
-    area_tau_s. ``dt`` is this frame's time step (s): every rate and time constant is
+    ``p`` holds the ``SP_*`` parameters (:func:`depthgram.dynamics.tracker.step_params`).
+    ``dt`` is this frame's time step (s): every rate and time constant is
     scaled by it, so the tracker behaves alike at any frame rate.
 
     ``dcore`` is each object's depth change over its core since the previous frame (mm, NaN
@@ -267,7 +303,16 @@ def step(
     every row, which rows die this frame, which rows restarted their queue (new tracks too),
     the number of new tracks, and the constant each row's depths were moved by (mm).
     """
-    border, area_rate, max_jump, fit_border, min_speed, min_hits, max_missed, jump_rate, c_tau, a_tau = p
+    border = p[SP_BORDER_PX]
+    area_rate = p[SP_BORDER_AREA_RATE]
+    max_jump = p[SP_MAX_AREA_JUMP]
+    fit_border = p[SP_FIT_BORDER_ENTRIES]
+    min_speed = p[SP_MIN_SPEED]
+    min_hits = p[SP_MIN_HITS]
+    max_missed = p[SP_MAX_MISSED]
+    jump_rate = p[SP_MAX_DEPTH_JUMP_RATE]
+    c_tau = p[SP_CENTER_TAU_S]
+    a_tau = p[SP_AREA_TAU_S]
     # Exponential smoothing with a time constant: the same weight per second at any rate.
     c_gain = 1.0 - np.exp(-dt / c_tau)
     a_gain = 1.0 - np.exp(-dt / a_tau)
@@ -496,8 +541,9 @@ def estimate(
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
     """Radial velocity, time to collision and v_sigma of every live row (mm/s, s, mm/s).
 
-    ``p`` holds kalman (1) or queue (0), depth_sigma_mm (at 1 m), depth_sigma_floor_mm,
-    accel_sigma (mm/s^2), innovation_gate, ttc_min_sigmas, min_speed (mm/s), v_sigma0 (mm/s).
+    ``p`` holds the ``EP_*`` parameters (:func:`depthgram.dynamics.tracker.estimate_params`):
+    kalman (1) or queue (0), depth_sigma_mm (at 1 m), depth_sigma_floor_mm, accel_sigma
+    (mm/s^2), innovation_gate, ttc_min_sigmas, min_speed (mm/s), v_sigma0 (mm/s).
     Rows ``n..`` are new tracks. One compiled pass: the same steps in numpy cost some forty
     array expressions per frame, more than the arithmetic on a few dozen rows.
 
@@ -509,7 +555,14 @@ def estimate(
     ``ttc_min_sigmas`` v_sigma. ``offset`` moves each row's filter depth along with its queue
     (see :func:`step`).
     """
-    use_kalman, sig1m, floor, accel, gate_k, ttc_k, min_speed, v_sigma0 = p
+    use_kalman = p[EP_USE_KALMAN]
+    sig1m = p[EP_DEPTH_SIGMA_MM]
+    floor = p[EP_DEPTH_SIGMA_FLOOR_MM]
+    accel = p[EP_ACCEL_SIGMA]
+    gate_k = p[EP_INNOVATION_GATE]
+    ttc_k = p[EP_TTC_MIN_SIGMAS]
+    min_speed = p[EP_MIN_SPEED]
+    v_sigma0 = p[EP_V_SIGMA0]
     nn = kx.shape[0]
     nq = qz.shape[1]
     v_out = np.full(nn, np.nan)

@@ -23,18 +23,39 @@ from depthgram.dynamics.core import FramePixels, core_depth_change, image_shift
 from depthgram.dynamics.kernels import (
     CX,
     CY,
+    EP_ACCEL_SIGMA,
+    EP_DEPTH_SIGMA_FLOOR_MM,
+    EP_DEPTH_SIGMA_MM,
+    EP_INNOVATION_GATE,
+    EP_MIN_SPEED,
+    EP_TTC_MIN_SIGMAS,
+    EP_USE_KALMAN,
+    EP_V_SIGMA0,
     F_READ,
     FORBIDDEN,
     HITS,
     ID,
     MISSED,
+    N_ESTIMATE_PARAMS,
+    N_STEP_PARAMS,
     NCOL,
     NFEAT,
     OCCLUDED,
+    SP_AREA_TAU_S,
+    SP_BORDER_AREA_RATE,
+    SP_BORDER_PX,
+    SP_CENTER_TAU_S,
+    SP_FIT_BORDER_ENTRIES,
+    SP_MAX_AREA_JUMP,
+    SP_MAX_DEPTH_JUMP_RATE,
+    SP_MAX_MISSED,
+    SP_MIN_HITS,
+    SP_MIN_SPEED,
     STATUS,
     VX,
     VY,
     ZFIT,
+    Status,
     V,
     estimate,
     mark_behind,
@@ -46,10 +67,10 @@ from depthgram.errors import InputError
 from depthgram.scene.tree import Motion
 from depthgram.segmentation.objects import SceneObject
 
-__all__ = ["STATUSES", "Track", "TrackUpdate", "Tracker"]
+__all__ = ["STATUSES", "Status", "Track", "TrackUpdate", "Tracker", "estimate_params", "step_params"]
 
-#: Track statuses, in the order of their integer codes.
-STATUSES = ("visible", "entering", "leaving", "occluded")
+#: Track statuses, in the order of their integer codes (:class:`Status`).
+STATUSES = tuple(x.name.lower() for x in Status)
 
 
 @dataclass(frozen=True)
@@ -164,6 +185,43 @@ def _scale(z_prev: float, dz: float) -> float:
     return k if 0.5 <= k <= 2.0 else 1.0
 
 
+def step_params(config: TrackerConfig) -> NDArray[np.float64]:
+    """The parameter vector of the compiled :func:`~depthgram.dynamics.kernels.step`, indexed
+    by the kernels' ``SP_*`` names."""
+    c = config
+    p = np.zeros(N_STEP_PARAMS)
+    p[SP_BORDER_PX] = c.border_px
+    p[SP_BORDER_AREA_RATE] = c.border_area_rate
+    p[SP_MAX_AREA_JUMP] = c.max_area_jump
+    p[SP_FIT_BORDER_ENTRIES] = float(c.fit_border_entries)
+    p[SP_MIN_SPEED] = c.min_speed
+    p[SP_MIN_HITS] = c.min_hits
+    p[SP_MAX_MISSED] = c.max_missed
+    # The filter's innovation gate judges jumps against its own uncertainty (and three in a
+    # row restart it): the queue's fixed jump test would restart it on one outlier.
+    p[SP_MAX_DEPTH_JUMP_RATE] = math.inf if c.estimator == "kalman" else c.max_depth_jump_rate
+    p[SP_CENTER_TAU_S] = c.center_tau_s
+    p[SP_AREA_TAU_S] = c.area_tau_s
+    return p
+
+
+def estimate_params(config: TrackerConfig) -> NDArray[np.float64]:
+    """The parameter vector of the compiled :func:`~depthgram.dynamics.kernels.estimate`,
+    indexed by the kernels' ``EP_*`` names."""
+    c = config
+    p = np.zeros(N_ESTIMATE_PARAMS)
+    p[EP_USE_KALMAN] = float(c.estimator == "kalman")
+    p[EP_DEPTH_SIGMA_MM] = c.depth_sigma_mm
+    p[EP_DEPTH_SIGMA_FLOOR_MM] = c.depth_sigma_floor_mm
+    p[EP_ACCEL_SIGMA] = c.accel_sigma
+    p[EP_INNOVATION_GATE] = c.innovation_gate
+    p[EP_TTC_MIN_SIGMAS] = c.ttc_min_sigmas
+    p[EP_MIN_SPEED] = c.min_speed
+    # The velocity uncertainty a (re)started filter begins with (mm/s).
+    p[EP_V_SIGMA0] = 3000.0
+    return p
+
+
 def _motion(
     track_id: int, v: float, ttc: float, status: str, fps_assumed: float | None, v_sigma: float = math.nan
 ) -> Motion:
@@ -204,20 +262,8 @@ class Tracker:
         self.config = config if config is not None else TrackerConfig()
         c = self.config
         self._cost_params = cost_params(c)
-        self._step_params = np.array(
-            [c.border_px, c.border_area_rate, c.max_area_jump, float(c.fit_border_entries), c.min_speed,
-             c.min_hits, c.max_missed, c.max_depth_jump_rate, c.center_tau_s, c.area_tau_s],
-            dtype=np.float64,
-        )  # fmt: skip
-        self._estimate_params = np.array(
-            [float(c.estimator == "kalman"), c.depth_sigma_mm, c.depth_sigma_floor_mm, c.accel_sigma,
-             c.innovation_gate, c.ttc_min_sigmas, c.min_speed, 3000.0],
-            dtype=np.float64,
-        )  # fmt: skip
-        if c.estimator == "kalman":
-            # The filter's innovation gate judges jumps against its own uncertainty (and three
-            # in a row restart it): the queue's fixed jump test would restart it on one outlier.
-            self._step_params[7] = math.inf
+        self._step_params = step_params(c)
+        self._estimate_params = estimate_params(c)
         self.reset()
 
     def reset(self) -> None:
@@ -402,7 +448,7 @@ class Tracker:
             self._last[i] = o
         missed = [i for i in range(n) if st_l[i] == OCCLUDED]
         for i in missed:
-            self._motion[i] = _motion(ids_l[i], v_l[i], ttc_l[i], "occluded", fps_assumed, sig_l[i])
+            self._motion[i] = _motion(ids_l[i], v_l[i], ttc_l[i], STATUSES[OCCLUDED], fps_assumed, sig_l[i])
         min_hits = cfg.min_hits
         hits = s[: self._n, HITS]
         ended = tuple(self._snapshot(i) for i in missed if dead[i] and hits[i] >= min_hits)
