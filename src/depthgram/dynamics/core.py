@@ -64,8 +64,11 @@ class FramePixels:
 
 
 def _structure(depth_mm: NDArray[np.floating]) -> NDArray[np.float32]:
-    """Down-sampled depth gradient magnitude (mm/px), clipped: the scene's edges, whose place
-    moves with the image while their depth offset (the radial motion) does not matter."""
+    """Down-sampled depth gradient magnitude (mm/px), clipped.
+
+    The scene's edges, whose place moves with the image while their depth offset (the radial motion)
+    does not matter.
+    """
     z = np.nan_to_num(np.asarray(depth_mm, dtype=np.float32), nan=0.0)
     small = cv2.resize(z, (_SHIFT_W, _SHIFT_H), interpolation=cv2.INTER_AREA)
     gx = cv2.Sobel(small, cv2.CV_32F, 1, 0)
@@ -74,7 +77,7 @@ def _structure(depth_mm: NDArray[np.floating]) -> NDArray[np.float32]:
 
 
 def image_shift(prev_depth_mm: NDArray[np.floating], depth_mm: NDArray[np.floating]) -> tuple[float, float]:
-    """The image motion from the previous frame to this one, one shift for the whole frame.
+    """Return the image motion from the previous frame to this one, one shift for the whole frame.
 
     Parameters
     ----------

@@ -312,7 +312,7 @@ def radial_velocity_from_poses(
     pose_next: NDArray[np.floating],
     dt_s: float,
 ) -> dict[int, float]:
-    """True radial velocity of static objects seen by a moving camera, from its poses.
+    """Return the true radial velocity of static objects seen by a moving camera, from its poses.
 
     Each valid pixel of an object is carried to 3-D with the intrinsics, into the world with
     the camera pose of this frame's neighbours, and into the camera of the previous and the

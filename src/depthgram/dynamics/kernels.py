@@ -24,8 +24,11 @@ FORBIDDEN = 1e9
 
 
 class Status(IntEnum):
-    """A track's status this frame; its value is the code in the state table's ``STATUS`` column
-    and its lower-case name the :class:`depthgram.scene.tree.Motion` status."""
+    """A track's status this frame.
+
+    Its value is the code in the state table's ``STATUS`` column and its lower-case name the
+    :class:`depthgram.scene.tree.Motion` status.
+    """
 
     VISIBLE = 0  # detected, whole in view
     ENTERING = 1  # detected at the image border, growing into view
@@ -39,9 +42,11 @@ VISIBLE, ENTERING, LEAVING, OCCLUDED = (int(x) for x in Status)
 
 @njit(cache=True)
 def fit_row(t: NDArray[np.float64], z: NDArray[np.float64], t_now: float) -> tuple[float, float]:
-    """Least-squares slope and fitted depth at ``t_now`` of one queue (see
-    :func:`fit_radial_velocity`); compiled so that the tracker can call it per track without
-    numpy's per-call overhead on arrays of four entries."""
+    """Least-squares slope and fitted depth at ``t_now`` of one queue (see :func:`fit_radial_velocity`).
+
+    Compiled so that the tracker can call it per track without numpy's per-call overhead on arrays
+    of four entries.
+    """
     n = 0
     st = 0.0
     sz = 0.0
@@ -74,6 +79,7 @@ def fit_row(t: NDArray[np.float64], z: NDArray[np.float64], t_now: float) -> tup
 def fit_rows(
     t: NDArray[np.float64], z: NDArray[np.float64], t_now: NDArray[np.float64]
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Return the slope and fitted depth at ``t_now`` of every row's queue (see :func:`fit_row`)."""
     v = np.empty(t.shape[0])
     zn = np.empty(t.shape[0])
     for i in range(t.shape[0]):
@@ -189,9 +195,12 @@ NFEAT = 11
 
 @njit(cache=True)
 def mark_behind(f: NDArray[np.float64]) -> None:
-    """Set column ``F_BEHIND`` of each object touched or overlapped (boxes within 1 px) by an
-    object more than 5 % nearer. A loop over pairs: a dozen numpy expressions on 30 x 30 pairs
-    cost more in call overhead than the whole comparison."""
+    """Set column ``F_BEHIND`` of each object that a nearer object touches or overlaps.
+
+    Boxes within 1 px count as touching, and nearer means by more than 5 % of depth. A loop over
+    pairs: a dozen numpy expressions on 30 x 30 pairs cost more in call overhead than the whole
+    comparison.
+    """
     m = f.shape[0]
     for j in range(m):
         f[j, F_BEHIND] = 0.0

@@ -45,7 +45,7 @@ def bbox_iou(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.float
 
 
 def cost_params(config: TrackerConfig) -> NDArray[np.float64]:
-    """The gates and weights of ``config`` in the order :func:`cost_kernel` reads them."""
+    """Return the gates and weights of ``config`` in the order :func:`cost_kernel` reads them."""
     c = config
     gates = [c.max_center_rate, c.gate_growth, c.max_depth_rate, math.log(c.max_area_ratio), c.min_iou]
     weights = [c.w_center, c.w_depth, c.w_area, c.w_iou, c.w_label]

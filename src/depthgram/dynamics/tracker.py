@@ -128,9 +128,10 @@ class TrackUpdate:
 
 
 def track_depth(o: SceneObject) -> float:
-    """The depth (mm) whose change is read as radial motion: the mean depth (paper, eq. 13), or
-    for a compound object (kind ``compound``) its nearest part's (the middle of the three nearest
-    when they lie within 1 % of each other in depth).
+    """Return the depth (mm) whose change is read as radial motion.
+
+    The mean depth (paper, eq. 13), or for a compound object (kind ``compound``) its nearest part's
+    (the middle of the three nearest when they lie within 1 % of each other in depth).
 
     A compound (a box's front and oblique side, a table top with its front edge) shows more or
     less of its oblique surface as it moves across the view, which moves its mean depth with no
@@ -178,16 +179,20 @@ _NO_PAIRS = np.zeros(0, np.intp)
 
 
 def _scale(z_prev: float, dz: float) -> float:
-    """How much an object shrinks back into the previous frame: its predicted depth now over
-    its depth then (1 without a velocity). The prediction, not this frame's reading, so that a
-    segment that gains or loses a part does not scale its core."""
+    """How much an object shrinks back into the previous frame.
+
+    Its predicted depth now over its depth then (1 without a velocity). The prediction, not this
+    frame's reading, so that a segment that gains or loses a part does not scale its core.
+    """
     k = (z_prev + dz) / z_prev if z_prev > 0 and math.isfinite(dz) else 1.0
     return k if 0.5 <= k <= 2.0 else 1.0
 
 
 def step_params(config: TrackerConfig) -> NDArray[np.float64]:
-    """The parameter vector of the compiled :func:`~depthgram.dynamics.kernels.step`, indexed
-    by the kernels' ``SP_*`` names."""
+    """Return the parameter vector of the compiled :func:`~depthgram.dynamics.kernels.step`.
+
+    It is indexed by the kernels' ``SP_*`` names.
+    """
     c = config
     p = np.zeros(N_STEP_PARAMS)
     p[SP_BORDER_PX] = c.border_px
@@ -206,8 +211,10 @@ def step_params(config: TrackerConfig) -> NDArray[np.float64]:
 
 
 def estimate_params(config: TrackerConfig) -> NDArray[np.float64]:
-    """The parameter vector of the compiled :func:`~depthgram.dynamics.kernels.estimate`,
-    indexed by the kernels' ``EP_*`` names."""
+    """Return the parameter vector of the compiled :func:`~depthgram.dynamics.kernels.estimate`.
+
+    It is indexed by the kernels' ``EP_*`` names.
+    """
     c = config
     p = np.zeros(N_ESTIMATE_PARAMS)
     p[EP_USE_KALMAN] = float(c.estimator == "kalman")
@@ -225,7 +232,7 @@ def estimate_params(config: TrackerConfig) -> NDArray[np.float64]:
 def _motion(
     track_id: int, v: float, ttc: float, status: str, fps_assumed: float | None, v_sigma: float = math.nan
 ) -> Motion:
-    """A Motion; NaN velocity, time to collision or v_sigma become None."""
+    """Return a Motion; NaN velocity, time to collision or v_sigma become None."""
     known = not math.isnan(v)
     return Motion(
         track_id=track_id,
@@ -466,8 +473,10 @@ class Tracker:
         cost: NDArray[np.float64],
         frame_size: tuple[int, int],
     ) -> NDArray[np.float64]:
-        """Each object's core depth change since the previous frame (mm; NaN where unknown),
-        and keep this frame's pixels for the next update."""
+        """Return each object's core depth change since the previous frame (mm; NaN where unknown).
+
+        This frame's pixels are kept for the next update.
+        """
         prev, self._pixels = self._pixels, pixels
         out = np.full(len(objects), np.nan)
         if pixels is None:
@@ -513,8 +522,10 @@ class Tracker:
         ttc_queue: NDArray[np.float64],
         offset: NDArray[np.float64],
     ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
-        """Radial velocity, time to collision and v_sigma of every live row (mm/s, s, mm/s);
-        see :func:`depthgram.dynamics.kernels.estimate`."""
+        """Radial velocity, time to collision and v_sigma of every live row (mm/s, s, mm/s).
+
+        See :func:`depthgram.dynamics.kernels.estimate`.
+        """
         nn = self._n
         return estimate(
             self._s[:nn], self._qt[:nn], self._qz[:nn], n, restarted, v_queue, ttc_queue,
