@@ -100,6 +100,23 @@ def test_frames_without_timestamps_take_the_configured_rate_or_warn() -> None:
     assert m.ttc == pytest.approx(objs[-1].depth / 300.0)
 
 
+def test_a_single_still_without_a_rate_does_not_warn() -> None:
+    # One frame has no time step: nothing rests on the assumed rate, so nothing is said.
+    import warnings
+
+    objs = approaching(-300.0, 1500.0, 2, noise=0.0)
+    tr = Tracker(QUEUE)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        tr.update([objs[0]], None, (W, H))
+    with pytest.warns(UserWarning, match="--fps"):
+        tr.update([objs[1]], None, (W, H))  # the second frame needs the rate
+    tr.reset()
+    with pytest.warns(UserWarning, match="--fps"):  # a new sequence is told again
+        tr.update([objs[0]], None, (W, H))
+        tr.update([objs[1]], None, (W, H))
+
+
 def test_still_object_noise_does_not_explode() -> None:
     rng = np.random.default_rng(7)
     sigma = 4.0

@@ -282,6 +282,7 @@ class Tracker:
         self._per_frame: bool | None = None
         self._dt = 1.0 / NOMINAL_FPS  # this frame's time step (s)
         self._fps_assumed: float | None = None
+        self._fps_warned = False
         self._n = 0
         self._s = np.zeros((16, NCOL))
         self._qt = np.zeros((16, n))
@@ -334,7 +335,10 @@ class Tracker:
         if time_s is None:
             fps = self.config.fps
             if fps is None:
-                if self._fps_assumed is None:
+                # Said once, and only from the second frame on: a single still has no time step,
+                # so no velocity rests on the assumed rate.
+                if self._frame >= 1 and not self._fps_warned:
+                    self._fps_warned = True
                     warnings.warn(
                         f"tracker: the frames have no timestamps and no frame rate is set; assuming "
                         f"{NOMINAL_FPS:g} frames/s for velocities (mm/s) and times to collision (s). "
