@@ -331,6 +331,29 @@ def _large_pieces(mask: NDArray[np.bool_], min_px: int) -> NDArray[np.bool_]:
 # Least-squares planes of labelled pieces (the supports of the slicing method)
 
 
+@njit(cache=True, inline="always")
+def flush_plane_run(
+    out: NDArray[np.float64], i: int, v: float, c: float, su: float, suu: float, sq: float, suq: float
+) -> None:
+    """Add one run of label ``i`` along a row at ``v' = v`` to the plane sums of :func:`plane_sums`.
+
+    ``c, su, suu, sq, suq`` are the run's count and sums of u', u'², 1/Z and u'/Z; the row
+    terms follow from them since v' is constant along the run. The one place of this
+    arithmetic, so that the labeller that gathers the sums on its way
+    (:func:`depthgram.segmentation.label.keyed.label_keyed_planes`) adds the same numbers in
+    the same order.
+    """
+    out[i, 0] += suu
+    out[i, 1] += v * su
+    out[i, 2] += su
+    out[i, 3] += v * v * c
+    out[i, 4] += v * c
+    out[i, 5] += c
+    out[i, 6] += suq
+    out[i, 7] += v * sq
+    out[i, 8] += sq
+
+
 @njit(cache=True)
 def _plane_sums(
     labels: NDArray[np.int32],
@@ -379,15 +402,7 @@ def _plane_sums(
                 sq += q
                 suq += u * q
                 x += 1
-            out[i, 0] += suu
-            out[i, 1] += v * su
-            out[i, 2] += su
-            out[i, 3] += v * v * c
-            out[i, 4] += v * c
-            out[i, 5] += c
-            out[i, 6] += suq
-            out[i, 7] += v * sq
-            out[i, 8] += sq
+            flush_plane_run(out, i, v, c, su, suu, sq, suq)
     return out
 
 

@@ -24,6 +24,7 @@ from numpy.typing import NDArray
 
 from depthgram.segmentation.label.stats import N_COLUMNS, flush_run
 from depthgram.segmentation.label.unionfind import resolve, resolve_tables, union
+from depthgram.segmentation.planes import flush_plane_run
 
 __all__ = ["ACTIVE", "BLOCK", "HOLE", "label_keyed", "label_keyed_planes", "label_keyed_stats"]
 
@@ -237,8 +238,9 @@ def _relabel_planes(
     # The relabelling pass of resolve, gathering on the way the plane sums that
     # planes._plane_sums takes from the final labels: the same runs of one final label along a
     # row, the same float64 operations in the same order, hence the same numbers, without a
-    # second pass over the image. (Kept beside planes._plane_sums: a change there is a change
-    # here; tests/test_segment_kernels.py compares the two.)
+    # second pass over the image. Each run is added by planes.flush_plane_run, as there; the
+    # per-pixel sums below must stay those of planes._plane_sums (tests/test_segment_kernels.py
+    # compares the two).
     h, w = lab.shape
     out = np.zeros((n + 1, 9), np.float64)
     ucol = np.empty(w, np.float64)
@@ -258,15 +260,7 @@ def _relabel_planes(
             row[x] = i
             if i != run:
                 if run != 0:
-                    out[run, 0] += suu
-                    out[run, 1] += v * su
-                    out[run, 2] += su
-                    out[run, 3] += v * v * c
-                    out[run, 4] += v * c
-                    out[run, 5] += c
-                    out[run, 6] += suq
-                    out[run, 7] += v * sq
-                    out[run, 8] += sq
+                    flush_plane_run(out, run, v, c, su, suu, sq, suq)
                 run = i
                 c = 0.0
                 su = 0.0
@@ -282,15 +276,7 @@ def _relabel_planes(
                 sq += q
                 suq += u * q
         if run != 0:
-            out[run, 0] += suu
-            out[run, 1] += v * su
-            out[run, 2] += su
-            out[run, 3] += v * v * c
-            out[run, 4] += v * c
-            out[run, 5] += c
-            out[run, 6] += suq
-            out[run, 7] += v * sq
-            out[run, 8] += sq
+            flush_plane_run(out, run, v, c, su, suu, sq, suq)
     return out
 
 
