@@ -396,6 +396,42 @@ def test_sensor_order_statistics_equal_numpy(seed: int) -> None:
             assert _percentile20(x) == np.percentile(x, 20)
 
 
+@pytest.mark.parametrize("seed", range(4))
+def test_stable_order_equals_numpy_stable_argsort(seed: int) -> None:
+    # the radix sort of the sensor estimate against numpy's stable sort: millimetre depths
+    # (many ties), tenths of a millimetre (scaled recordings) and any positive float32 depths
+    from depthgram.segmentation.sensor import stable_order
+
+    rng = np.random.default_rng(seed)
+    for n in (1, 2, 17, 5000, 23_000):
+        for z in (
+            np.round(rng.uniform(300.0, 5000.0, n)),
+            np.round(rng.uniform(300.0, 5000.0, n) * 10.0).astype(np.float32) / np.float32(10.0),
+            rng.uniform(1e-3, 1e5, n).astype(np.float32),
+        ):
+            z64 = np.asarray(z, np.float64)
+            np.testing.assert_array_equal(stable_order(z64), np.argsort(z64, kind="stable"))
+
+
+def test_sensor_estimate_keeps_tied_depths_in_raster_order() -> None:
+    # which of the pixels tied at a depth range's boundary fall on each side changes the
+    # estimate; numpy's default sort left that to the CPU's SIMD level (three different models
+    # on one frame with AVX-512, AVX2 and without). The estimate is the one with ties in raster
+    # order, computed here from the same steps with numpy's stable sort.
+    from depthgram.segmentation.sensor import _fit_a_bz2, _range_estimates, _triples, estimate_sensor
+    from depthgram.sensor import simulate
+
+    f = next(iter(simulate("table", 1, size=(176, 132), seed=0))).frame
+    z, d1, d2 = _triples(f.depth, f.valid, 1)
+    assert np.unique(z).size < z.size // 10  # millimetre depths: ties everywhere
+    fit = _range_estimates(z, d1, d2, np.argsort(z, kind="stable"), int(min(12, max(2, z.size // 400))))
+    fit = fit[fit[:, 3] > 0]
+    s0, s2 = _fit_a_bz2(fit[:, 0], fit[:, 1])
+    n0, n2 = _fit_a_bz2(fit[:, 0], fit[:, 2])
+    got = estimate_sensor(f.depth, f.valid)
+    assert (got.step_0, got.step_2, got.sigma_0, got.sigma_2) == (s0, s2, n0, n2)
+
+
 def _surfaces_reference(
     depth: np.ndarray, state: np.ndarray, t0: float, t2: float, sl: float, bridge: int
 ) -> np.ndarray:

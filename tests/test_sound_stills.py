@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import itertools
 import json
 from pathlib import Path
 
@@ -97,3 +98,23 @@ def test_recordings_keep_their_motion(shared_data: Path) -> None:
     results = [r for _, r in zip(range(20), Pipeline(Config()).run(src), strict=False)]
     assert not any(r.still for r in results) and motion_read(results)
     assert np.isfinite([m.v_radial for r in results for m in r.motions.values() if m.v_radial is not None]).all()
+
+
+def test_a_fast_turn_of_a_hand_held_camera_is_not_a_cut(shared_data: Path) -> None:
+    """7-Scenes read without timestamps: every successive pair is one recording (6 were not)."""
+    frames = list(open_source(str(shared_data / "7scenes_redkitchen_seq" / "depth")))
+    assert all(f.time_s is None for f in frames)
+    kin = [kinship(a, b) for a, b in itertools.pairwise(frames)]
+    assert all(k.related for k in kin), [(i, round(k.agree, 2)) for i, k in enumerate(kin) if not k.related]
+    assert min(k.agree for k in kin) > 0.8
+    turned = [k for k in kin if k.shift != (0.0, 0.0)]  # the pairs that needed the shift
+    assert turned and all(abs(k.shift[0]) + abs(k.shift[1]) > 1 for k in turned)
+
+
+def test_one_unrelated_pair_in_an_untimed_recording_restarts_tracks_but_does_not_end_tracking() -> None:
+    frames = sim("approach", 12)
+    glitch = untimed([*frames[:5], sim("corridor")[0], *frames[6:]])
+    results = list(Pipeline(Config()).run(glitch))
+    assert [bool(r.still) for r in results] == [False] * 5 + [True, True] + [False] * 5
+    assert "nothing in common" in results[5].still and "folder of stills" not in results[6].still
+    assert any(i >= 9 for i, _ in motion_read(results))  # tracked again after the glitch

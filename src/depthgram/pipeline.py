@@ -275,6 +275,9 @@ def _object_record(o: SceneObject, node: Mapping[str, Any], m: Motion | None) ->
 
 #: Frames between two estimates of the sensor model in a stream.
 _SENSOR_EVERY = 30
+#: Unrelated successive pairs that, once they are at least half of the pairs seen, make a source
+#: without timestamps a folder of stills (:meth:`Pipeline._still_reason`).
+_STILLS_EVIDENCE = 2
 
 
 class Pipeline:
@@ -289,8 +292,8 @@ class Pipeline:
         ``stills = true``: unrelated still images, ids restart at 1 and no velocity is read
         between different scenes. With ``stills = "auto"`` (the default) the tracks are
         dropped wherever two successive frames have nothing in common
-        (:func:`depthgram.stills.kinship`); a source without timestamps that shows such a pair
-        once is taken for a folder of stills from then on.
+        (:func:`depthgram.stills.kinship`); a source without timestamps whose unrelated pairs
+        come as often as related ones (two at least) is taken for a folder of stills from then on.
 
     Examples
     --------
@@ -307,7 +310,8 @@ class Pipeline:
         self._sensor: SensorModel | None = None
         self._sensor_age = 0
         self._prev: Frame | None = None
-        self._untimed_stills = ""  # the reason, once an untimed source showed unrelated frames
+        self._untimed_stills = ""  # the reason, once an untimed source is taken for stills
+        self._untimed_pairs = [0, 0]  # untimed successive pairs seen, and how many were unrelated
 
     def reset(self) -> None:
         """Forget all tracks and the sensor estimate (start of a new recording)."""
@@ -315,6 +319,7 @@ class Pipeline:
         self._sensor = None
         self._prev = None
         self._untimed_stills = ""
+        self._untimed_pairs = [0, 0]
 
     def _still_reason(self, frame: Frame) -> str:
         """Why ``frame`` must not be tracked from the previous one ("" when it may)."""
@@ -327,11 +332,20 @@ class Pipeline:
         if self._untimed_stills and frame.time_s is None:
             return self._untimed_stills
         kin = kinship(prev, frame)
+        if frame.time_s is None:
+            self._untimed_pairs[0] += 1
+            self._untimed_pairs[1] += not kin.related
         if kin.related:
             return ""
         reason = f"{prev.name} and {frame.name} have nothing in common: {kin.reason}"
-        if frame.time_s is None:
-            self._untimed_stills = f"a folder of stills (seen first at {reason})"
+        seen, unrelated = self._untimed_pairs
+        # One unrelated pair in a long recording is a glitch (a fast turn, a dropped frame): its
+        # tracks restart there. Unrelated pairs as often as related ones make a folder of stills,
+        # and a tracker that waits for related pairs there would read motion between pictures.
+        if frame.time_s is None and unrelated >= _STILLS_EVIDENCE and 2 * unrelated >= seen:
+            self._untimed_stills = (
+                f"a folder of stills ({unrelated} of its first {seen} frame pairs unrelated; {reason})"
+            )
         return reason
 
     def _sensor_model(self, frame: Frame) -> SensorModel | None:

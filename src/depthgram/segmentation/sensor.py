@@ -160,9 +160,10 @@ def estimate_sensor(
         return PROFILES["tof"]
     # depth ranges of equal pixel count, so each fit point has the same weight of evidence
     n_bins = int(min(12, max(2, z.size // 400)))
-    # numpy's sort order (ties included) decides which tied pixels fall on each side of a range
-    # boundary, so the order is numpy's; the rest is one compiled pass
-    order = np.argsort(z)
+    # which of the pixels tied at a range boundary fall on each side changes the estimate, so
+    # ties keep raster order (a stable sort): numpy's default sort left it to the CPU's SIMD
+    # level (docs/design-notes.md, "The sensor estimate's order")
+    order = stable_order(z)
     fit = _range_estimates(z, d1, d2, order, n_bins)
     fit = fit[fit[:, 3] > 0]
     if not fit.shape[0]:
@@ -197,6 +198,69 @@ def _triples(
                 d2[k] = (a - 2.0 * b) + c
                 k += 1
     return z[:k], d1[:k], d2[:k]
+
+
+def stable_order(z: NDArray[np.float64]) -> NDArray[np.intp]:
+    """Return the indices that sort the positive depths ``z`` (mm), equal values in index order.
+
+    ``np.argsort(z, kind="stable")``, in O(n): one counting pass over whole-millimetre depths
+    (what most cameras give), else a three-pass radix sort on the depths' float32 bit patterns,
+    which order positive floats as their values (depths are float32 readings, so the cast is
+    exact).
+    """
+    out: NDArray[np.intp] = _counting_order(z)
+    if out.size != z.size:
+        out = _radix_order(z.astype(np.float32).view(np.uint32))
+    return out
+
+
+@njit(cache=True, nogil=True)
+def _counting_order(z: NDArray[np.float64]) -> NDArray[np.intp]:
+    # a stable counting sort when every depth is a whole number within 2**20 of the smallest;
+    # an empty array otherwise
+    n = z.size
+    if n == 0:
+        return np.empty(0, np.intp)
+    lo = z.min()
+    for i in range(n):
+        v = z[i] - lo
+        if v != math.floor(v) or v >= 1 << 20:
+            return np.empty(0, np.intp)
+    span = int(z.max() - lo) + 1
+    count = np.zeros(span + 1, np.int64)
+    for i in range(n):
+        count[int(z[i] - lo) + 1] += 1
+    for j in range(span):
+        count[j + 1] += count[j]
+    out = np.empty(n, np.intp)
+    for i in range(n):
+        d = int(z[i] - lo)
+        out[count[d]] = i
+        count[d] += 1
+    return out
+
+
+@njit(cache=True, nogil=True)
+def _radix_order(key: NDArray[np.uint32]) -> NDArray[np.intp]:
+    # least significant digit first (11, 11 and 10 bits); each pass is a stable counting sort,
+    # so equal keys keep their index order
+    n = key.size
+    order = np.arange(n)
+    nxt = np.empty(n, np.intp)
+    count = np.zeros(2049, np.int64)
+    for shift in (0, 11, 22):
+        count[:] = 0
+        for i in range(n):
+            count[((key[i] >> shift) & 0x7FF) + 1] += 1
+        for j in range(2048):
+            count[j + 1] += count[j]
+        for t in range(n):
+            i = order[t]
+            d = (key[i] >> shift) & 0x7FF
+            nxt[count[d]] = i
+            count[d] += 1
+        order, nxt = nxt, order
+    return order
 
 
 @njit(cache=True, nogil=True)
