@@ -146,3 +146,17 @@ def test_still_camera_motion_is_the_identity() -> None:
     assert m.still
     x, y = m.previous_xy(np.array([10.0]), np.array([20.0]), np.array([1500.0]))
     assert (float(x[0]), float(y[0])) == pytest.approx((10.0, 20.0))
+
+
+def test_the_motion_is_the_same_on_every_run() -> None:
+    # OpenCV's threads would add the ICP's sums in a varying order
+    a, b = _render(POS_A, PITCH_A), _render(POS_B, PITCH_B)
+    rng = np.random.default_rng(1)
+    frames = [(z + rng.normal(0.0, 5.0, z.shape) * (z > 0)).astype(np.float32) for z in (a, b, a)]
+    runs = []
+    for _ in range(3):
+        ego = EgoMotion()
+        ms = [ego.update(z, K) for z in frames]
+        runs.append([np.concatenate([m.rotation.ravel(), m.translation_mm]) for m in ms if m is not None])
+    assert len(runs[0]) == 2
+    assert all(np.array_equal(x, y) for run in runs[1:] for x, y in zip(runs[0], run, strict=True))

@@ -119,8 +119,9 @@ class TrackerConfig:
         do not move it (:mod:`depthgram.dynamics.core`; compare on 7-Scenes' posed truth with
         ``benchmarks/bench_tracking.py --depth core|mean``); or ``mean``, the change of the
         object's mean depth alone, as the paper. ``core`` needs each frame's depth and label
-        map and costs about 5 ms per 640x480 frame (with ``image_motion = "camera"`` about 8 ms more); ``mean`` needs neither (the pipeline then
-        does not hand them over), for small computers.
+        map and costs about 5 ms per 640x480 frame, more with ``image_motion = "camera"``
+        (``benchmarks/bench_tracking.py``); ``mean`` needs neither (the pipeline then does not
+        hand them over), for small computers.
     image_motion : str
         How the core's pixels are moved back to the previous frame (with ``depth_from =
         "core"``): ``camera``, each pixel by the image motion of its still point under the

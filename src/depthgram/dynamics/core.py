@@ -299,6 +299,11 @@ class EgoMotion:
         assert odo is not None
         prev, self._prev = self._prev, frame
         prev_z, self._prev_z = self._prev_z, z
+        # OpenCV's threads add up the ICP's sums in a varying order, and on a scene that pins the
+        # motion down weakly (the simulator's floor and wall) that moves the result from run to
+        # run: one thread makes it repeatable (and costs no more CPU time).
+        threads = cv2.getNumThreads()
+        cv2.setNumThreads(1)
         try:
             odo.prepareFrame(frame)
             if prev is None:
@@ -308,6 +313,8 @@ class EgoMotion:
             # too few valid pixels to build the frame's pyramid or normals
             self._prev = None
             return None
+        finally:
+            cv2.setNumThreads(threads)
         rt = np.asarray(rt, dtype=np.float64)
         if not ok or rt.shape != (4, 4) or not np.isfinite(rt).all():
             return None
