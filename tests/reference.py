@@ -6,19 +6,33 @@ that a fused or compiled step of the package replaced; the tests hold the packag
 
 from __future__ import annotations
 
+import math
+
+import cv2
 import numpy as np
 from numpy.typing import NDArray
 
 from depthgram.frame import Intrinsics
 from depthgram.segmentation.attributes import Stats, label_stats
 from depthgram.segmentation.label import ACTIVE, BLOCK, HOLE, label_keyed, relabel
-from depthgram.segmentation.planes import coplanar_groups, near_planes, plane_sums, planes_from_sums
+from depthgram.segmentation.planes import (
+    Plane,
+    _assign,
+    _fit,
+    _large_pieces,
+    coplanar_groups,
+    near_planes,
+    plane_residual_mask,
+    plane_sums,
+    planes_from_sums,
+)
 
 __all__ = [
     "label_stats_bincount",
     "merge_coplanar",
     "on_support_planes",
     "plane_fits",
+    "plane_search_numpy",
     "relabel_small",
     "support_components",
 ]
@@ -131,3 +145,78 @@ def relabel_small(labels: NDArray[np.int32], count: NDArray[np.float64], min_px:
     lut[keep] = np.arange(1, int(keep.sum()) + 1, dtype=np.int32)
     out: NDArray[np.int32] = lut[labels]
     return out
+
+
+def plane_search_numpy(
+    depth_mm: NDArray[np.float32],
+    valid: NDArray[np.bool_],
+    *,
+    min_area: float = 0.08,
+    min_spread: float = 0.15,
+    tol_mm: float = 8.0,
+    tol_rel: float = 0.012,
+    max_planes: int = 3,
+    hypotheses: int = 128,
+    seed: int = 0,
+    search: NDArray[np.bool_] | None = None,
+) -> list[Plane]:
+    """:func:`depthgram.segmentation.planes.find_planes` with its RANSAC search in numpy.
+
+    LU determinants, every hypothesis scored by broadcasting, numpy masks on the search grid;
+    the full-resolution assignment is the package's.
+    """
+    h, w = depth_mm.shape
+    min_px = max(int(min_area * h * w), 3)
+    s = max(1, round(math.sqrt(h * w / 3000.0)))
+    rng = np.random.default_rng(seed)
+    z_sub = np.ascontiguousarray(depth_mm[::s, ::s], dtype=np.float32)
+    left = np.ascontiguousarray((valid if search is None else valid & search)[::s, ::s])
+    vv, uu = np.mgrid[0:h:s, 0:w:s]
+    tol_sub = np.maximum(np.float32(tol_mm), np.float32(tol_rel) * z_sub)
+    min_sub = min_px / (s * s)
+    found: list[tuple[tuple[float, float, float], NDArray[np.bool_], float]] = []
+    for _ in range(max_planes * 2):
+        if len(found) >= max_planes:
+            break
+        idx = np.flatnonzero(left)
+        if idx.size < max(min_sub, 3):
+            break
+        u = uu.ravel()[idx].astype(np.float64)
+        v = vv.ravel()[idx].astype(np.float64)
+        z = z_sub.ravel()[idx].astype(np.float64)
+        tz = tol_sub.ravel()[idx].astype(np.float64)
+        n = u.size
+        pick = rng.integers(0, n, size=(hypotheses, 3))
+        a = np.stack([u[pick], v[pick], np.ones((hypotheses, 3))], axis=2)
+        good = np.abs(np.linalg.det(a)) > 1e-6
+        if not good.any():
+            break
+        coefs = np.linalg.solve(a[good], (1000.0 / z)[pick[good]][..., None])[..., 0]
+        m = min(n, 2000)
+        ev = rng.integers(0, n, size=m) if n > m else np.arange(n)
+        inv_all = coefs[:, 0:1] * u[ev] + coefs[:, 1:2] * v[ev] + coefs[:, 2:3]
+        score = ((inv_all > 0) & (np.abs(1000.0 - z[ev] * inv_all) <= tz[ev] * inv_all)).sum(axis=1)
+        best = coefs[int(np.argmax(score))]
+        inv = best[0] * u + best[1] * v + best[2]
+        on = (inv > 0) & (np.abs(1000.0 - z * inv) <= tz * inv)
+        if on.sum() < min_sub:
+            break
+        coef = _fit(u[on], v[on], 1000.0 / z[on])
+        on_img = plane_residual_mask(z_sub, left, coef, tol_mm=tol_mm, tol_rel=tol_rel, step=s)
+        left &= ~on_img
+        pieces = _large_pieces(on_img, max(int(min_sub) // 4, 1))
+        if int(np.count_nonzero(pieces)) < min_sub:
+            continue
+        p5, p50, p95 = np.percentile(z_sub[pieces], (5, 50, 95))
+        spread = float((p95 - p5) / max(p50, 1e-6))
+        if spread < min_spread:
+            continue
+        found.append((coef, pieces, spread))
+    if not found:
+        return []
+    coefs = np.array([c for c, _, _ in found], np.float64)
+    kernel = np.ones((3, 3), np.uint8)
+    allowed = np.stack([np.asarray(cv2.dilate(m.view(np.uint8), kernel), np.uint8) for _, m, _ in found])
+    which = _assign(depth_mm, valid, coefs, allowed, s, float(tol_mm), float(tol_rel))
+    masks = [(c, which == k, sp) for k, (c, _, sp) in enumerate(found, start=1)]
+    return [Plane(c, m, int(m.sum()), sp) for c, m, sp in masks if m.sum() >= min_px]

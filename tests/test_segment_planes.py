@@ -106,6 +106,48 @@ def test_find_planes_is_deterministic() -> None:
     assert [p.coef for p in a] == [p.coef for p in b]
 
 
+def test_compiled_plane_search_equals_numpy() -> None:
+    # the compiled steps of the RANSAC search take the same random draws and give the planes
+    # of the numpy route exactly (coefficients, inliers, spread), on the tilted table and on
+    # simulated rooms seen by a level camera, with the default and with looser settings
+    from depthgram.sensor import simulate
+    from reference import plane_search_numpy
+
+    frames = [_render(noise)[0] for noise in (True, False)]
+    frames += [next(iter(simulate(s, 1, size=(176, 132), seed=1))).frame.depth for s in ("table", "corridor")]
+    n = 0
+    for z in frames:
+        ok = z > 0
+        for kw in ({}, {"max_planes": 5, "min_spread": 0.0, "min_area": 0.02}, {"seed": 3, "search": ok & (z < 1800)}):
+            ref = plane_search_numpy(z, ok, **kw)  # type: ignore[arg-type]
+            got = find_planes(z, ok, **kw)  # type: ignore[arg-type]
+            assert [(p.coef, p.area, p.spread) for p in got] == [(p.coef, p.area, p.spread) for p in ref]
+            for p, q in zip(got, ref, strict=True):
+                np.testing.assert_array_equal(p.inliers, q.inliers)
+            n += len(ref)
+    assert n >= 10
+
+
+def test_sample_determinant_test_equals_numpy() -> None:
+    # three grid points have a solvable plane exactly when numpy's LU determinant passes
+    # |det| > 1e-6 (the numpy route's test), collinear samples included
+    from depthgram.segmentation.planes import _hypotheses
+
+    rng = np.random.default_rng(0)
+    for s in (1, 4, 16):
+        u = (rng.integers(0, 1280 // s, 3000) * s).astype(np.float64)
+        v = (rng.integers(0, 720 // s, 3000) * s).astype(np.float64)
+        u[:1000], v[:1000] = (np.arange(1000) % 40) * s, (np.arange(1000) % 40) * 2 * s  # one line
+        u[1000:1500] = 7 * s  # one column
+        pick = rng.integers(0, 3000, size=(20_000, 3))
+        pick[:5000] = rng.integers(0, 1000, size=(5000, 3))
+        pick[5000:8000] = rng.integers(1000, 1500, size=(3000, 3))
+        a, good = _hypotheses(u, v, pick)
+        np.testing.assert_array_equal(a, np.stack([u[pick], v[pick], np.ones(pick.shape)], axis=2))
+        np.testing.assert_array_equal(good, np.abs(np.linalg.det(a)) > 1e-6)
+        assert 0 < good.sum() < good.size
+
+
 def test_boxes_on_tilted_table_come_apart() -> None:
     z, truth = _render()
     seg = segment(z, valid=z > 0, intrinsics=CAM)

@@ -171,29 +171,26 @@ def find_planes(
     rng = np.random.default_rng(seed)
     z_sub = np.ascontiguousarray(depth_mm[::s, ::s], dtype=np.float32)
     left = np.ascontiguousarray((valid if search is None else valid & search)[::s, ::s])
-    vv, uu = np.mgrid[0:h:s, 0:w:s]
-    tol_sub = np.maximum(np.float32(tol_mm), np.float32(tol_rel) * z_sub)
     min_sub = min_px / (s * s)
+    t_mm, t_rel = np.float32(tol_mm), np.float32(tol_rel)
     found: list[tuple[tuple[float, float, float], NDArray[np.bool_], float]] = []
+    # each search's steps are compiled (numpy's calls on a few thousand points cost more than
+    # their arithmetic); the random draws, the solves and the refit stay numpy's, so the planes
+    # are those of the numpy route (docs/design-notes.md, "RANSAC")
     for _ in range(max_planes * 2):
         if len(found) >= max_planes:
             break
-        idx = np.flatnonzero(left)
-        if idx.size < max(min_sub, 3):
+        u, v, z, tz = _grid_points(z_sub, left, s, t_mm, t_rel)
+        if u.size < max(min_sub, 3):
             break
-        u = uu.ravel()[idx].astype(np.float64)
-        v = vv.ravel()[idx].astype(np.float64)
-        z = z_sub.ravel()[idx].astype(np.float64)
-        tz = tol_sub.ravel()[idx].astype(np.float64)
         coef = _ransac(u, v, 1000.0 / z, z, tz, hypotheses, rng)
         if coef is None:
             break
-        on = _on(u, v, z, tz, coef)
-        if on.sum() < min_sub:
+        uo, vo, qo = _inliers(u, v, z, tz, coef[0], coef[1], coef[2])
+        if uo.size < min_sub:
             break
-        coef = _fit(u[on], v[on], 1000.0 / z[on])
-        on_img = plane_residual_mask(z_sub, left, coef, tol_mm=tol_mm, tol_rel=tol_rel, step=s)
-        left &= ~on_img
+        coef = _fit(uo, vo, qo)
+        on_img = _take_residual(z_sub, left, coef[0], coef[1], coef[2], t_mm, t_rel, np.float32(s))
         pieces = _large_pieces(on_img, max(int(min_sub) // 4, 1))
         n_on = int(np.count_nonzero(pieces))
         if n_on < min_sub:
@@ -256,18 +253,6 @@ def _assign(
     return out
 
 
-def _on(
-    u: NDArray[np.float64],
-    v: NDArray[np.float64],
-    z: NDArray[np.float64],
-    tol: NDArray[np.float64],
-    coef: tuple[float, float, float],
-) -> NDArray[np.bool_]:
-    inv = coef[0] * u + coef[1] * v + coef[2]
-    out: NDArray[np.bool_] = (inv > 0) & (np.abs(1000.0 - z * inv) <= tol * inv)
-    return out
-
-
 def _ransac(
     u: NDArray[np.float64],
     v: NDArray[np.float64],
@@ -277,41 +262,169 @@ def _ransac(
     hypotheses: int,
     rng: np.random.Generator,
 ) -> tuple[float, float, float] | None:
-    """Best three-point hypothesis of ``1/Z = a u + b v + c``; all hypotheses scored in one product."""
+    """Best three-point hypothesis of ``1/Z = a u + b v + c``, scored on at most 2000 points."""
     n = u.size
     pick = rng.integers(0, n, size=(hypotheses, 3))
-    a = np.stack([u[pick], v[pick], np.ones((hypotheses, 3))], axis=2)
-    det = np.linalg.det(a)
-    good = np.abs(det) > 1e-6
+    a, good = _hypotheses(u, v, pick)
     if not good.any():
         return None
-    coef = np.linalg.solve(a[good], inv[pick[good]][..., None])[..., 0]
+    coef = np.asarray(np.linalg.solve(a[good], inv[pick[good]][..., None])[..., 0], np.float64)
     m = min(n, 2000)
     ev = rng.integers(0, n, size=m) if n > m else np.arange(n)
-    score = _score(coef, u[ev], v[ev], z[ev], tol[ev])
-    best = coef[int(np.argmax(score))]
+    best = coef[_best_hypothesis(coef, u, v, z, tol, ev)]
     return float(best[0]), float(best[1]), float(best[2])
 
 
 @njit(cache=True)
-def _score(
+def _hypotheses(
+    u: NDArray[np.float64], v: NDArray[np.float64], pick: NDArray[np.int64]
+) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
+    # the 3 x 3 systems [u v 1] of the three-point samples, and which have a solution. The
+    # points lie on the integer pixel grid, so the determinant is an integer, exact here;
+    # numpy's LU determinant (the numpy route's test |det| > 1e-6) is within 1e-9 of it
+    m = pick.shape[0]
+    a = np.empty((m, 3, 3), np.float64)
+    good = np.empty(m, np.bool_)
+    for k in range(m):
+        for i in range(3):
+            a[k, i, 0] = u[pick[k, i]]
+            a[k, i, 1] = v[pick[k, i]]
+            a[k, i, 2] = 1.0
+        du1 = a[k, 1, 0] - a[k, 0, 0]
+        dv1 = a[k, 1, 1] - a[k, 0, 1]
+        du2 = a[k, 2, 0] - a[k, 0, 0]
+        dv2 = a[k, 2, 1] - a[k, 0, 1]
+        good[k] = du1 * dv2 - du2 * dv1 != 0.0
+    return a, good
+
+
+@njit(cache=True)
+def _best_hypothesis(
     coef: NDArray[np.float64],
     u: NDArray[np.float64],
     v: NDArray[np.float64],
     z: NDArray[np.float64],
     tol: NDArray[np.float64],
-) -> NDArray[np.int64]:
-    # inliers of every hypothesis without the (hypotheses x points) temporaries of numpy
-    # broadcasting (docs/design-notes.md, "Segmentation kernels")
-    out = np.zeros(coef.shape[0], np.int64)
+    ev: NDArray[np.int64],
+) -> int:
+    # the first hypothesis with the most inliers among the points `ev` (np.argmax of the
+    # scores), without the (hypotheses x points) temporaries of numpy broadcasting
+    # (docs/design-notes.md, "RANSAC scoring")
+    m = ev.size
+    ue = np.empty(m, np.float64)
+    ve = np.empty(m, np.float64)
+    ze = np.empty(m, np.float64)
+    te = np.empty(m, np.float64)
+    for i in range(m):
+        j = ev[i]
+        ue[i] = u[j]
+        ve[i] = v[j]
+        ze[i] = z[j]
+        te[i] = tol[j]
+    best = -1
+    arg = 0
     for k in range(coef.shape[0]):
         a, b, c = coef[k, 0], coef[k, 1], coef[k, 2]
         cnt = 0
-        for i in range(u.size):
-            inv = a * u[i] + b * v[i] + c
-            if inv > 0 and abs(1000.0 - z[i] * inv) <= tol[i] * inv:
-                cnt += 1
-        out[k] = cnt
+        for i in range(m):
+            inv = a * ue[i] + b * ve[i] + c
+            cnt += (inv > 0) & (abs(1000.0 - ze[i] * inv) <= te[i] * inv)
+        if cnt > best:
+            best = cnt
+            arg = k
+    return arg
+
+
+@njit(cache=True)
+def _grid_points(
+    z_sub: NDArray[np.float32], left: NDArray[np.bool_], step: int, tol_mm: np.float32, tol_rel: np.float32
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    # column and row (full-frame px), depth (mm) and tolerance (mm) of the grid points still
+    # searched, in raster order: numpy's flatnonzero and four gathers, with the tolerance of
+    # its float32 np.maximum(tol_mm, tol_rel * z)
+    h, w = z_sub.shape
+    n = 0
+    for y in range(h):
+        for x in range(w):
+            n += left[y, x]
+    u = np.empty(n, np.float64)
+    v = np.empty(n, np.float64)
+    z = np.empty(n, np.float64)
+    tz = np.empty(n, np.float64)
+    k = 0
+    for y in range(h):
+        for x in range(w):
+            if left[y, x]:
+                zz = z_sub[y, x]
+                u[k] = x * step
+                v[k] = y * step
+                z[k] = zz
+                tz[k] = max(tol_mm, tol_rel * zz)
+                k += 1
+    return u, v, z, tz
+
+
+@njit(cache=True)
+def _inliers(
+    u: NDArray[np.float64],
+    v: NDArray[np.float64],
+    z: NDArray[np.float64],
+    tol: NDArray[np.float64],
+    a: float,
+    b: float,
+    c: float,
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    # u, v and 1000 / z of the points on the plane, by numpy's float64 test
+    # (inv > 0) & (|1000 - z inv| <= tol inv) with inv = a u + b v + c
+    n = u.size
+    on = np.zeros(n, np.bool_)
+    m = 0
+    for i in range(n):
+        inv = a * u[i] + b * v[i] + c
+        if inv > 0 and abs(1000.0 - z[i] * inv) <= tol[i] * inv:
+            on[i] = True
+            m += 1
+    uo = np.empty(m, np.float64)
+    vo = np.empty(m, np.float64)
+    qo = np.empty(m, np.float64)
+    k = 0
+    for i in range(n):
+        if on[i]:
+            uo[k] = u[i]
+            vo[k] = v[i]
+            qo[k] = 1000.0 / z[i]
+            k += 1
+    return uo, vo, qo
+
+
+@njit(cache=True)
+def _take_residual(
+    z: NDArray[np.float32],
+    left: NDArray[np.bool_],
+    a: float,
+    b: float,
+    c: float,
+    tol_mm: np.float32,
+    tol_rel: np.float32,
+    step: np.float32,
+) -> NDArray[np.bool_]:
+    # plane_residual_mask(z, left, (a, b, c), step=step) in one pass, and its pixels taken out
+    # of `left` (in place): the same float32 operations in the same order
+    h, w = z.shape
+    out = np.zeros((h, w), np.bool_)
+    a32, b32, c32 = np.float32(a), np.float32(b), np.float32(c)
+    thousand = np.float32(1000.0)
+    for y in range(h):
+        bv = b32 * (np.float32(y) * step)
+        for x in range(w):
+            if not left[y, x]:
+                continue
+            inv = (a32 * (np.float32(x) * step) + bv) + c32
+            zz = z[y, x]
+            tol = max(tol_mm, tol_rel * zz)
+            if inv > 0 and abs(thousand - zz * inv) <= tol * inv:
+                out[y, x] = True
+                left[y, x] = False
     return out
 
 
