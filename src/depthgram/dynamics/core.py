@@ -117,9 +117,9 @@ _EGO_W = 160
 #: Depths beyond which the odometry ignores a pixel (m): beyond 8 m consumer depth cameras
 #: read tens of centimetres of noise.
 _EGO_MAX_DEPTH_M = 8.0
-#: Pixel pairs further apart in depth than this are not the same surface to the ICP (m):
-#: OpenCV's 7 cm let a moving object or an occluding edge pull the fit (flow error against
-#: 7-Scenes' poses: median 0.43 px at 7 cm, 0.39 px at 3 cm).
+#: Pixel pairs further apart in depth than this are not the same surface to the ICP (m): at
+#: 7 cm (OpenCV's odometry's default) a moving object or an occluding edge pulls the fit (flow
+#: error against 7-Scenes' poses, OpenCV's ICP: median 0.43 px at 7 cm, 0.39 px at 3 cm).
 _EGO_MAX_DEPTH_DIFF_M = 0.03
 #: Least share of the grid's pixels whose still point, carried back by the found motion, lands
 #: on the previous frame's surface within the depth gate above; below it the ICP has locked
@@ -202,27 +202,142 @@ class CameraMotion:
         return out
 
 
+class _Surface:
+    """One frame's grid of points (m) with their normals, as the ICP's target.
+
+    The points come from the depth smoothed over 3 x 3 pixels and the normals from it smoothed
+    over 5 x 5 (on 7-Scenes' quantised Kinect depth: flow error median 0.39 px against 0.56 px
+    unsmoothed); a normal needs its four neighbours within 5 % of its depth (no normal across an
+    edge).
+    """
+
+    def __init__(self, z: NDArray[np.float32], cam: tuple[float, float, float, float]) -> None:
+        self.z = z
+        self.points = _backproject(_smooth(z, 3), cam)
+        p = _backproject(_smooth(z, 5), cam)
+        du = np.zeros_like(p)
+        dv = np.zeros_like(p)
+        du[:, 1:-1] = p[:, 2:] - p[:, :-2]
+        dv[1:-1] = p[2:] - p[:-2]
+        n = np.cross(du, dv)
+        norm = np.linalg.norm(n, axis=-1)
+        ok = np.zeros(z.shape, bool)
+        zc = z[1:-1, 1:-1]
+        good = zc > 0
+        for q in (z[1:-1, 2:], z[1:-1, :-2], z[2:, 1:-1], z[:-2, 1:-1]):
+            good &= (q > 0) & (np.abs(q - zc) < 0.05 * zc)
+        ok[1:-1, 1:-1] = good
+        ok &= norm > 0
+        self.normals = np.where(ok[..., None], n / np.where(norm > 0, norm, 1.0)[..., None], 0.0).astype(np.float32)
+        self.ok = ok
+
+
+def _smooth(z: NDArray[np.float32], k: int) -> NDArray[np.float32]:
+    """Mean of the valid depths in a ``k`` x ``k`` window, at valid pixels (0 elsewhere)."""
+    valid = (z > 0).astype(np.float32)
+    total = cv2.blur(z * valid, (k, k))
+    count = cv2.blur(valid, (k, k))
+    return np.where((z > 0) & (count > 0), total / np.maximum(count, 1e-6), 0.0).astype(np.float32)
+
+
+def _backproject(z: NDArray[np.float32], cam: tuple[float, float, float, float]) -> NDArray[np.float32]:
+    """Camera-frame points (same unit as ``z``) of a depth grid, shape (H, W, 3)."""
+    h, w = z.shape
+    fx, fy, cx, cy = cam
+    ys, xs = np.mgrid[0:h, 0:w].astype(np.float32)
+    return np.stack([(xs - cx) / fx * z, (ys - cy) / fy * z, z], axis=-1)
+
+
+def _rotation(w: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Return the rotation matrix of the rotation vector ``w`` (rad), by Rodrigues' formula."""
+    th = float(np.linalg.norm(w))
+    k = np.array([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]], dtype=np.float64)
+    if th < 1e-12:
+        return np.asarray(np.eye(3) + k, dtype=np.float64)
+    k /= th
+    return np.asarray(np.eye(3) + math.sin(th) * k + (1.0 - math.cos(th)) * (k @ k), dtype=np.float64)
+
+
+#: The ICP's passes: every k-th point of this frame's grid, and the iterations on it.
+_ICP_PASSES = ((4, 6), (2, 3), (1, 2))
+#: Weight of the ICP's pull toward standing still, per matched point (m^2 of residual per unit
+#: of motion, rad or m): a motion along which the still scene says little (sliding along a floor
+#: and a wall) stays near none instead of following noise or a moving object; along a direction
+#: the scene does pin down it is a fraction of a percent of the data's weight.
+_ICP_PRIOR = 1e-3
+
+
+def _icp(now: _Surface, before: _Surface, cam: tuple[float, float, float, float]) -> NDArray[np.float64] | None:
+    """Point-to-plane ICP with projective matching: the 4x4 motion from ``now``'s camera to ``before``'s (m).
+
+    None when fewer than 100 points match (too little valid depth, a jump too large).
+    """
+    fx, fy, cx, cy = cam
+    h, w = before.z.shape
+    rot = np.eye(3)
+    t = np.zeros(3)
+    for step, iterations in _ICP_PASSES:
+        src = now.points[::step, ::step].reshape(-1, 3)
+        src = src[src[:, 2] > 0].astype(np.float64)
+        for _ in range(iterations):
+            q = src @ rot.T + t
+            front = q[:, 2] > 1e-6
+            zq = np.where(front, q[:, 2], 1.0)
+            u = np.rint(fx * q[:, 0] / zq + cx)
+            v = np.rint(fy * q[:, 1] / zq + cy)
+            inside = front & (u >= 0) & (u < w) & (v >= 0) & (v < h)
+            ui = np.where(inside, u, 0).astype(np.intp)
+            vi = np.where(inside, v, 0).astype(np.intp)
+            m = inside & before.ok[vi, ui]
+            p0 = before.points[vi[m], ui[m]].astype(np.float64)
+            n0 = before.normals[vi[m], ui[m]].astype(np.float64)
+            qm = q[m]
+            d = qm - p0
+            r = np.einsum("ij,ij->i", d, n0)
+            keep = (np.abs(d[:, 2]) < _EGO_MAX_DEPTH_DIFF_M) & (np.abs(r) < _EGO_MAX_DEPTH_DIFF_M)
+            if np.count_nonzero(keep) < 100:
+                return None
+            qm, n0, r = qm[keep], n0[keep], r[keep]
+            jac = np.concatenate([np.cross(qm, n0), n0], axis=1)
+            mu = _ICP_PRIOR * len(r)
+            w_rot = 0.5 * np.array([rot[2, 1] - rot[1, 2], rot[0, 2] - rot[2, 0], rot[1, 0] - rot[0, 1]])
+            total = np.concatenate([w_rot, t])
+            delta = -np.linalg.solve(jac.T @ jac + mu * np.eye(6), jac.T @ r + mu * total)
+            d_rot = _rotation(delta[:3])
+            rot = d_rot @ rot
+            t = d_rot @ t + delta[3:]
+    out = np.eye(4)
+    out[:3, :3] = rot
+    out[:3, 3] = t
+    return out
+
+
 class EgoMotion:
-    """The camera's motion between successive frames, by ICP on their depth (OpenCV's odometry).
+    """The camera's motion between successive frames, by ICP on their depth.
 
     A hand-held or head-worn camera turns and moves, and each still point's image motion then
     depends on its place and depth (rotation moves the image alike, translation by parallax):
     walls and floors seen at a slant move by different amounts across the image. The rigid
-    motion is found once per frame by point-to-plane ICP (``cv2.Odometry``, depth only) on a
-    grid of every k-th pixel (:data:`_EGO_W` columns), each frame's pyramid prepared once and
-    reused as the next pair's previous frame. Objects moving on their own are outliers to it:
-    the ICP's depth-difference gate drops their pairs, and their own image motion is tried
-    beside the camera's (:func:`core_depth_change`).
+    motion is found once per frame by point-to-plane ICP with projective matching (as
+    KinectFusion's) on a grid of every k-th pixel (:data:`_EGO_W` columns), coarse to fine,
+    each frame's points and normals prepared once and kept as the next pair's target. Objects
+    moving on their own are outliers to it: its depth gate drops their pairs, its pull toward
+    standing still holds what the still scene does not pin down, and their own image motion is
+    tried beside the camera's (:func:`core_depth_change`).
+
+    Hand-written in numpy rather than OpenCV's ``cv2.Odometry``, which was as accurate on
+    7-Scenes' poses (flow error median 0.39 px at 160 px) but sums in threads in a varying
+    order, so that its result changed from run to run on weakly constrained scenes, and the
+    only way to stop that, ``cv2.setNumThreads``, is process-wide and left forked worker
+    processes (``depthgram batch``) hanging.
 
     Call :meth:`update` once per frame, in order.
     """
 
     def __init__(self) -> None:
         self._key: tuple[int, int, Intrinsics] | None = None
-        self._odo: cv2.Odometry | None = None
-        self._prev: cv2.OdometryFrame | None = None
-        self._prev_z = np.zeros((0, 0), np.float32)
-        self._cam = np.eye(3, dtype=np.float32)
+        self._prev: _Surface | None = None
+        self._cam = (1.0, 1.0, 0.0, 0.0)
         self._step = 1
 
     def reset(self) -> None:
@@ -242,88 +357,50 @@ class EgoMotion:
         Returns
         -------
         CameraMotion or None
-            None on the first frame, after a change of size or intrinsics, and when the ICP
-            does not converge (too few valid pixels, too little structure, a jump beyond
-            15 degrees or 150 mm per frame).
+            None on the first frame, after a change of size or intrinsics, where the ICP
+            finds too few matches, and where its motion carries fewer than
+            :data:`_EGO_MIN_INLIERS` of the points onto the previous surface. The identity
+            (:attr:`CameraMotion.still`) where the motion moves the image by less than
+            :data:`_EGO_STILL_PX` on average.
         """
-        found = self._icp(depth_mm, intrinsics)
-        if found is None:
+        h, w = np.shape(depth_mm)
+        key = (h, w, intrinsics)
+        if key != self._key:
+            step = max(1, round(w / _EGO_W))
+            # The grid's pixel i is the frame's pixel o + step * i.
+            o = step // 2
+            self._cam = (
+                intrinsics.fx / step,
+                intrinsics.fy / step,
+                (intrinsics.cx - o) / step,
+                (intrinsics.cy - o) / step,
+            )
+            self._step = step
+            self._key = key
+            self._prev = None
+        step = self._step
+        o = step // 2
+        z = np.asarray(depth_mm, dtype=np.float32)[o::step, o::step] * np.float32(0.001)
+        z = np.nan_to_num(z, nan=0.0, posinf=0.0, neginf=0.0)
+        z = np.ascontiguousarray(np.where((z > 0) & (z < _EGO_MAX_DEPTH_M), z, 0.0), dtype=np.float32)
+        now = _Surface(z, self._cam)
+        before, self._prev = self._prev, now
+        if before is None:
             return None
-        z, prev_z, back = found
-        if _fit_share(z, prev_z, back, self._cam) < _EGO_MIN_INLIERS:
+        back = _icp(now, before, self._cam)
+        if back is None or not np.isfinite(back).all():
             return None
-        motion = CameraMotion(back[:3, :3].copy(), back[:3, 3] * 1000.0, intrinsics)
-        if _mean_flow(z, back, self._cam) * self._step < _EGO_STILL_PX:
+        if _fit_share(z, before.z, back, self._cam) < _EGO_MIN_INLIERS:
+            return None
+        if _mean_flow(z, back, self._cam) * step < _EGO_STILL_PX:
             # Within the ICP's own jitter of standing still (on the simulator's still scenes
             # 0.1-0.3 px): read as still, so that the frame's shift (none) moves no pixel.
             return CameraMotion(np.eye(3), np.zeros(3), intrinsics)
-        return motion
-
-    def _icp(
-        self, depth_mm: NDArray[np.floating], intrinsics: Intrinsics
-    ) -> tuple[NDArray[np.float32], NDArray[np.float32], NDArray[np.float64]] | None:
-        """Return the grid's depth now and before (m) and the ICP's motion back to the previous camera (m).
-
-        None on the first frame, after a change of size or intrinsics, and where the ICP fails.
-        """
-        h, w = np.shape(depth_mm)
-        step = max(1, round(w / _EGO_W))
-        key = (h, w, intrinsics)
-        if key != self._key:
-            # The grid's pixel i is the frame's pixel o + step * i.
-            o = step // 2
-            cam = np.array(
-                [
-                    [intrinsics.fx / step, 0.0, (intrinsics.cx - o) / step],
-                    [0.0, intrinsics.fy / step, (intrinsics.cy - o) / step],
-                    [0.0, 0.0, 1.0],
-                ],
-                np.float32,
-            )
-            self._cam = cam
-            self._step = step
-            settings = cv2.OdometrySettings()
-            settings.setCameraMatrix(cam)
-            settings.setMaxDepth(_EGO_MAX_DEPTH_M)
-            settings.setMaxDepthDiff(_EGO_MAX_DEPTH_DIFF_M)
-            # FAST (KinectFusion's projective point-to-plane ICP) against COMMON on 7-Scenes'
-            # poses at 160 px: flow error median 0.39 px against 0.92 px.
-            self._odo = cv2.Odometry(cv2.OdometryType_DEPTH, settings, cv2.OdometryAlgoType_FAST)
-            self._key = key
-            self._prev = None
-        o = step // 2
-        z = np.asarray(depth_mm, dtype=np.float32)[o::step, o::step] * np.float32(0.001)
-        z = np.ascontiguousarray(np.nan_to_num(z, nan=0.0, posinf=0.0, neginf=0.0), dtype=np.float32)
-        frame = cv2.OdometryFrame(depth=z)
-        odo = self._odo
-        assert odo is not None
-        prev, self._prev = self._prev, frame
-        prev_z, self._prev_z = self._prev_z, z
-        # OpenCV's threads add up the ICP's sums in a varying order, and on a scene that pins the
-        # motion down weakly (the simulator's floor and wall) that moves the result from run to
-        # run: one thread makes it repeatable (and costs no more CPU time).
-        threads = cv2.getNumThreads()
-        cv2.setNumThreads(1)
-        try:
-            odo.prepareFrame(frame)
-            if prev is None:
-                return None
-            ok, rt = odo.compute(prev, frame, np.eye(4))
-        except cv2.error:
-            # too few valid pixels to build the frame's pyramid or normals
-            self._prev = None
-            return None
-        finally:
-            cv2.setNumThreads(threads)
-        rt = np.asarray(rt, dtype=np.float64)
-        if not ok or rt.shape != (4, 4) or not np.isfinite(rt).all():
-            return None
-        # rt carries the previous frame's points into this one's camera; the core needs the way back.
-        return z, prev_z, np.asarray(np.linalg.inv(rt), dtype=np.float64)
+        return CameraMotion(back[:3, :3].copy(), back[:3, 3] * 1000.0, intrinsics)
 
 
 def _project(
-    z: NDArray[np.float32], back: NDArray[np.float64], cam: NDArray[np.float32]
+    z: NDArray[np.float32], back: NDArray[np.float64], cam: tuple[float, float, float, float]
 ) -> tuple[NDArray[np.bool_], NDArray[np.float32], NDArray[np.float32], NDArray[np.float32]]:
     """Carry the grid's points (depth ``z``, m) by ``back`` (4x4, m) and project them with ``cam``.
 
@@ -331,7 +408,7 @@ def _project(
     """
     h, w = z.shape
     ys, xs = np.mgrid[0:h, 0:w].astype(np.float32)
-    fx, fy, cx, cy = float(cam[0, 0]), float(cam[1, 1]), float(cam[0, 2]), float(cam[1, 2])
+    fx, fy, cx, cy = cam
     px, py = (xs - cx) / fx * z, (ys - cy) / fy * z
     r, t = back[:3, :3].astype(np.float32), back[:3, 3].astype(np.float32)
     qx = r[0, 0] * px + r[0, 1] * py + r[0, 2] * z + t[0]
@@ -344,7 +421,7 @@ def _project(
     return ok, mx, my, qz
 
 
-def _mean_flow(z: NDArray[np.float32], back: NDArray[np.float64], cam: NDArray[np.float32]) -> float:
+def _mean_flow(z: NDArray[np.float32], back: NDArray[np.float64], cam: tuple[float, float, float, float]) -> float:
     """Mean image motion (px of the grid) of the grid's valid points under ``back``."""
     ok, mx, my, _ = _project(z, back, cam)
     if not ok.any():
@@ -355,12 +432,15 @@ def _mean_flow(z: NDArray[np.float32], back: NDArray[np.float64], cam: NDArray[n
 
 
 def _fit_share(
-    z: NDArray[np.float32], z_prev: NDArray[np.float32], back: NDArray[np.float64], cam: NDArray[np.float32]
+    z: NDArray[np.float32],
+    z_prev: NDArray[np.float32],
+    back: NDArray[np.float64],
+    cam: tuple[float, float, float, float],
 ) -> float:
     """How well a camera motion carries ``z``'s points onto ``z_prev``'s surface.
 
     ``z``, ``z_prev`` are the grid's depths (m), ``back`` the 4x4 motion from this camera to
-    the previous one (m), ``cam`` the grid's camera matrix. Of the points carried onto a valid
+    the previous one (m), ``cam`` the grid's (fx, fy, cx, cy) px. Of the points carried onto a valid
     pixel, the share whose depth there is within :data:`_EGO_MAX_DEPTH_DIFF_M` of the carried
     point's (0..1).
     """
