@@ -33,12 +33,9 @@ from depthgram.segmentation.slices import add_labels, drop_pieces, slice_parts, 
 from depthgram.segmentation.surfaces import (
     concave_creases,
     crease_scale_px,
-    keep_large,
-    label_surfaces,
-    loosen_small,
     merge_openings,
-    reattach,
     surface_state,
+    surfaces_kept,
 )
 from depthgram.segmentation.validate import check_depth_far
 
@@ -205,13 +202,19 @@ def _surface_objects(
     t0, t2 = sensor.tolerance(cfg.join_resolutions)
     slope = math.tan(math.radians(cfg.max_slope_deg)) / cam.fx
     state = surface_state(ok, facing, creases)
-    labels, n = label_surfaces(depth, state, tol_0=t0, tol_2=t2, slope_per_px=slope, bridge_px=cfg.fill_holes_px)
-    min_px = cfg.min_pixels(depth.size)
     # crease pixels and pieces too small to keep (the inside of a cup cut off by the crease of
     # its bottom) go to the surface they continue, then what is still too small is dropped
-    loose = loosen_small(labels, n, facing, min_px)
-    labels = reattach(labels, depth, loose, tol_0=t0, tol_2=t2, slope_per_px=slope, max_px=4 * r + 1)
-    labels, n, sums, boxes = keep_large(labels, n, min_px, depth)
+    labels, n, sums, boxes = surfaces_kept(
+        depth,
+        state,
+        facing,
+        tol_0=t0,
+        tol_2=t2,
+        slope_per_px=slope,
+        bridge_px=cfg.fill_holes_px,
+        min_px=cfg.min_pixels(depth.size),
+        max_px=4 * r + 1,
+    )
     mean = sums[:, SUM_Z] / np.maximum(sums[:, COUNT], 1.0)
     step = t0 + t2 * float(np.median(mean[1:])) ** 2 if n else t0
     joined = merge_openings(labels, depth, boxes, mean, focal_px=cam.fx, ring_px=2 * r, jump_mm=4.0 * step)

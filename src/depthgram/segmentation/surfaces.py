@@ -28,6 +28,7 @@ from numpy.typing import NDArray
 from depthgram.segmentation.label import ACTIVE, BLOCK, HOLE
 from depthgram.segmentation.label.stats import relabel_stats
 from depthgram.segmentation.label.unionfind import resolve as _resolve
+from depthgram.segmentation.label.unionfind import resolve_tables
 from depthgram.segmentation.label.unionfind import union as _union
 from depthgram.segmentation.order_stats import kth_smallest, next_smallest
 from depthgram.segmentation.sensor import SensorModel
@@ -41,6 +42,7 @@ __all__ = [
     "merge_openings",
     "reattach",
     "surface_state",
+    "surfaces_kept",
 ]
 
 
@@ -300,7 +302,7 @@ def label_surfaces(
         1..n in raster order of each component's first pixel; 0 elsewhere.
     n : int
     """
-    lab, parent, nxt = _label_surfaces(
+    lab, parent, nxt, _ = _label_surfaces(
         np.ascontiguousarray(depth_mm, np.float32),
         np.ascontiguousarray(state, np.int8),
         float(tol_0),
@@ -310,6 +312,84 @@ def label_surfaces(
     )
     labels, n, _, _ = _resolve(lab, parent, nxt, _NO_SUMS, _NO_BOXES, 0, False)
     return labels, int(n)
+
+
+def surfaces_kept(
+    depth_mm: NDArray[np.float32],
+    state: NDArray[np.int8],
+    facing: NDArray[np.bool_],
+    *,
+    tol_0: float,
+    tol_2: float,
+    slope_per_px: float,
+    bridge_px: int,
+    min_px: int,
+    max_px: int,
+) -> tuple[NDArray[np.int32], int, NDArray[np.float64], NDArray[np.int64]]:
+    """Return the surfaces of ``min_px`` pixels or more once loose pixels are reattached, with statistics.
+
+    :func:`label_surfaces`, :func:`loosen_small`, :func:`reattach` (up to ``max_px`` steps) and
+    :func:`keep_large` in a row, with the same labels and statistics, in fewer passes over
+    the frame: the labeller counts its pixels, its relabelling pass loosens the small
+    surfaces and the growth is done in place. No pass counts labels again: the surfaces left
+    after loosening all have ``min_px`` pixels or more and growth only adds to them, so
+    ``keep_large`` keeps exactly those.
+
+    Returns
+    -------
+    labels : ndarray of int32, shape (H, W)
+        1..n as :func:`keep_large` numbers them; 0 elsewhere.
+    n : int
+    sums : ndarray of float64, shape (n + 1, N_COLUMNS)
+    boxes : ndarray of int64, shape (n + 1, 4)
+        The statistics table and inclusive boxes of :func:`keep_large`.
+    """
+    z = np.ascontiguousarray(depth_mm, np.float32)
+    lab, parent, nxt, pcount = _label_surfaces(
+        z, np.ascontiguousarray(state, np.int8), float(tol_0), float(tol_2), float(slope_per_px), int(bridge_px)
+    )
+    loose, n_loose, count = _resolve_loosen(lab, parent, nxt, pcount, np.ascontiguousarray(facing, np.bool_), min_px)
+    if n_loose:
+        _grow(lab, z, loose, n_loose, float(tol_0), float(tol_2), float(slope_per_px), int(max_px))
+    labels, n, sums, boxes = _keep_counted(lab, count, int(min_px), z)
+    return labels, int(n), sums, boxes
+
+
+@njit(cache=True)
+def _resolve_loosen(
+    lab: NDArray[np.int32],
+    parent: NDArray[np.int32],
+    nxt: int,
+    pcount: NDArray[np.int64],
+    facing: NDArray[np.bool_],
+    min_px: int,
+) -> tuple[NDArray[np.bool_], int, NDArray[np.int64]]:
+    # the relabelling pass of resolve and the pass of loosen_small in one: final labels in
+    # raster order of their first pixel, facing pixels of small surfaces (or of none) loose
+    # with label 0; `lab` rewritten in place. Returns the loose mask, their number and the
+    # pixels per final label (0 for the loosened ones).
+    final, n, _, _ = resolve_tables(lab, parent, nxt, _NO_SUMS, _NO_BOXES, 0, False)
+    count = np.zeros(n + 1, np.int64)
+    for i in range(1, nxt):
+        count[final[i]] += pcount[i]
+    small = count < min_px
+    small[0] = True
+    for i in range(n + 1):
+        if small[i]:
+            count[i] = 0
+    h, w = lab.shape
+    loose = np.zeros((h, w), np.bool_)
+    n_loose = 0
+    for y in range(h):
+        for x in range(w):
+            f = final[lab[y, x]]
+            if facing[y, x] and small[f]:
+                loose[y, x] = True
+                lab[y, x] = 0
+                n_loose += 1
+            else:
+                lab[y, x] = f
+    return loose, n_loose, count
 
 
 #: Stand-ins for the statistics :func:`depthgram.segmentation.label.unionfind.resolve` does not read here.
@@ -326,7 +406,7 @@ def _continuous(za: np.float32, zb: np.float32, gap: int, t0: float, t2: float, 
 @njit(cache=True)
 def _label_surfaces(
     depth: NDArray[np.float32], state: NDArray[np.int8], t0: float, t2: float, sl: float, bridge: int
-) -> tuple[NDArray[np.int32], NDArray[np.int32], int]:
+) -> tuple[NDArray[np.int32], NDArray[np.int32], int, NDArray[np.int64]]:
     # Hand-written: no library labels components under a depth-difference rule with hole
     # bridging (scipy and OpenCV label binary images). The first pass of a two-pass labeller:
     # a pixel continuing its left neighbour (the last active pixel of the row, across at most
@@ -338,6 +418,7 @@ def _label_surfaces(
     h, w = depth.shape
     lab = np.zeros((h, w), np.int32)
     parent = np.empty(h * w + 1, np.int32)  # reserved only: pages of unused labels stay untouched
+    count = np.empty(h * w + 1, np.int64)  # pixels per provisional label, for surfaces_kept
     lastrow = np.full(w, -1, np.int64)
     nxt = 1
     for y in range(h):
@@ -355,6 +436,7 @@ def _label_surfaces(
                     up = lab[ly, x]
                 if left == 0 and up == 0:
                     parent[nxt] = nxt
+                    count[nxt] = 0
                     here = nxt
                     nxt += 1
                 elif up == 0 or up == left:
@@ -365,12 +447,13 @@ def _label_surfaces(
                     here = left
                     _union(parent, left, up)
                 lab[y, x] = here
+                count[here] += 1
                 last = x
                 lastrow[x] = y
             elif s == BLOCK:
                 last = -1
                 lastrow[x] = -1
-    return lab, parent, nxt
+    return lab, parent, nxt, count
 
 
 def reattach(
@@ -396,6 +479,7 @@ def reattach(
             out,
             np.ascontiguousarray(depth_mm, np.float32),
             np.ascontiguousarray(loose, np.bool_),
+            -1,
             float(tol_0),
             float(tol_2),
             float(slope_per_px),
@@ -409,6 +493,7 @@ def _grow(
     labels: NDArray[np.int32],
     depth: NDArray[np.float32],
     loose: NDArray[np.bool_],
+    n_loose: int,
     t0: float,
     t2: float,
     sl: float,
@@ -416,12 +501,14 @@ def _grow(
 ) -> None:
     # Hand-written: a breadth-first growth with a per-step depth test has no library kernel
     # (a distance transform finds the nearest label but cannot follow the surface).
+    # `n_loose`: the loose pixels without a label, counted here when negative
     h, w = labels.shape
-    n_loose = 0
-    for y in range(h):
-        for x in range(w):
-            if loose[y, x] and labels[y, x] == 0:
-                n_loose += 1
+    if n_loose < 0:
+        n_loose = 0
+        for y in range(h):
+            for x in range(w):
+                if loose[y, x] and labels[y, x] == 0:
+                    n_loose += 1
     if n_loose == 0:
         return
     queue = np.empty(n_loose + 1, np.int64)
@@ -718,7 +805,15 @@ def keep_large(
     (:func:`depthgram.segmentation.label.stats.relabel_stats`), for numpy's bincount, the
     relabelling pass and the statistics pass.
     """
-    count = _count_labels(labels, n)
+    return _keep_counted(labels, _count_labels(labels, n), min_px, depth)
+
+
+@njit(cache=True)
+def _keep_counted(
+    labels: NDArray[np.int32], count: NDArray[np.int64], min_px: int, depth: NDArray[np.float32]
+) -> tuple[NDArray[np.int32], int, NDArray[np.float64], NDArray[np.int64]]:
+    # keep_large with the pixels per label already counted
+    n = count.size - 1
     lut = np.zeros(n + 1, np.int32)
     m = 0
     for i in range(1, n + 1):
