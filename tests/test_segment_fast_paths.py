@@ -209,3 +209,24 @@ def test_surfaces_kept_is_label_loosen_reattach_keep(seed: int) -> None:
         np.testing.assert_array_equal(got[0], ref[0])
         np.testing.assert_array_equal(got[2], ref[2])
         np.testing.assert_array_equal(got[3], ref[3])
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_kth_pair_is_np_partition(seed: int) -> None:
+    # counted (whole and half numbers in a narrow span) or partitioned (anything else): the
+    # k-th and next values of the sorted array, ties and both ends included
+    from depthgram.segmentation.order_stats import kth_pair
+
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(1, 500))
+    for a in (
+        rng.integers(-40, 41, n).astype(np.float64),  # whole numbers
+        rng.integers(-40, 41, n) / 2.0 + 1e4,  # half numbers, offset
+        np.abs(rng.integers(0, 30, n) - 12.5),  # deviations from a half-number median
+        rng.integers(0, 3, n) * 9000.0,  # whole, too wide a span to count
+        np.round(rng.normal(0.0, 3.0, n), 1),  # tenths: partitioned
+    ):
+        s = np.sort(a)
+        for k in {0, n // 2, n - 1, int(rng.integers(0, n))}:
+            got = kth_pair(a.copy(), k)
+            assert got == (s[k], s[min(k + 1, n - 1)])
