@@ -228,6 +228,57 @@ def test_orientation_passes_match_numpy() -> None:
         np.testing.assert_array_equal(_one_sided(inv, valid, step), _one_sided_numpy(inv, valid, step))
 
 
+@pytest.mark.parametrize("shape", [(16, 40), (1, 5), (2, 7), (3, 4), (5, 1), (7, 6), (23, 17)])
+def test_one_sided_rows_match_numpy_at_every_border(shape: tuple[int, int]) -> None:
+    # the compiled pass splits each row into the border columns and a branch-free interior;
+    # steps as wide as the frame and wider leave no interior
+    rng = np.random.default_rng(shape[0] * 31 + shape[1])
+    valid = rng.random(shape) < 0.8
+    inv = np.where(valid, rng.uniform(0.2, 2.0, shape), 0.0).astype(np.float32)
+    for step in (1, 2, 3, 5, 8):
+        np.testing.assert_array_equal(_one_sided(inv, valid, step), _one_sided_numpy(inv, valid, step))
+
+
+def test_orientation_classes_and_kept_slopes_match_numpy() -> None:
+    # the per-pixel class from the window-mean slopes, and the slopes kept under 80 degrees,
+    # against the float32 numpy expressions they replaced
+    from depthgram.segmentation.orientation import FACING, HORIZONTAL, VERTICAL, _classify, _keep_slopes
+
+    rng = np.random.default_rng(4)
+    h, w = 37, 53
+    f32 = np.float32
+    fx, fy, cx, cy = f32(60.0), f32(58.0), f32(26.0), f32(18.0)
+    sgx = rng.normal(0, 0.02, (h, w)).astype(f32)
+    sgy = rng.normal(0, 0.02, (h, w)).astype(f32)
+    den = np.maximum(rng.integers(0, 50, (h, w)).astype(f32), f32(1e-6))
+    inv3 = rng.uniform(0.2, 2.0, (h, w)).astype(f32)
+    valid = rng.random((h, w)) < 0.9
+    jump = rng.random((h, w)) < 0.1
+    cos_t = f32(math.cos(math.radians(35.0)))
+    u = ((np.arange(w, dtype=f32) - cx) / fx)[None, :]
+    v = ((np.arange(h, dtype=f32) - cy) / fy)[:, None]
+    a = fx * (sgx / den)
+    b = fy * (sgy / den)
+    c = inv3 - a * u - b * v
+    t = cos_t * (np.sqrt(a * a + b * b + c * c) + f32(1e-12))
+    ref = np.where(np.abs(a) >= t, VERTICAL, np.where(np.abs(b) >= t, HORIZONTAL, FACING)).astype(np.int8)
+    ref[jump | ~valid] = FACING
+    got = _classify(sgx, sgy, den, inv3, valid, jump, fx, fy, cx, cy, cos_t)
+    np.testing.assert_array_equal(got, ref)
+    assert len(np.unique(got)) == 3
+    steep = f32(math.tan(math.radians(80.0)))
+    has = rng.random((h, w)) < 0.9
+    gx, gy = sgx * f32(40.0), sgy * f32(40.0)
+    lim = steep * inv3
+    keep = has & (np.abs(fx * gx) <= lim) & (np.abs(fy * gy) <= lim)
+    kx, ky = gx.copy(), gy.copy()
+    mk = _keep_slopes(kx, ky, has, inv3, fx, fy, steep)
+    np.testing.assert_array_equal(mk, keep.astype(f32))
+    np.testing.assert_array_equal(kx, np.where(keep, gx, f32(0.0)))
+    np.testing.assert_array_equal(ky, np.where(keep, gy, f32(0.0)))
+    assert 0 < keep.sum() < keep.size
+
+
 @pytest.mark.parametrize("shape", [(16, 40), (40, 16), (1, 5), (2, 7), (3, 4), (5, 1), (23, 17)])
 def test_column_passes_equal_row_passes_on_the_transpose(shape: tuple[int, int]) -> None:
     rng = np.random.default_rng(shape[0] * 100 + shape[1])
