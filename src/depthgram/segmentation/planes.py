@@ -654,7 +654,7 @@ def near_planes(
     return out
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _near(
     out: NDArray[np.bool_],
     ids: NDArray[np.intp],
@@ -684,11 +684,14 @@ def _near(
         n0, n1, n2, d = normal[i, 0], normal[i, 1], normal[i, 2], off[i]
         for y in range(y0, y1):
             v = (y - cy) / fy
-            for x in range(x0, x1):
-                if not candidates[y, x]:
-                    continue
-                u = ucol[x]
+            cr = candidates[y, x0:x1]
+            zr = depth[y, x0:x1]
+            ur = ucol[x0:x1]
+            orow = out[y, x0:x1]
+            # every pixel of the row computed and masked (numpy's division rule, d is not 0),
+            # so that the divisions vectorise
+            for j in range(x1 - x0):
                 # 1/Z predicted by the plane: -(n . ray) / d
-                inv_pred = -(n0 * u + n1 * v + n2) / d
-                if inv_pred > 0 and abs(inv_pred * np.float64(depth[y, x]) - 1.0) <= tol_rel:
-                    out[y, x] = True
+                inv_pred = -(n0 * ur[j] + n1 * v + n2) / d
+                hit = cr[j] & (inv_pred > 0) & (abs(inv_pred * np.float64(zr[j]) - 1.0) <= tol_rel)
+                orow[j] = orow[j] | hit

@@ -126,21 +126,30 @@ def concave_creases(
     return _creases(ws, den, ok, c32, np.float32(0.5 * k * k), int(scale_px), geom, noise_scale)
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def _inverse(z: NDArray[np.float32], valid: NDArray[np.bool_]) -> tuple[NDArray[np.float32], NDArray[np.float32]]:
+    # 1000 / z and 1 where there is a reading, else 0: every pixel divided and masked (numpy's
+    # division rule, no zero test), so that the row loop vectorises
     h, w = z.shape
-    inv = np.zeros((h, w), np.float32)
-    m = np.zeros((h, w), np.float32)
+    inv = np.empty((h, w), np.float32)
+    m = np.empty((h, w), np.float32)
     thousand = np.float32(1000.0)
+    zero = np.float32(0.0)
+    one = np.float32(1.0)
     for y in range(h):
+        zr = z[y]
+        vr = valid[y]
+        ir = inv[y]
+        mr = m[y]
         for x in range(w):
-            if valid[y, x]:
-                inv[y, x] = thousand / z[y, x]
-                m[y, x] = 1.0
+            ok = vr[x]
+            q = thousand / zr[x]
+            ir[x] = q if ok else zero
+            mr[x] = one if ok else zero
     return inv, m
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def _creases(
     ws: NDArray[np.float32],
     den: NDArray[np.float32],
@@ -163,19 +172,26 @@ def _creases(
     one = np.float32(1.0)
     two = np.float32(2.0)
     four = np.float32(4.0)
+    c0, c1, c2, c3 = c[0], c[1], c[2], c[3]
+    zero = np.float32(0.0)
     for y in range(h):
+        wr = ws[y]
+        dr = den[y]
+        vr = valid[y]
+        hr = has[y]
+        br = bend[y]
+        # every pixel computed, then masked (numpy's division rule: a window without enough
+        # readings divides by a small or zero count harmlessly), so that the divisions vectorise
         for x in range(w):
-            if den[y, x] >= min_den:
-                has[y, x] = valid[y, x]  # the result is kept where there is a reading only
-                wc = ws[y, x] / den[y, x]
-                ws[y, x] = wc
-                z = thousand / wc
-                sq = z * z
-                res = max(c[0] + c[1] * sq, two * (c[2] + c[3] * sq))
-                noise = res / two / max(z, one) * noise_scale
-                bend[y, x] = max(geom, four * noise) * wc
-            else:
-                ws[y, x] = 0.0
+            keep = dr[x] >= min_den
+            wc = wr[x] / dr[x]
+            z = thousand / wc
+            sq = z * z
+            res = max(c0 + c1 * sq, two * (c2 + c3 * sq))
+            noise = res / two / max(z, one) * noise_scale
+            hr[x] = keep & vr[x]  # the result is kept where there is a reading only
+            wr[x] = wc if keep else zero
+            br[x] = max(geom, four * noise) * wc if keep else zero
     # the neighbours' own `has` is not needed: a neighbour without a mean reads 0 here, which
     # fails the jump test against a positive mean as it failed numpy's validity test
     out = np.zeros((h, w), np.bool_)
