@@ -97,6 +97,43 @@ def test_keyed_planes_equal_keyed_stats_then_plane_sums_exactly() -> None:
         assert planes.shape == (n + 1, 9)
 
 
+def test_plane_sums_in_boxes_equal_plane_sums_of_the_wanted_labels() -> None:
+    # reading each wanted label's box alone gives the rows of the full pass to the last bit
+    from depthgram.segmentation.planes import plane_sums_in_boxes
+
+    rng = np.random.default_rng(12)
+    for t in range(60):
+        key, state, depth = _random_keyed(rng, smooth=t % 2 == 0)
+        labels, n, _, boxes = label_keyed_stats(key, state, depth, bridge=1)
+        if n == 0:
+            continue
+        ids = np.flatnonzero(rng.random(n + 1) < 0.4)
+        ids = ids[ids > 0]
+        want = np.zeros(n + 1, np.bool_)
+        want[ids] = True
+        fx, fy = (float(v) for v in rng.random(2) * 500 + 100)
+        cx, cy = float(rng.random() * key.shape[1]), float(rng.random() * key.shape[0])
+        ref = plane_sums(labels, n, depth, fx, fy, cx, cy, only=want)
+        got = plane_sums_in_boxes(labels, n, ids, boxes[ids], depth, fx, fy, cx, cy)
+        np.testing.assert_array_equal(got, ref)
+        assert got[ids, 5].sum() == np.isin(labels, ids).sum()
+
+
+def test_sample_points_equal_numpy() -> None:
+    from depthgram.segmentation.planes import sample_points
+
+    rng = np.random.default_rng(13)
+    depth = (rng.random((37, 53)) * 3000 + 400).astype(np.float32)
+    depth[rng.random(depth.shape) < 0.2] = 0.0
+    cam = Intrinsics(61.5, 59.0, 26.3, 17.9)
+    for step in (1, 3, 4):
+        z = depth[::step, ::step]
+        v, u = np.nonzero(z > 0)
+        zz = z[v, u].astype(np.float64)
+        ref = np.stack(((u * step - cam.cx) / cam.fx * zz, (v * step - cam.cy) / cam.fy * zz, zz))
+        np.testing.assert_array_equal(sample_points(depth, step, cam), ref)
+
+
 def test_keyed_labels_by_hand() -> None:
     # row 0: two runs of key 1 split by a hole (bridged with bridge=1) and a run of key 2;
     # row 1: a blocking pixel under the hole, key 1 below the first run

@@ -26,7 +26,14 @@ from depthgram.segmentation.orientation import (
     upsample_classes,
 )
 from depthgram.segmentation.paper_slices import paper_slices
-from depthgram.segmentation.planes import find_planes, near_planes, plane_normal, plane_sums, planes_from_sums
+from depthgram.segmentation.planes import (
+    find_planes,
+    near_planes,
+    plane_normal,
+    plane_sums_in_boxes,
+    planes_from_sums,
+    sample_points,
+)
 from depthgram.segmentation.region import region_grow
 from depthgram.segmentation.sensor import SensorModel, estimate_sensor, sensor_model
 from depthgram.segmentation.slices import add_labels, drop_pieces, slice_parts, support_kind, support_pieces
@@ -474,22 +481,20 @@ def _below_camera(
         return out, beneath
     # the planes of the horizontal supports only: the others' sums and solves were thrown away
     # (each row's sums and solve are those of a plane fit on the whole map)
-    ids = np.array([o.id for c, o in compounds if c == HORIZONTAL], np.intp)
-    want = np.zeros(n + 1, np.bool_)
-    want[ids] = True
-    sums = plane_sums(labels, n, depth, cam.fx, cam.fy, cam.cx, cam.cy, only=want)
+    horizontal = [o for c, o in compounds if c == HORIZONTAL]
+    ids = np.array([o.id for o in horizontal], np.intp)
+    # each support's own box (inclusive) holds all its pixels: the frame outside is not read
+    boxes = np.array([(o.bbox_xy[0], o.bbox_xy[1], o.bbox_xy[2] - 1, o.bbox_xy[3] - 1) for o in horizontal], np.int64)
+    sums = plane_sums_in_boxes(labels, n, ids, boxes, depth, cam.fx, cam.fy, cam.cx, cam.cy)
     normal, off, _ = planes_from_sums(sums[np.r_[0, ids]])
     for j, i in enumerate(ids, start=1):
         out[int(i)] = float(off[j]) if normal[j, 1] < 0 else -float(off[j])
     # every 4th pixel in 3-D: enough to tell whether anything lies beneath a plane
-    z = depth[::4, ::4]
-    v, u = np.nonzero(z > 0)
-    zz = z[v, u].astype(np.float64)
-    pts = np.stack(((u * 4 - cam.cx) / cam.fx * zz, (v * 4 - cam.cy) / cam.fy * zz, zz))
+    pts = sample_points(depth, 4, cam)
     for j, i in enumerate(ids, start=1):
         # n . P + d is the signed distance from the plane, positive on the camera's side
         dist = normal[j] @ pts + off[j]
-        beneath[int(i)] = float(np.mean(dist < -_BENEATH_MM)) if zz.size else 0.0
+        beneath[int(i)] = float(np.mean(dist < -_BENEATH_MM)) if pts.shape[1] else 0.0
     return out, beneath
 
 
