@@ -354,6 +354,32 @@ def test_front_face_folds_only_without_a_depth_jump() -> None:
     assert fronts == {1: 3}
 
 
+@pytest.mark.parametrize("seed", range(4))
+def test_contacts_inside_the_supports_boxes_equal_the_whole_frame(seed: int) -> None:
+    # facing ids 1..n_facing, supports after them; the counts read inside the supports' boxes
+    # are the whole frame's, above-below and side by side (support left or right)
+    from depthgram.segmentation.contacts import _contacts, _contacts_in_boxes
+
+    rng = np.random.default_rng(seed)
+    h, w, n_facing, n_sup = 29, 41, 6, 4
+    labels = np.kron(rng.integers(0, n_facing + n_sup + 1, (h // 3 + 1, w // 3 + 1)), np.ones((3, 3), np.int32))
+    labels = np.ascontiguousarray(labels[:h, :w]).astype(np.int32)
+    labels[rng.random((h, w)) < 0.1] = 0
+    depth = (1000.0 + rng.normal(0, 30.0, (h, w))).astype(np.float32)
+    ids = np.flatnonzero(rng.random(n_sup) < 0.8) + n_facing + 1
+    boxes = np.array(
+        [(xs.min(), ys.min(), xs.max(), ys.max()) for ys, xs in (np.nonzero(labels == i) for i in ids)], np.int64
+    ).reshape(-1, 4)
+    n_ids = n_facing + n_sup + 1
+    is_support = np.zeros(n_ids, np.bool_)
+    is_support[ids] = True
+    for side in (False, True):
+        ref = _contacts(labels, depth, is_support, n_facing, np.float32(0.02), side)
+        got = _contacts_in_boxes(labels, depth, ids.astype(np.intp), boxes, n_ids, n_facing, np.float32(0.02), side)
+        np.testing.assert_array_equal(got, ref)
+        assert ref.sum() > 0
+
+
 def _floor_scene() -> tuple[np.ndarray, np.ndarray, Intrinsics]:
     # a floor plane 1 m below the camera (y down), seen from row 20 of 40; a box in front of it
     cam = Intrinsics(40.0, 40.0, 19.5, 19.5)

@@ -360,23 +360,43 @@ def _fold_faces(
     side face is a small vertical support beside a facing object (a box at an angle).
     """
     compounds = stack.compounds
-    horizontal_ids = np.array([o.id for c, o in compounds if c == HORIZONTAL and below[o.id] > 0], np.int32)
+    # the supports' boxes (inclusive) hold all their pixels: the contacts are counted inside them
+    tops = [o for c, o in compounds if c == HORIZONTAL and below[o.id] > 0]
+    horizontal_ids = np.array([o.id for o in tops], np.int32)
     widths = np.array([0] + [o.bbox_xy[2] - o.bbox_xy[0] for o in objects], np.float64)
-    fronts = front_faces(labels, depth, widths, horizontal_ids, jump_rel=cfg.jump_rel)
-    side_ids = np.array(
-        [o.id for c, o in compounds if c == VERTICAL and o.area < cfg.side_max_area * depth.size], np.int32
+    fronts = front_faces(
+        labels, depth, widths, horizontal_ids, jump_rel=cfg.jump_rel, boxes=_inclusive(tops), n_ids=stack.next_id
     )
+    sides = [o for c, o in compounds if c == VERTICAL and o.area < cfg.side_max_area * depth.size]
+    side_ids = np.array([o.id for o in sides], np.int32)
     heights = np.array([0] + [o.bbox_xy[3] - o.bbox_xy[1] for o in objects], np.float64)
     mean_depth = np.zeros(stack.next_id)
     for o in (*objects, *(o for _, o in compounds)):
         mean_depth[o.id] = o.depth
-    for f, sup in side_faces(labels, depth, heights, side_ids, mean_depth, jump_rel=cfg.jump_rel).items():
+    side = side_faces(
+        labels,
+        depth,
+        heights,
+        side_ids,
+        mean_depth,
+        jump_rel=cfg.jump_rel,
+        boxes=_inclusive(sides),
+        n_ids=stack.next_id,
+    )
+    for f, sup in side.items():
         fronts.setdefault(f, sup)
     for f, sup in fronts.items():
         stack.sums[sup] += stack.sums[f]
         stack.boxes[sup, :2] = np.minimum(stack.boxes[sup, :2], stack.boxes[f, :2])
         stack.boxes[sup, 2:] = np.maximum(stack.boxes[sup, 2:], stack.boxes[f, 2:])
     return fronts
+
+
+def _inclusive(objects: list[SceneObject]) -> NDArray[np.int64]:
+    """Inclusive (x0, y0, x1, y1) boxes of ``objects``, shape (k, 4)."""
+    return np.array(
+        [(o.bbox_xy[0], o.bbox_xy[1], o.bbox_xy[2] - 1, o.bbox_xy[3] - 1) for o in objects], np.int64
+    ).reshape(-1, 4)
 
 
 def _compound_objects(
@@ -484,8 +504,7 @@ def _below_camera(
     horizontal = [o for c, o in compounds if c == HORIZONTAL]
     ids = np.array([o.id for o in horizontal], np.intp)
     # each support's own box (inclusive) holds all its pixels: the frame outside is not read
-    boxes = np.array([(o.bbox_xy[0], o.bbox_xy[1], o.bbox_xy[2] - 1, o.bbox_xy[3] - 1) for o in horizontal], np.int64)
-    sums = plane_sums_in_boxes(labels, n, ids, boxes, depth, cam.fx, cam.fy, cam.cx, cam.cy)
+    sums = plane_sums_in_boxes(labels, n, ids, _inclusive(horizontal), depth, cam.fx, cam.fy, cam.cx, cam.cy)
     normal, off, _ = planes_from_sums(sums[np.r_[0, ids]])
     for j, i in enumerate(ids, start=1):
         out[int(i)] = float(off[j]) if normal[j, 1] < 0 else -float(off[j])
