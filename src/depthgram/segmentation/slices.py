@@ -71,6 +71,8 @@ def slice_parts(
     parts = make_objects(part_map, stats, intrinsics=shifted)
     parts.sort(key=lambda p: p.depth)
     fn = depth_label  # callable, typed loosely to keep this module free of Bands
+    # every part's label in one call (one numpy call per part cost more on small frames)
+    part_labels = np.asarray(fn(np.array([p.depth for p in parts], np.float64))).tolist() if parts else []  # type: ignore[operator]
     out = []
     for j, p in enumerate(parts):
         cx, cy = p.center_xy
@@ -79,7 +81,7 @@ def slice_parts(
             SceneObject(
                 id=first_id + j,
                 kind="part",
-                depth_label=int(fn(p.depth)),  # type: ignore[operator]
+                depth_label=int(part_labels[j]),
                 depth=p.depth,
                 depth_std=p.depth_std,
                 area=p.area,
