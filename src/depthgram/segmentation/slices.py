@@ -53,7 +53,8 @@ def slice_parts(
         Slice thickness (px) from the object's extent across the slices (px), e.g.
         :meth:`depthgram.segmentation.SegmentConfig.slice_step`.
     depth_label : callable
-        Depth (mm) -> global depth label.
+        Depths (mm, an array) -> global depth labels, elementwise (as
+        :meth:`depthgram.segmentation.histogram.Bands.depth_label`).
     first_id : int
         Id of the first part (parts are not in the label map; ids only name them).
     """
@@ -71,8 +72,10 @@ def slice_parts(
     parts = make_objects(part_map, stats, intrinsics=shifted)
     parts.sort(key=lambda p: p.depth)
     fn = depth_label  # callable, typed loosely to keep this module free of Bands
-    # every part's label in one call (one numpy call per part cost more on small frames)
-    part_labels = np.asarray(fn(np.array([p.depth for p in parts], np.float64))).tolist() if parts else []  # type: ignore[operator]
+    # every part's label in one call (one numpy call per part cost more on small frames); a
+    # callable giving one label whatever the depth is broadcast
+    depths = np.array([p.depth for p in parts], np.float64)
+    part_labels = np.broadcast_to(np.asarray(fn(depths)), depths.shape).tolist()  # type: ignore[operator]
     out = []
     for j, p in enumerate(parts):
         cx, cy = p.center_xy
