@@ -346,9 +346,10 @@ def surfaces_kept(
 
     :func:`label_surfaces`, :func:`loosen_small`, :func:`reattach` (up to ``max_px`` steps) and
     :func:`keep_large` in a row, with the same labels and statistics, in fewer passes over
-    the frame: the labeller counts its pixels, its relabelling pass loosens the small
-    surfaces and the growth is done in place. No pass counts labels again: the surfaces left
-    after loosening all have ``min_px`` pixels or more and growth only adds to them, so
+    the frame: the labeller counts its pixels; one pass marks the loose pixels and the seeds
+    of the growth, which works in place on the provisional labels read through their final
+    ids; one pass relabels with the statistics. No pass counts labels again: the surfaces
+    left after loosening all have ``min_px`` pixels or more and growth only adds to them, so
     ``keep_large`` keeps exactly those.
 
     Returns
@@ -364,48 +365,130 @@ def surfaces_kept(
     lab, parent, nxt, pcount = _label_surfaces(
         z, np.ascontiguousarray(state, np.int8), float(tol_0), float(tol_2), float(slope_per_px), int(bridge_px)
     )
-    loose, n_loose, count = _resolve_loosen(lab, parent, nxt, pcount, np.ascontiguousarray(facing, np.bool_), min_px)
-    if n_loose:
-        _grow(lab, z, loose, n_loose, float(tol_0), float(tol_2), float(slope_per_px), int(max_px))
-    labels, n, sums, boxes = _keep_counted(lab, count, int(min_px), z)
+    table, count = _kept_table(lab, parent, nxt, pcount, int(min_px))
+    _loosen_grow(
+        lab,
+        table,
+        np.ascontiguousarray(facing, np.bool_),
+        z,
+        float(tol_0),
+        float(tol_2),
+        float(slope_per_px),
+        int(max_px),
+    )
+    labels, n, sums, boxes = _keep_through(lab, table, count, int(min_px), z)
     return labels, int(n), sums, boxes
 
 
 @njit(cache=True)
-def _resolve_loosen(
-    lab: NDArray[np.int32],
-    parent: NDArray[np.int32],
-    nxt: int,
-    pcount: NDArray[np.int64],
-    facing: NDArray[np.bool_],
-    min_px: int,
-) -> tuple[NDArray[np.bool_], int, NDArray[np.int64]]:
-    # the relabelling pass of resolve and the pass of loosen_small in one: final labels in
-    # raster order of their first pixel, facing pixels of small surfaces (or of none) loose
-    # with label 0; `lab` rewritten in place. Returns the loose mask, their number and the
-    # pixels per final label (0 for the loosened ones).
+def _kept_table(
+    lab: NDArray[np.int32], parent: NDArray[np.int32], nxt: int, pcount: NDArray[np.int64], min_px: int
+) -> tuple[NDArray[np.int32], NDArray[np.int64]]:
+    # provisional label -> the final one resolve gives it (raster order of first pixels), or 0
+    # for surfaces under min_px pixels (loosen_small); and the pixels per final label (0 for
+    # the loosened ones)
     final, n, _, _ = resolve_tables(lab, parent, nxt, _NO_SUMS, _NO_BOXES, 0, False)
     count = np.zeros(n + 1, np.int64)
     for i in range(1, nxt):
         count[final[i]] += pcount[i]
     small = count < min_px
     small[0] = True
+    table = np.zeros(nxt, np.int32)
+    for i in range(1, nxt):
+        table[i] = 0 if small[final[i]] else final[i]
     for i in range(n + 1):
         if small[i]:
             count[i] = 0
+    return table, count
+
+
+@njit(cache=True)
+def _loosen_grow(
+    lab: NDArray[np.int32],
+    table: NDArray[np.int32],
+    facing: NDArray[np.bool_],
+    depth: NDArray[np.float32],
+    t0: float,
+    t2: float,
+    sl: float,
+    max_steps: int,
+) -> None:
+    # loosen_small and reattach's _grow on the provisional labels, read through `table` (a
+    # pixel's label is table[lab]): one pass marks the loose pixels (facing, label 0) and
+    # queues the seeds (loose, beside a labelled pixel) in raster order, then the same
+    # breadth-first growth; a grown pixel takes its neighbour's provisional label, which is
+    # the same label through the table. `lab` is written in place.
     h, w = lab.shape
     loose = np.zeros((h, w), np.bool_)
-    n_loose = 0
+    pending = np.zeros((h, w), np.bool_)
+    queue = np.empty(h * w + 1, np.int64)  # reserved only: pages past the queue's end stay untouched
+    steps = np.empty(h * w + 1, np.int32)
+    tail = 0
     for y in range(h):
         for x in range(w):
-            f = final[lab[y, x]]
-            if facing[y, x] and small[f]:
+            if facing[y, x] and table[lab[y, x]] == 0:
                 loose[y, x] = True
-                lab[y, x] = 0
-                n_loose += 1
-            else:
-                lab[y, x] = f
-    return loose, n_loose, count
+                if (
+                    (x > 0 and table[lab[y, x - 1]] > 0)
+                    or (x < w - 1 and table[lab[y, x + 1]] > 0)
+                    or (y > 0 and table[lab[y - 1, x]] > 0)
+                    or (y < h - 1 and table[lab[y + 1, x]] > 0)
+                ):
+                    queue[tail] = y * w + x
+                    steps[tail] = 1
+                    pending[y, x] = True
+                    tail += 1
+    head = 0
+    while head < tail:
+        p = queue[head]
+        k = steps[head]
+        head += 1
+        y = p // w
+        x = p - y * w
+        z = depth[y, x]
+        best = 0
+        for d in range(4):
+            yy = y + (1 if d == 0 else -1 if d == 1 else 0)
+            xx = x + (1 if d == 2 else -1 if d == 3 else 0)
+            if yy < 0 or yy >= h or xx < 0 or xx >= w or table[lab[yy, xx]] == 0:
+                continue
+            zz = depth[yy, xx]
+            zm = min(z, zz)
+            if abs(z - zz) <= t0 + t2 * zm * zm + sl * zm:
+                best = lab[yy, xx]
+                break
+        if best == 0:
+            continue
+        lab[y, x] = best
+        if k >= max_steps:
+            continue
+        for d in range(4):
+            yy = y + (1 if d == 0 else -1 if d == 1 else 0)
+            xx = x + (1 if d == 2 else -1 if d == 3 else 0)
+            if 0 <= yy < h and 0 <= xx < w and loose[yy, xx] and table[lab[yy, xx]] == 0 and not pending[yy, xx]:
+                pending[yy, xx] = True
+                queue[tail] = yy * w + xx
+                steps[tail] = k + 1
+                tail += 1
+
+
+@njit(cache=True)
+def _keep_through(
+    lab: NDArray[np.int32], table: NDArray[np.int32], count: NDArray[np.int64], min_px: int, depth: NDArray[np.float32]
+) -> tuple[NDArray[np.int32], int, NDArray[np.float64], NDArray[np.int64]]:
+    # keep_large of the labels table[lab], in the one relabelling pass of relabel_stats
+    n = count.size - 1
+    lut = np.zeros(n + 1, np.int32)
+    m = 0
+    for i in range(1, n + 1):
+        if count[i] >= min_px:
+            m += 1
+            lut[i] = m
+    through = np.empty(table.size, np.int32)
+    for i in range(table.size):
+        through[i] = lut[table[i]]
+    out, sums, box = relabel_stats(lab, through, m, depth)
+    return out, m, sums, box
 
 
 #: Stand-ins for the statistics :func:`depthgram.segmentation.label.unionfind.resolve` does not read here.
@@ -495,7 +578,6 @@ def reattach(
             out,
             np.ascontiguousarray(depth_mm, np.float32),
             np.ascontiguousarray(loose, np.bool_),
-            -1,
             float(tol_0),
             float(tol_2),
             float(slope_per_px),
@@ -509,7 +591,6 @@ def _grow(
     labels: NDArray[np.int32],
     depth: NDArray[np.float32],
     loose: NDArray[np.bool_],
-    n_loose: int,
     t0: float,
     t2: float,
     sl: float,
@@ -517,14 +598,12 @@ def _grow(
 ) -> None:
     # Hand-written: a breadth-first growth with a per-step depth test has no library kernel
     # (a distance transform finds the nearest label but cannot follow the surface).
-    # `n_loose`: the loose pixels without a label, counted here when negative
     h, w = labels.shape
-    if n_loose < 0:
-        n_loose = 0
-        for y in range(h):
-            for x in range(w):
-                if loose[y, x] and labels[y, x] == 0:
-                    n_loose += 1
+    n_loose = 0
+    for y in range(h):
+        for x in range(w):
+            if loose[y, x] and labels[y, x] == 0:
+                n_loose += 1
     if n_loose == 0:
         return
     queue = np.empty(n_loose + 1, np.int64)
