@@ -172,7 +172,8 @@ def find_planes(
     s = sample_step or max(1, round(math.sqrt(h * w / 3000.0)))
     rng = np.random.default_rng(seed)
     z_sub = np.ascontiguousarray(depth_mm[::s, ::s], dtype=np.float32)
-    left = np.ascontiguousarray((valid if search is None else valid & search)[::s, ::s])
+    # the grid's own pixels only, not a full-frame `valid & search`
+    left = np.ascontiguousarray(valid[::s, ::s] if search is None else valid[::s, ::s] & search[::s, ::s])
     min_sub = min_px / (s * s)
     t_mm, t_rel = np.float32(tol_mm), np.float32(tol_rel)
     found: list[tuple[tuple[float, float, float], NDArray[np.bool_], float]] = []
