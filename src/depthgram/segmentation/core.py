@@ -36,7 +36,14 @@ from depthgram.segmentation.planes import (
 )
 from depthgram.segmentation.region import region_grow
 from depthgram.segmentation.sensor import SensorModel, estimate_sensor, sensor_model
-from depthgram.segmentation.slices import add_labels, drop_pieces, slice_parts, support_kind, support_pieces
+from depthgram.segmentation.slices import (
+    add_labels,
+    drop_pieces,
+    slice_parts,
+    support_kind,
+    support_pieces,
+    support_pieces_fit,
+)
 from depthgram.segmentation.surfaces import (
     concave_creases,
     crease_scale_px,
@@ -565,14 +572,14 @@ def _support_class(
     inclusive boxes of each support (row 0 unused).
     """
     fit_px = max(min_px // 2, 10)
-    lab, n, sums, boxes, planes = support_pieces(
+    lab, n, sums, boxes, planes, fit = support_pieces_fit(
         depth, ok, classes, cls, cam, jump_rel=cfg.jump_rel, bridge=cfg.fill_holes_px, min_fit_px=fit_px
     )
     # noise makes some support pixels look facing; those lying on a big support's plane
     # go back to it (an upright object meets that plane only along its base row)
     candidates = ok & (classes == FACING)
     if n and candidates.any():
-        normal, off, count = planes_from_sums(planes)
+        normal, off, count = fit if fit is not None else planes_from_sums(planes)
         near = near_planes(normal, off, count, boxes, depth, candidates, cam, min_px=min_px, tol_rel=cfg.jump_rel / 2)
         if near.any():
             np.copyto(classes, np.int8(cls), where=near)

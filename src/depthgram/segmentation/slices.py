@@ -27,7 +27,7 @@ from depthgram.segmentation.objects import SceneObject
 from depthgram.segmentation.orientation import HORIZONTAL, VERTICAL
 from depthgram.segmentation.planes import coplanar_groups, planes_from_sums
 
-__all__ = ["add_labels", "drop_pieces", "slice_parts", "support_kind", "support_pieces"]
+__all__ = ["add_labels", "drop_pieces", "slice_parts", "support_kind", "support_pieces", "support_pieces_fit"]
 
 
 def slice_parts(
@@ -257,16 +257,46 @@ def support_pieces(
     sums : ndarray (n + 1, N_COLUMNS), boxes : ndarray (n + 1, 4), planes : ndarray (n + 1, 9)
         Statistics (``KEY`` 0), inclusive boxes and plane sums per component (row 0 unused).
     """
+    labels, n, sums, boxes, planes, _ = support_pieces_fit(
+        depth_mm, valid, classes, cls, cam, jump_rel=jump_rel, bridge=bridge, min_fit_px=min_fit_px
+    )
+    return labels, n, sums, boxes, planes
+
+
+def support_pieces_fit(
+    depth_mm: NDArray[np.float32],
+    valid: NDArray[np.bool_],
+    classes: NDArray[np.int8],
+    cls: int,
+    cam: Intrinsics,
+    *,
+    jump_rel: float,
+    bridge: int,
+    min_fit_px: int,
+) -> tuple[
+    NDArray[np.int32],
+    int,
+    NDArray[np.float64],
+    NDArray[np.int64],
+    NDArray[np.float64],
+    tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]] | None,
+]:
+    """:func:`support_pieces`, and ``planes_from_sums`` of the returned plane sums when it was taken.
+
+    The last item is ``(normal, off, count)`` of the pieces when no pieces were joined (the
+    fit that decided it), None otherwise, so that a caller does not solve the same planes again.
+    """
     state = _class_state(valid, classes, np.int8(cls))
     labels, n, sums, boxes, planes = label_keyed_planes(
         depth_mm, state, depth_mm, cam.fx, cam.fy, cam.cx, cam.cy, rel=jump_rel, bridge=bridge
     )
     if n < 2:
-        return labels, n, sums, boxes, planes
-    normal, off, count = planes_from_sums(planes)
+        return labels, n, sums, boxes, planes, None
+    fit = planes_from_sums(planes)
+    normal, off, count = fit
     lut, m = coplanar_groups(normal, off, count, min_fit_px=min_fit_px)
     if m == n:
-        return labels, n, sums, boxes, planes
+        return labels, n, sums, boxes, planes, fit
     msums = np.zeros((m + 1, sums.shape[1]))
     np.add.at(msums, lut, sums)
     msums[:, KEY] = 0.0
@@ -280,4 +310,4 @@ def support_pieces(
     np.maximum.at(mboxes[:, 2], lut, boxes[:, 2])
     np.maximum.at(mboxes[:, 3], lut, boxes[:, 3])
     merged = relabel(labels, lut)
-    return merged, m, msums, mboxes, mplanes
+    return merged, m, msums, mboxes, mplanes, None
