@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import gc
+import itertools
 import os
 import platform
 import resource
@@ -228,6 +229,39 @@ def real_pipeline_row(frames: int = 100) -> dict[str, Any] | None:
     }
 
 
+def workers_scaling(frames: int = 300) -> list[dict[str, Any]] | None:
+    """Wall time of ``Pipeline.run(workers=N)`` over 7-Scenes frames, N = 1 up to the cores visible.
+
+    The segmentation runs in N worker processes, the rest of the pipeline in this one, so the
+    speed-up is bounded by the share of the segmentation and by the cores. Worker start-up is
+    included (a user pays it). None when the recording is not beside the checkout.
+    """
+    import warnings
+    from pathlib import Path
+
+    import depthgram
+    from depthgram.pipeline import Pipeline
+
+    folder = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "7scenes_redkitchen_seq"
+    if not folder.is_dir():
+        return None
+    rows: list[dict[str, Any]] = []
+    base = float("nan")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        for f in itertools.islice(depthgram.read(str(folder), fps=30.0), 5):  # page cache, numba in this process
+            Pipeline().process(f)
+        for workers in range(1, (os.cpu_count() or 1) + 1):
+            src = itertools.islice(depthgram.read(str(folder), fps=30.0), frames)
+            t0 = time.perf_counter()
+            n = sum(1 for _ in Pipeline().run(src, workers=workers))
+            seconds = time.perf_counter() - t0
+            if workers == 1:
+                base = seconds
+            rows.append({"workers": workers, "frames": n, "fps": n / seconds, "speedup": base / seconds})
+    return rows
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--quick", action="store_true", help="shorter timing budget")
@@ -256,6 +290,17 @@ def main(argv: Sequence[str] | None = None) -> int:
             f"thread CPU time: median {real['ms']:.1f} ms ({real['fps']:.0f} frames/s; target >= 100), "
             f"p95 {real['p95_ms']:.1f}, max {real['max_ms']:.1f}; segmentation alone {real['segment_ms']:.1f} ms"
         )
+    scaling = workers_scaling(60 if a.quick else 300)
+    if scaling is not None:
+        print(
+            f"\nPipeline.run(workers=N) on 7-Scenes (segmentation in N processes; wall time, worker start-up "
+            f"included; load average now {os.getloadavg()[0]:.1f}):"
+        )
+        for w in scaling:
+            print(
+                f"  {w['workers']} worker(s): {w['frames']} frames, {w['fps']:5.1f} frames/s, "
+                f"speed-up {w['speedup']:.2f}x"
+            )
     recs = 2 if a.quick else 4
     frames = 15 if a.quick else 60
     print(

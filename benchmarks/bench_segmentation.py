@@ -201,7 +201,7 @@ def threshold_stages(size: tuple[int, int], seed: int = 0) -> dict[str, float]:
 #: Steps of the default method timed by :func:`surfaces_stages` (functions looked up in core).
 STAGES = (
     "check_depth", "_orientation", "_add_support_planes", "_support_class", "frame_sensor",
-    "_surface_objects", "bin_index", "depth_bands", "concave_creases", "label_surfaces", "reattach",
+    "_surface_objects", "bin_index", "depth_bands", "concave_creases", "surfaces_kept",
     "relabel", "label_stats_fused", "merge_openings", "make_objects", "add_labels", "_below_camera",
     "front_faces", "side_faces", "slice_parts",
 )  # fmt: skip
@@ -213,7 +213,7 @@ def surfaces_stages(size: tuple[int, int], runs: int = 20, frame: Any = None) ->
     CPU time of this thread (``time.thread_time``), not wall time: on a shared machine a
     descheduled thread does not count, so the steps add up the same whatever the load. Each
     step's figure is its median over ``runs`` calls; steps nest (``_surface_objects`` holds
-    ``label_surfaces`` and the others listed after it up to ``make_objects``). The time inside
+    ``surfaces_kept`` and the others listed after it up to ``make_objects``). The time inside
     compiled kernels is that of every numba function called from Python in the segmentation
     package; the rest of the call is numpy, OpenCV and the Python around them.
     """

@@ -175,3 +175,58 @@ def test_float32_median_is_numpys_float32_mean() -> None:
     for _ in range(20):
         b = rng.uniform(1e6, 2e7, int(rng.integers(1, 50))).astype(np.float32)
         assert _median32(b.copy()) == np.median(b)
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_surfaces_kept_is_label_loosen_reattach_keep(seed: int) -> None:
+    # the fused step of the default method against its four public steps in a row: the same
+    # labels, statistics and boxes to the last bit, on steps between planes with noise, holes,
+    # blocking pixels, creases (facing pixels that are not active) and small pieces
+    from depthgram.segmentation.label import ACTIVE, BLOCK, HOLE
+    from depthgram.segmentation.surfaces import keep_large, label_surfaces, loosen_small, reattach, surfaces_kept
+
+    rng = np.random.default_rng(seed)
+    h, w = 61, 83
+    # blocks of 5 x 5 px at three depths, or stripes 9 px wide
+    levels = np.kron(rng.integers(0, 3, (h // 5 + 1, w // 5 + 1)), np.ones((5, 5)))[:h, :w]
+    depth = (1000.0 + 300.0 * (levels if seed % 2 else (np.arange(w) // 9)[None, :] % 3)
+             + rng.normal(0, 3.0, (h, w))).astype(np.float32)  # fmt: skip
+    state = np.full((h, w), ACTIVE, np.int8)
+    state[rng.random((h, w)) < 0.1] = HOLE
+    state[rng.random((h, w)) < 0.08] = BLOCK
+    facing = state != HOLE
+    facing[rng.random((h, w)) < 0.05] = False  # blocking facing pixels are creases
+    state[(state == ACTIVE) & ~facing] = BLOCK
+    kw = {"tol_0": 4.0, "tol_2": 1e-6, "slope_per_px": 0.002}
+    # every size from a few pixels to past the largest surface
+    for min_px, max_px in ((m, 1 + m % 9) for m in range(2, 520, 6)):
+        labels, n = label_surfaces(depth, state, bridge_px=2, **kw)
+        loose = loosen_small(labels, n, facing, min_px)
+        grown = reattach(labels, depth, loose, max_px=max_px, **kw)
+        ref = keep_large(grown, n, min_px, depth)
+        got = surfaces_kept(depth, state, facing, bridge_px=2, min_px=min_px, max_px=max_px, **kw)
+        assert got[1] == ref[1] and loose.any()
+        np.testing.assert_array_equal(got[0], ref[0])
+        np.testing.assert_array_equal(got[2], ref[2])
+        np.testing.assert_array_equal(got[3], ref[3])
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_kth_pair_is_np_partition(seed: int) -> None:
+    # counted (whole and half numbers in a narrow span) or partitioned (anything else): the
+    # k-th and next values of the sorted array, ties and both ends included
+    from depthgram.segmentation.order_stats import kth_pair
+
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(1, 500))
+    for a in (
+        rng.integers(-40, 41, n).astype(np.float64),  # whole numbers
+        rng.integers(-40, 41, n) / 2.0 + 1e4,  # half numbers, offset
+        np.abs(rng.integers(0, 30, n) - 12.5),  # deviations from a half-number median
+        rng.integers(0, 3, n) * 9000.0,  # whole, too wide a span to count
+        np.round(rng.normal(0.0, 3.0, n), 1),  # tenths: partitioned
+    ):
+        s = np.sort(a)
+        for k in {0, n // 2, n - 1, int(rng.integers(0, n))}:
+            got = kth_pair(a.copy(), k)
+            assert got == (s[k], s[min(k + 1, n - 1)])

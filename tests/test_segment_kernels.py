@@ -97,6 +97,43 @@ def test_keyed_planes_equal_keyed_stats_then_plane_sums_exactly() -> None:
         assert planes.shape == (n + 1, 9)
 
 
+def test_plane_sums_in_boxes_equal_plane_sums_of_the_wanted_labels() -> None:
+    # reading each wanted label's box alone gives the rows of the full pass to the last bit
+    from depthgram.segmentation.planes import plane_sums_in_boxes
+
+    rng = np.random.default_rng(12)
+    for t in range(60):
+        key, state, depth = _random_keyed(rng, smooth=t % 2 == 0)
+        labels, n, _, boxes = label_keyed_stats(key, state, depth, bridge=1)
+        if n == 0:
+            continue
+        ids = np.flatnonzero(rng.random(n + 1) < 0.4)
+        ids = ids[ids > 0]
+        want = np.zeros(n + 1, np.bool_)
+        want[ids] = True
+        fx, fy = (float(v) for v in rng.random(2) * 500 + 100)
+        cx, cy = float(rng.random() * key.shape[1]), float(rng.random() * key.shape[0])
+        ref = plane_sums(labels, n, depth, fx, fy, cx, cy, only=want)
+        got = plane_sums_in_boxes(labels, n, ids, boxes[ids], depth, fx, fy, cx, cy)
+        np.testing.assert_array_equal(got, ref)
+        assert got[ids, 5].sum() == np.isin(labels, ids).sum()
+
+
+def test_sample_points_equal_numpy() -> None:
+    from depthgram.segmentation.planes import sample_points
+
+    rng = np.random.default_rng(13)
+    depth = (rng.random((37, 53)) * 3000 + 400).astype(np.float32)
+    depth[rng.random(depth.shape) < 0.2] = 0.0
+    cam = Intrinsics(61.5, 59.0, 26.3, 17.9)
+    for step in (1, 3, 4):
+        z = depth[::step, ::step]
+        v, u = np.nonzero(z > 0)
+        zz = z[v, u].astype(np.float64)
+        ref = np.stack(((u * step - cam.cx) / cam.fx * zz, (v * step - cam.cy) / cam.fy * zz, zz))
+        np.testing.assert_array_equal(sample_points(depth, step, cam), ref)
+
+
 def test_keyed_labels_by_hand() -> None:
     # row 0: two runs of key 1 split by a hole (bridged with bridge=1) and a run of key 2;
     # row 1: a blocking pixel under the hole, key 1 below the first run
@@ -228,6 +265,57 @@ def test_orientation_passes_match_numpy() -> None:
         np.testing.assert_array_equal(_one_sided(inv, valid, step), _one_sided_numpy(inv, valid, step))
 
 
+@pytest.mark.parametrize("shape", [(16, 40), (1, 5), (2, 7), (3, 4), (5, 1), (7, 6), (23, 17)])
+def test_one_sided_rows_match_numpy_at_every_border(shape: tuple[int, int]) -> None:
+    # the compiled pass splits each row into the border columns and a branch-free interior;
+    # steps as wide as the frame and wider leave no interior
+    rng = np.random.default_rng(shape[0] * 31 + shape[1])
+    valid = rng.random(shape) < 0.8
+    inv = np.where(valid, rng.uniform(0.2, 2.0, shape), 0.0).astype(np.float32)
+    for step in (1, 2, 3, 5, 8):
+        np.testing.assert_array_equal(_one_sided(inv, valid, step), _one_sided_numpy(inv, valid, step))
+
+
+def test_orientation_classes_and_kept_slopes_match_numpy() -> None:
+    # the per-pixel class from the window-mean slopes, and the slopes kept under 80 degrees,
+    # against the float32 numpy expressions they replaced
+    from depthgram.segmentation.orientation import FACING, HORIZONTAL, VERTICAL, _classify, _keep_slopes
+
+    rng = np.random.default_rng(4)
+    h, w = 37, 53
+    f32 = np.float32
+    fx, fy, cx, cy = f32(60.0), f32(58.0), f32(26.0), f32(18.0)
+    sgx = rng.normal(0, 0.02, (h, w)).astype(f32)
+    sgy = rng.normal(0, 0.02, (h, w)).astype(f32)
+    den = np.maximum(rng.integers(0, 50, (h, w)).astype(f32), f32(1e-6))
+    inv3 = rng.uniform(0.2, 2.0, (h, w)).astype(f32)
+    valid = rng.random((h, w)) < 0.9
+    jump = rng.random((h, w)) < 0.1
+    cos_t = f32(math.cos(math.radians(35.0)))
+    u = ((np.arange(w, dtype=f32) - cx) / fx)[None, :]
+    v = ((np.arange(h, dtype=f32) - cy) / fy)[:, None]
+    a = fx * (sgx / den)
+    b = fy * (sgy / den)
+    c = inv3 - a * u - b * v
+    t = cos_t * (np.sqrt(a * a + b * b + c * c) + f32(1e-12))
+    ref = np.where(np.abs(a) >= t, VERTICAL, np.where(np.abs(b) >= t, HORIZONTAL, FACING)).astype(np.int8)
+    ref[jump | ~valid] = FACING
+    got = _classify(sgx, sgy, den, inv3, valid, jump, fx, fy, cx, cy, cos_t)
+    np.testing.assert_array_equal(got, ref)
+    assert len(np.unique(got)) == 3
+    steep = f32(math.tan(math.radians(80.0)))
+    has = rng.random((h, w)) < 0.9
+    gx, gy = sgx * f32(40.0), sgy * f32(40.0)
+    lim = steep * inv3
+    keep = has & (np.abs(fx * gx) <= lim) & (np.abs(fy * gy) <= lim)
+    kx, ky = gx.copy(), gy.copy()
+    mk = _keep_slopes(kx, ky, has, inv3, fx, fy, steep)
+    np.testing.assert_array_equal(mk, keep.astype(f32))
+    np.testing.assert_array_equal(kx, np.where(keep, gx, f32(0.0)))
+    np.testing.assert_array_equal(ky, np.where(keep, gy, f32(0.0)))
+    assert 0 < keep.sum() < keep.size
+
+
 @pytest.mark.parametrize("shape", [(16, 40), (40, 16), (1, 5), (2, 7), (3, 4), (5, 1), (23, 17)])
 def test_column_passes_equal_row_passes_on_the_transpose(shape: tuple[int, int]) -> None:
     rng = np.random.default_rng(shape[0] * 100 + shape[1])
@@ -264,6 +352,32 @@ def test_front_face_folds_only_without_a_depth_jump() -> None:
     widths = np.array([0, 4, 4], np.float64)
     fronts = front_faces(labels, depth, widths, np.array([3], np.int32), jump_rel=0.05)
     assert fronts == {1: 3}
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_contacts_inside_the_supports_boxes_equal_the_whole_frame(seed: int) -> None:
+    # facing ids 1..n_facing, supports after them; the counts read inside the supports' boxes
+    # are the whole frame's, above-below and side by side (support left or right)
+    from depthgram.segmentation.contacts import _contacts, _contacts_in_boxes
+
+    rng = np.random.default_rng(seed)
+    h, w, n_facing, n_sup = 29, 41, 6, 4
+    labels = np.kron(rng.integers(0, n_facing + n_sup + 1, (h // 3 + 1, w // 3 + 1)), np.ones((3, 3), np.int32))
+    labels = np.ascontiguousarray(labels[:h, :w]).astype(np.int32)
+    labels[rng.random((h, w)) < 0.1] = 0
+    depth = (1000.0 + rng.normal(0, 30.0, (h, w))).astype(np.float32)
+    ids = np.flatnonzero(rng.random(n_sup) < 0.8) + n_facing + 1
+    boxes = np.array(
+        [(xs.min(), ys.min(), xs.max(), ys.max()) for ys, xs in (np.nonzero(labels == i) for i in ids)], np.int64
+    ).reshape(-1, 4)
+    n_ids = n_facing + n_sup + 1
+    is_support = np.zeros(n_ids, np.bool_)
+    is_support[ids] = True
+    for side in (False, True):
+        ref = _contacts(labels, depth, is_support, n_facing, np.float32(0.02), side)
+        got = _contacts_in_boxes(labels, depth, ids.astype(np.intp), boxes, n_ids, n_facing, np.float32(0.02), side)
+        np.testing.assert_array_equal(got, ref)
+        assert ref.sum() > 0
 
 
 def _floor_scene() -> tuple[np.ndarray, np.ndarray, Intrinsics]:

@@ -12,17 +12,28 @@ if TYPE_CHECKING:
     from depthgram.sources import Source
 
 
-def add_pipeline_arguments(p: argparse.ArgumentParser, *, stills: bool = False, input_optional: bool = False) -> None:
-    """INPUT, how to read it (--stills among the reading options), the settings and --quiet.
+def add_pipeline_arguments(
+    p: argparse.ArgumentParser, *, stills: bool = False, input_optional: bool = False, workers: bool = True
+) -> None:
+    """INPUT, how to read it (--stills among the reading options), the settings, --workers and --quiet.
 
     ``stills`` is kept for callers of the time when only some commands had --no-track; every
     command now has --stills (alias --no-track).
 
     ``input_optional`` only for commands whose output switch took a file in this release
     (``plan --json INPUT`` of the last release parses INPUT as the file: :func:`output_target`).
+    ``workers`` false for a command that processes one frame at a time by design (``run``).
     """
     add_source_arguments(p, input_optional=input_optional)
     add_config_arguments(p)
+    if workers:
+        p.add_argument(
+            "--workers",
+            type=_positive_int,
+            default=1,
+            metavar="N",
+            help="segment N frames at once in worker processes (same results, more frames/s on N cores; default 1)",
+        )
     p.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
@@ -32,7 +43,19 @@ def pipeline_results(args: argparse.Namespace, desc: str) -> tuple[Source, Itera
 
     src = open_input(args)
     pipe = Pipeline(load_config(args))
-    return src, progress(pipe.run(src), total=source_len(src), desc=desc, quiet=args.quiet)
+    results = pipe.run(src, workers=getattr(args, "workers", 1))
+    return src, progress(results, total=source_len(src), desc=desc, quiet=args.quiet)
+
+
+def _positive_int(text: str) -> int:
+    """Parse a count of at least 1 (argparse type)."""
+    try:
+        n = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number of at least 1, got {text!r}") from None
+    if n < 1:
+        raise argparse.ArgumentTypeError(f"expected a whole number of at least 1, got {n}")
+    return n
 
 
 #: Segmentation methods offered by --method (a test checks them against depthgram.segmentation.METHODS;

@@ -16,7 +16,7 @@ HELP = "play a recording at its frame rate (or --fast) and report per-frame late
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     """Add this command's options to ``p``."""
-    add_pipeline_arguments(p)
+    add_pipeline_arguments(p, workers=False)  # latency is one frame's: workers would not cut it
     p.add_argument("--fast", action="store_true", help="as fast as possible instead of the recording's rate")
     p.add_argument(
         "--read-ahead",

@@ -23,6 +23,8 @@ def front_faces(
     *,
     jump_rel: float,
     min_contact: float = 0.5,
+    boxes: NDArray[np.int64] | None = None,
+    n_ids: int | None = None,
 ) -> dict[int, int]:
     """Facing objects that are the front face of a horizontal support right above them.
 
@@ -32,14 +34,23 @@ def front_faces(
     ``1..len(widths) - 1`` and bounding-box widths ``widths`` (px, index 0 unused). Returns
     ``{facing id: support id}`` for faces whose upper edge touches the support, without a
     depth jump, over at least ``min_contact`` of the face's width.
+
+    ``boxes`` (inclusive x0, y0, x1, y1 of each of ``horizontal_ids``, holding all its pixels)
+    limits the pass to the supports' boxes, with the same counts; ``n_ids``, one past the
+    largest id in ``labels``, spares a pass finding it.
     """
     n_facing = widths.size - 1
     if n_facing == 0 or horizontal_ids.size == 0:
         return {}
-    n_ids = int(labels.max(initial=0)) + 1
+    n_ids = int(labels.max(initial=0)) + 1 if n_ids is None else n_ids
+    rel = np.float32(jump_rel)
+    if boxes is not None:
+        ids = np.asarray(horizontal_ids, np.intp)
+        contact = _contacts_in_boxes(labels, depth_mm, ids, np.asarray(boxes, np.int64), n_ids, n_facing, rel, False)
+        return _best_contact(contact, min_contact * widths)
     is_support = np.zeros(n_ids, np.bool_)
     is_support[horizontal_ids] = True
-    contact = _contacts(labels, depth_mm, is_support, n_facing, np.float32(jump_rel), False)
+    contact = _contacts(labels, depth_mm, is_support, n_facing, rel, False)
     return _best_contact(contact, min_contact * widths)
 
 
@@ -52,6 +63,8 @@ def side_faces(
     *,
     jump_rel: float,
     min_contact: float = 0.5,
+    boxes: NDArray[np.int64] | None = None,
+    n_ids: int | None = None,
 ) -> dict[int, int]:
     """Facing objects whose side meets a small vertical support: the front and side of one box.
 
@@ -61,14 +74,21 @@ def side_faces(
     unused); ``mean_depth`` (mm) is indexed by id. Returns ``{facing id: support id}`` for faces
     in front of the side's middle touching a support in ``vertical_ids`` side by side, without
     a depth jump, over at least ``min_contact`` of the face's height. (A wall behind the box
-    meets the side's far end and lies behind its middle, so it is not taken.)
+    meets the side's far end and lies behind its middle, so it is not taken.) ``boxes`` and
+    ``n_ids`` as for :func:`front_faces`.
     """
     n_facing = heights.size - 1
     if n_facing == 0 or vertical_ids.size == 0:
         return {}
-    is_side = np.zeros(int(labels.max(initial=0)) + 1, np.bool_)
-    is_side[vertical_ids] = True
-    contact = _contacts(labels, depth_mm, is_side, n_facing, np.float32(jump_rel), True)
+    n_ids = int(labels.max(initial=0)) + 1 if n_ids is None else n_ids
+    rel = np.float32(jump_rel)
+    if boxes is not None:
+        ids = np.asarray(vertical_ids, np.intp)
+        contact = _contacts_in_boxes(labels, depth_mm, ids, np.asarray(boxes, np.int64), n_ids, n_facing, rel, True)
+    else:
+        is_side = np.zeros(n_ids, np.bool_)
+        is_side[vertical_ids] = True
+        contact = _contacts(labels, depth_mm, is_side, n_facing, rel, True)
     behind = mean_depth[None, : contact.shape[1]] > mean_depth[: contact.shape[0], None]
     return _best_contact(np.where(behind, contact, 0), min_contact * heights)
 
@@ -119,4 +139,53 @@ def _contacts(
             zb = depth[y + dy, x + dx]
             if abs(za - zb) <= rel * max(za, zb):
                 out[f, s] += 1
+    return out
+
+
+@njit(cache=True)
+def _contacts_in_boxes(
+    labels: NDArray[np.int32],
+    depth: NDArray[np.float32],
+    ids: NDArray[np.intp],
+    boxes: NDArray[np.int64],
+    n_ids: int,
+    n_facing: int,
+    rel: np.float32,
+    side_by_side: bool,
+) -> NDArray[np.int64]:
+    # _contacts read support by support inside its box: every counted pair holds one support
+    # pixel, so each pair is met once, under its support, with the same float32 depth test
+    h, w = labels.shape
+    out = np.zeros((n_facing + 1, n_ids), np.int64)
+    for k in range(ids.size):
+        s = ids[k]
+        x0, y0, x1, y1 = boxes[k, 0], boxes[k, 1], boxes[k, 2], boxes[k, 3]
+        if not side_by_side:
+            # the support above, the facing pixel below it
+            for y in range(y0, min(y1, h - 2) + 1):
+                for x in range(x0, x1 + 1):
+                    if labels[y, x] != s:
+                        continue
+                    b = labels[y + 1, x]
+                    if 0 < b <= n_facing:
+                        za = depth[y, x]
+                        zb = depth[y + 1, x]
+                        if abs(za - zb) <= rel * max(za, zb):
+                            out[b, s] += 1
+            continue
+        # side by side, either way round: the support pixel is the left or the right one
+        for y in range(y0, y1 + 1):
+            for x in range(max(x0 - 1, 0), min(x1, w - 2) + 1):
+                a = labels[y, x]
+                b = labels[y, x + 1]
+                if a == s and 0 < b <= n_facing:
+                    f = b
+                elif b == s and 0 < a <= n_facing:
+                    f = a
+                else:
+                    continue
+                za = depth[y, x]
+                zb = depth[y, x + 1]
+                if abs(za - zb) <= rel * max(za, zb):
+                    out[f, s] += 1
     return out

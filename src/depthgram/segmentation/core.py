@@ -26,19 +26,30 @@ from depthgram.segmentation.orientation import (
     upsample_classes,
 )
 from depthgram.segmentation.paper_slices import paper_slices
-from depthgram.segmentation.planes import find_planes, near_planes, plane_normal, plane_sums, planes_from_sums
+from depthgram.segmentation.planes import (
+    find_planes,
+    near_planes,
+    plane_normal,
+    plane_sums_in_boxes,
+    planes_from_sums,
+    sample_points,
+)
 from depthgram.segmentation.region import region_grow
 from depthgram.segmentation.sensor import SensorModel, estimate_sensor, sensor_model
-from depthgram.segmentation.slices import add_labels, drop_pieces, slice_parts, support_kind, support_pieces
+from depthgram.segmentation.slices import (
+    add_labels,
+    drop_pieces,
+    slice_parts,
+    support_kind,
+    support_pieces,
+    support_pieces_fit,
+)
 from depthgram.segmentation.surfaces import (
     concave_creases,
     crease_scale_px,
-    keep_large,
-    label_surfaces,
-    loosen_small,
     merge_openings,
-    reattach,
     surface_state,
+    surfaces_kept,
 )
 from depthgram.segmentation.validate import check_depth_far
 
@@ -205,13 +216,19 @@ def _surface_objects(
     t0, t2 = sensor.tolerance(cfg.join_resolutions)
     slope = math.tan(math.radians(cfg.max_slope_deg)) / cam.fx
     state = surface_state(ok, facing, creases)
-    labels, n = label_surfaces(depth, state, tol_0=t0, tol_2=t2, slope_per_px=slope, bridge_px=cfg.fill_holes_px)
-    min_px = cfg.min_pixels(depth.size)
     # crease pixels and pieces too small to keep (the inside of a cup cut off by the crease of
     # its bottom) go to the surface they continue, then what is still too small is dropped
-    loose = loosen_small(labels, n, facing, min_px)
-    labels = reattach(labels, depth, loose, tol_0=t0, tol_2=t2, slope_per_px=slope, max_px=4 * r + 1)
-    labels, n, sums, boxes = keep_large(labels, n, min_px, depth)
+    labels, n, sums, boxes = surfaces_kept(
+        depth,
+        state,
+        facing,
+        tol_0=t0,
+        tol_2=t2,
+        slope_per_px=slope,
+        bridge_px=cfg.fill_holes_px,
+        min_px=cfg.min_pixels(depth.size),
+        max_px=4 * r + 1,
+    )
     mean = sums[:, SUM_Z] / np.maximum(sums[:, COUNT], 1.0)
     step = t0 + t2 * float(np.median(mean[1:])) ** 2 if n else t0
     joined = merge_openings(labels, depth, boxes, mean, focal_px=cam.fx, ring_px=2 * r, jump_mm=4.0 * step)
@@ -350,23 +367,43 @@ def _fold_faces(
     side face is a small vertical support beside a facing object (a box at an angle).
     """
     compounds = stack.compounds
-    horizontal_ids = np.array([o.id for c, o in compounds if c == HORIZONTAL and below[o.id] > 0], np.int32)
+    # the supports' boxes (inclusive) hold all their pixels: the contacts are counted inside them
+    tops = [o for c, o in compounds if c == HORIZONTAL and below[o.id] > 0]
+    horizontal_ids = np.array([o.id for o in tops], np.int32)
     widths = np.array([0] + [o.bbox_xy[2] - o.bbox_xy[0] for o in objects], np.float64)
-    fronts = front_faces(labels, depth, widths, horizontal_ids, jump_rel=cfg.jump_rel)
-    side_ids = np.array(
-        [o.id for c, o in compounds if c == VERTICAL and o.area < cfg.side_max_area * depth.size], np.int32
+    fronts = front_faces(
+        labels, depth, widths, horizontal_ids, jump_rel=cfg.jump_rel, boxes=_inclusive(tops), n_ids=stack.next_id
     )
+    sides = [o for c, o in compounds if c == VERTICAL and o.area < cfg.side_max_area * depth.size]
+    side_ids = np.array([o.id for o in sides], np.int32)
     heights = np.array([0] + [o.bbox_xy[3] - o.bbox_xy[1] for o in objects], np.float64)
     mean_depth = np.zeros(stack.next_id)
     for o in (*objects, *(o for _, o in compounds)):
         mean_depth[o.id] = o.depth
-    for f, sup in side_faces(labels, depth, heights, side_ids, mean_depth, jump_rel=cfg.jump_rel).items():
+    side = side_faces(
+        labels,
+        depth,
+        heights,
+        side_ids,
+        mean_depth,
+        jump_rel=cfg.jump_rel,
+        boxes=_inclusive(sides),
+        n_ids=stack.next_id,
+    )
+    for f, sup in side.items():
         fronts.setdefault(f, sup)
     for f, sup in fronts.items():
         stack.sums[sup] += stack.sums[f]
         stack.boxes[sup, :2] = np.minimum(stack.boxes[sup, :2], stack.boxes[f, :2])
         stack.boxes[sup, 2:] = np.maximum(stack.boxes[sup, 2:], stack.boxes[f, 2:])
     return fronts
+
+
+def _inclusive(objects: list[SceneObject]) -> NDArray[np.int64]:
+    """Inclusive (x0, y0, x1, y1) boxes of ``objects``, shape (k, 4)."""
+    return np.array(
+        [(o.bbox_xy[0], o.bbox_xy[1], o.bbox_xy[2] - 1, o.bbox_xy[3] - 1) for o in objects], np.int64
+    ).reshape(-1, 4)
 
 
 def _compound_objects(
@@ -471,22 +508,19 @@ def _below_camera(
         return out, beneath
     # the planes of the horizontal supports only: the others' sums and solves were thrown away
     # (each row's sums and solve are those of a plane fit on the whole map)
-    ids = np.array([o.id for c, o in compounds if c == HORIZONTAL], np.intp)
-    want = np.zeros(n + 1, np.bool_)
-    want[ids] = True
-    sums = plane_sums(labels, n, depth, cam.fx, cam.fy, cam.cx, cam.cy, only=want)
+    horizontal = [o for c, o in compounds if c == HORIZONTAL]
+    ids = np.array([o.id for o in horizontal], np.intp)
+    # each support's own box (inclusive) holds all its pixels: the frame outside is not read
+    sums = plane_sums_in_boxes(labels, n, ids, _inclusive(horizontal), depth, cam.fx, cam.fy, cam.cx, cam.cy)
     normal, off, _ = planes_from_sums(sums[np.r_[0, ids]])
     for j, i in enumerate(ids, start=1):
         out[int(i)] = float(off[j]) if normal[j, 1] < 0 else -float(off[j])
     # every 4th pixel in 3-D: enough to tell whether anything lies beneath a plane
-    z = depth[::4, ::4]
-    v, u = np.nonzero(z > 0)
-    zz = z[v, u].astype(np.float64)
-    pts = np.stack(((u * 4 - cam.cx) / cam.fx * zz, (v * 4 - cam.cy) / cam.fy * zz, zz))
+    pts = sample_points(depth, 4, cam)
     for j, i in enumerate(ids, start=1):
         # n . P + d is the signed distance from the plane, positive on the camera's side
         dist = normal[j] @ pts + off[j]
-        beneath[int(i)] = float(np.mean(dist < -_BENEATH_MM)) if zz.size else 0.0
+        beneath[int(i)] = float(np.mean(dist < -_BENEATH_MM)) if pts.shape[1] else 0.0
     return out, beneath
 
 
@@ -538,14 +572,14 @@ def _support_class(
     inclusive boxes of each support (row 0 unused).
     """
     fit_px = max(min_px // 2, 10)
-    lab, n, sums, boxes, planes = support_pieces(
+    lab, n, sums, boxes, planes, fit = support_pieces_fit(
         depth, ok, classes, cls, cam, jump_rel=cfg.jump_rel, bridge=cfg.fill_holes_px, min_fit_px=fit_px
     )
     # noise makes some support pixels look facing; those lying on a big support's plane
     # go back to it (an upright object meets that plane only along its base row)
     candidates = ok & (classes == FACING)
     if n and candidates.any():
-        normal, off, count = planes_from_sums(planes)
+        normal, off, count = fit if fit is not None else planes_from_sums(planes)
         near = near_planes(normal, off, count, boxes, depth, candidates, cam, min_px=min_px, tol_rel=cfg.jump_rel / 2)
         if near.any():
             np.copyto(classes, np.int8(cls), where=near)

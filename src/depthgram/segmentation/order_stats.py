@@ -12,7 +12,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-__all__ = ["kth_smallest", "next_smallest"]
+__all__ = ["kth_pair", "kth_smallest", "next_smallest"]
 
 
 @njit(cache=True, nogil=True)
@@ -60,3 +60,55 @@ def next_smallest(a: NDArray[np.floating], k: int) -> float:
     Valid after :func:`kth_smallest` (``a``, ``k``) left the larger values right of ``k``.
     """
     return float(a[k + 1 :].min())
+
+
+#: Widest span of doubled values :func:`kth_pair` counts instead of partitioning.
+_MAX_COUNT_SPAN = 1 << 14
+
+
+@njit(cache=True, nogil=True)
+def kth_pair(a: NDArray[np.float64], k: int) -> tuple[float, float]:
+    """Return the ``k``-th and ``(k + 1)``-th smallest values of ``a`` (0-based).
+
+    The second is the first again when ``k`` is the last index.
+    ``np.partition(a, k)[k]`` and the next value, as :func:`kth_smallest` and
+    :func:`next_smallest` give them (``a`` may be reordered). Whole and half numbers within a
+    span of 8192 (quantised depths, their differences and the deviations from a median of
+    them) are counted in one pass instead: an order statistic is a value of ``a`` whatever
+    finds it, and each counted value is checked to come back exactly.
+    """
+    n = a.size
+    lo = a[0]
+    hi = a[0]
+    for i in range(1, n):
+        v = a[i]
+        lo = min(lo, v)
+        hi = max(hi, v)
+    if (hi - lo) * 2.0 < _MAX_COUNT_SPAN:
+        m = int((hi - lo) * 2.0) + 1
+        count = np.zeros(m, np.int64)
+        exact = True
+        for i in range(n):
+            t = (a[i] - lo) * 2.0
+            j = int(t)
+            if j != t or lo + j / 2.0 != a[i]:
+                exact = False
+                break
+            count[j] += 1
+        if exact:
+            j = 0
+            seen = count[0]
+            while seen <= k:
+                j += 1
+                seen += count[j]
+            first = lo + j / 2.0
+            if seen > k + 1 or k + 1 >= n:
+                return first, first
+            j += 1
+            while count[j] == 0:
+                j += 1
+            return first, lo + j / 2.0
+    first = kth_smallest(a, k)
+    if k + 1 >= n:
+        return first, first
+    return first, next_smallest(a, k)

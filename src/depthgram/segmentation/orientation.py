@@ -151,19 +151,25 @@ def _keep_slopes(
     # place); returns the kept mask as float32 for the box filter. One pass for what numpy did
     # in eight; float32 arithmetic as numpy's (its Python scalars act as float32).
     h, w = gx.shape
-    mk = np.zeros((h, w), np.float32)
+    mk = np.empty((h, w), np.float32)
+    zero = np.float32(0.0)
+    one = np.float32(1.0)
     for y in range(h):
-        for x in range(w):
-            lim = steep * inv3[y, x]
-            if has[y, x] and abs(fx * gx[y, x]) <= lim and abs(fy * gy[y, x]) <= lim:
-                mk[y, x] = 1.0
-            else:
-                gx[y, x] = 0.0
-                gy[y, x] = 0.0
+        ax = gx[y]
+        ay = gy[y]
+        hs = has[y]
+        iv = inv3[y]
+        m = mk[y]
+        for x in range(w):  # selects, no branch: vectorises
+            lim = steep * iv[x]
+            keep = hs[x] & (abs(fx * ax[x]) <= lim) & (abs(fy * ay[x]) <= lim)
+            m[x] = one if keep else zero
+            ax[x] = ax[x] if keep else zero
+            ay[x] = ay[x] if keep else zero
     return mk
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _classify(
     sgx: NDArray[np.float32],
     sgy: NDArray[np.float32],
@@ -179,24 +185,34 @@ def _classify(
 ) -> NDArray[np.int8]:
     # the class of each pixel from its window-mean slopes, in one pass instead of a dozen
     # full-frame float32 temporaries; the same float32 operations in the same order, so the
-    # classes are those of the numpy expression kept for the normals in _field
+    # classes are those of the numpy expression (tests/reference.py). Branch-free over each
+    # row, with numpy's division rules (no zero test; `den` is at least 1e-6), so that the
+    # divisions and square roots vectorise: every pixel is computed, then masked.
     h, w = sgx.shape
-    cls = np.zeros((h, w), np.int8)
+    cls = np.empty((h, w), np.int8)
     tiny = np.float32(1e-12)
+    ucol = np.empty(w, np.float32)  # u of each column once: the same float32 division
+    for x in range(w):
+        ucol[x] = (np.float32(x) - cx) / fx
+    vert = np.int8(VERTICAL)
+    horiz = np.int8(HORIZONTAL)
+    face = np.int8(FACING)
     for y in range(h):
         v = (np.float32(y) - cy) / fy
+        gx = sgx[y]
+        gy = sgy[y]
+        dn = den[y]
+        iv = inv3[y]
+        ok = valid[y]
+        jp = jump[y]
+        out = cls[y]
         for x in range(w):
-            if jump[y, x] or not valid[y, x]:
-                continue
-            u = (np.float32(x) - cx) / fx
-            a = fx * (sgx[y, x] / den[y, x])
-            b = fy * (sgy[y, x] / den[y, x])
-            c = inv3[y, x] - a * u - b * v
+            a = fx * (gx[x] / dn[x])
+            b = fy * (gy[x] / dn[x])
+            c = iv[x] - a * ucol[x] - b * v
             t = cos_t * (np.sqrt(a * a + b * b + c * c) + tiny)
-            if abs(a) >= t:
-                cls[y, x] = VERTICAL
-            elif abs(b) >= t:
-                cls[y, x] = HORIZONTAL
+            k = vert if abs(a) >= t else (horiz if abs(b) >= t else face)
+            out[x] = k if ok[x] & ~jp[x] else face
     return cls
 
 
@@ -254,41 +270,77 @@ def _one_sided(inv: NDArray[np.float32], valid: NDArray[np.bool_], step: int) ->
     return _one_sided_rows(np.ascontiguousarray(inv), np.ascontiguousarray(valid), step)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always", error_model="numpy")
+def _slope(f: np.float32, b: np.float32, okf: bool, okb: bool, fstep: np.float32) -> np.float32:
+    # the smaller of the forward and backward differences over `fstep` px, as selects (no
+    # branch), 0 without either
+    inf = np.float32(np.inf)
+    f = f if okf else inf
+    b = b if okb else inf
+    g = f if abs(f) <= abs(b) else b
+    return g / fstep if okf | okb else np.float32(0.0)
+
+
+@njit(cache=True, error_model="numpy")
 def _one_sided_rows(inv: NDArray[np.float32], valid: NDArray[np.bool_], step: int) -> NDArray[np.float32]:
-    # one pass instead of ten full-frame numpy temporaries; same float32 arithmetic
+    # one pass instead of ten full-frame numpy temporaries; same float32 arithmetic. The
+    # columns with both neighbours in the frame take a loop of their own, free of index tests
+    # and branches, which vectorises.
     h, w = inv.shape
     out = np.zeros((h, w), np.float32)
     fstep = np.float32(step)
+    lo = min(step, w)
+    hi = max(w - step, lo)
     for y in range(h):
-        for x in range(w):
-            okf = x + step < w and valid[y, x + step] and valid[y, x]
-            okb = x - step >= 0 and valid[y, x] and valid[y, x - step]
-            if not (okf or okb):
-                continue
-            f = inv[y, x + step] - inv[y, x] if okf else np.float32(np.inf)
-            b = inv[y, x] - inv[y, x - step] if okb else np.float32(np.inf)
-            g = f if abs(f) <= abs(b) else b
-            out[y, x] = g / fstep
+        iv = inv[y]
+        ok = valid[y]
+        o = out[y]
+        for x in range(lo):
+            okf = x + step < w and ok[x + step] and ok[x]
+            o[x] = _slope(iv[x + step] - iv[x] if okf else np.float32(0.0), np.float32(0.0), okf, False, fstep)
+        # the interior through shifted views, indexed alike (as the columns' loop): vectorises
+        ivf, ivc, ivb = iv[lo + step : hi + step], iv[lo:hi], iv[lo - step : hi - step]
+        okf, okc, okb = ok[lo + step : hi + step], ok[lo:hi], ok[lo - step : hi - step]
+        oc = o[lo:hi]
+        for i in range(hi - lo):
+            oc[i] = _slope(ivf[i] - ivc[i], ivc[i] - ivb[i], okf[i] & okc[i], okc[i] & okb[i], fstep)
+        for x in range(hi, w):
+            okb = x - step >= 0 and ok[x] and ok[x - step]
+            o[x] = _slope(np.float32(0.0), iv[x] - iv[x - step] if okb else np.float32(0.0), False, okb, fstep)
     return out
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _one_sided_cols(inv: NDArray[np.float32], valid: NDArray[np.bool_], step: int) -> NDArray[np.float32]:
-    # _one_sided_rows along columns (same arithmetic), without the three transposed copies
+    # _one_sided_rows along columns (same arithmetic), a whole row of columns at a time,
+    # without the three transposed copies
     h, w = inv.shape
     out = np.zeros((h, w), np.float32)
     fstep = np.float32(step)
+    zero = np.float32(0.0)
     for y in range(h):
-        for x in range(w):
-            okf = y + step < h and valid[y + step, x] and valid[y, x]
-            okb = y - step >= 0 and valid[y, x] and valid[y - step, x]
-            if not (okf or okb):
-                continue
-            f = inv[y + step, x] - inv[y, x] if okf else np.float32(np.inf)
-            b = inv[y, x] - inv[y - step, x] if okb else np.float32(np.inf)
-            g = f if abs(f) <= abs(b) else b
-            out[y, x] = g / fstep
+        hasf = y + step < h
+        hasb = y - step >= 0
+        iv = inv[y]
+        ok = valid[y]
+        o = out[y]
+        if hasf and hasb:
+            ivf = inv[y + step]
+            okn = valid[y + step]
+            ivb = inv[y - step]
+            okp = valid[y - step]
+            for x in range(w):
+                o[x] = _slope(ivf[x] - iv[x], iv[x] - ivb[x], okn[x] & ok[x], ok[x] & okp[x], fstep)
+        elif hasf:
+            ivf = inv[y + step]
+            okn = valid[y + step]
+            for x in range(w):
+                o[x] = _slope(ivf[x] - iv[x], zero, okn[x] & ok[x], False, fstep)
+        elif hasb:
+            ivb = inv[y - step]
+            okp = valid[y - step]
+            for x in range(w):
+                o[x] = _slope(zero, iv[x] - ivb[x], False, ok[x] & okp[x], fstep)
     return out
 
 

@@ -40,7 +40,9 @@ __all__ = [
     "plane_normal",
     "plane_residual_mask",
     "plane_sums",
+    "plane_sums_in_boxes",
     "planes_from_sums",
+    "sample_points",
 ]
 
 
@@ -170,7 +172,8 @@ def find_planes(
     s = sample_step or max(1, round(math.sqrt(h * w / 3000.0)))
     rng = np.random.default_rng(seed)
     z_sub = np.ascontiguousarray(depth_mm[::s, ::s], dtype=np.float32)
-    left = np.ascontiguousarray((valid if search is None else valid & search)[::s, ::s])
+    # the grid's own pixels only, not a full-frame `valid & search`
+    left = np.ascontiguousarray(valid[::s, ::s] if search is None else valid[::s, ::s] & search[::s, ::s])
     min_sub = min_px / (s * s)
     t_mm, t_rel = np.float32(tol_mm), np.float32(tol_rel)
     found: list[tuple[tuple[float, float, float], NDArray[np.bool_], float]] = []
@@ -549,6 +552,118 @@ def plane_sums(
     )
 
 
+def plane_sums_in_boxes(
+    labels: NDArray[np.int32],
+    n: int,
+    ids: NDArray[np.intp],
+    boxes: NDArray[np.int64],
+    depth_mm: NDArray[np.float32],
+    fx: float,
+    fy: float,
+    cx: float,
+    cy: float,
+) -> NDArray[np.float64]:
+    """:func:`plane_sums` of the labels ``ids`` only, reading each one's box alone.
+
+    ``boxes`` (k, 4) are the inclusive (x0, y0, x1, y1) of ``ids``, which must hold every
+    pixel of the label. The rows of ``ids`` are those of ``plane_sums(..., only=...)`` to the
+    last bit (the same runs, added in the same order); the others stay 0. A few supports
+    among many objects cover a fraction of the frame.
+    """
+    return _plane_sums_boxes(
+        np.ascontiguousarray(labels, np.int32),
+        int(n),
+        np.ascontiguousarray(ids, np.intp),
+        np.ascontiguousarray(boxes, np.int64),
+        np.ascontiguousarray(depth_mm, np.float32),
+        float(fx),
+        float(fy),
+        float(cx),
+        float(cy),
+    )
+
+
+@njit(cache=True)
+def _plane_sums_boxes(
+    labels: NDArray[np.int32],
+    n: int,
+    ids: NDArray[np.intp],
+    boxes: NDArray[np.int64],
+    depth: NDArray[np.float32],
+    fx: float,
+    fy: float,
+    cx: float,
+    cy: float,
+) -> NDArray[np.float64]:
+    # _plane_sums for one label at a time inside its box: the label's runs are the same, and
+    # are met in the same raster order
+    w = labels.shape[1]
+    out = np.zeros((n + 1, 9), np.float64)
+    ucol = np.empty(w, np.float64)
+    for x in range(w):
+        ucol[x] = (x - cx) / fx
+    for k in range(ids.size):
+        i = ids[k]
+        bx0, by0, bx1, by1 = boxes[k, 0], boxes[k, 1], boxes[k, 2], boxes[k, 3]
+        for y in range(by0, by1 + 1):
+            v = (y - cy) / fy
+            x = bx0
+            while x <= bx1:
+                if labels[y, x] != i:
+                    x += 1
+                    continue
+                c = 0.0
+                su = 0.0
+                suu = 0.0
+                sq = 0.0
+                suq = 0.0
+                while x <= bx1 and labels[y, x] == i:
+                    u = ucol[x]
+                    q = 1.0 / depth[y, x]
+                    c += 1.0
+                    su += u
+                    suu += u * u
+                    sq += q
+                    suq += u * q
+                    x += 1
+                flush_plane_run(out, i, v, c, su, suu, sq, suq)
+    return out
+
+
+def sample_points(depth_mm: NDArray[np.float32], step: int, cam: Intrinsics) -> NDArray[np.float64]:
+    """Camera coordinates (mm), shape (3, N), of every ``step``-th pixel of every ``step``-th row with a reading.
+
+    In raster order: x = (u - cx) / fx * Z, y = (v - cy) / fy * Z, Z, with (u, v) the pixel.
+    """
+    return _sample_points(np.asarray(depth_mm, np.float32), int(step), cam.fx, cam.fy, cam.cx, cam.cy)
+
+
+@njit(cache=True)
+def _sample_points(
+    depth: NDArray[np.float32], step: int, fx: float, fy: float, cx: float, cy: float
+) -> NDArray[np.float64]:
+    # (3, N) camera coordinates (mm) of every `step`-th pixel of every `step`-th row with a
+    # reading, in raster order: numpy's nonzero, gather and three products in one pass, the
+    # same float64 operations
+    zs = depth[::step, ::step]
+    h, w = zs.shape
+    m = 0
+    for y in range(h):
+        for x in range(w):
+            m += zs[y, x] > 0
+    pts = np.empty((3, m), np.float64)
+    k = 0
+    for y in range(h):
+        for x in range(w):
+            if zs[y, x] > 0:
+                zz = np.float64(zs[y, x])
+                pts[0, k] = (np.float64(x * step) - cx) / fx * zz
+                pts[1, k] = (np.float64(y * step) - cy) / fy * zz
+                pts[2, k] = zz
+                k += 1
+    return pts
+
+
 #: Stand-in for a missing ``only`` table of :func:`plane_sums` (numba wants an array).
 _NO_WANT = np.ones(1, np.bool_)
 
@@ -654,7 +769,7 @@ def near_planes(
     return out
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _near(
     out: NDArray[np.bool_],
     ids: NDArray[np.intp],
@@ -684,11 +799,14 @@ def _near(
         n0, n1, n2, d = normal[i, 0], normal[i, 1], normal[i, 2], off[i]
         for y in range(y0, y1):
             v = (y - cy) / fy
-            for x in range(x0, x1):
-                if not candidates[y, x]:
-                    continue
-                u = ucol[x]
+            cr = candidates[y, x0:x1]
+            zr = depth[y, x0:x1]
+            ur = ucol[x0:x1]
+            orow = out[y, x0:x1]
+            # every pixel of the row computed and masked (numpy's division rule, d is not 0),
+            # so that the divisions vectorise
+            for j in range(x1 - x0):
                 # 1/Z predicted by the plane: -(n . ray) / d
-                inv_pred = -(n0 * u + n1 * v + n2) / d
-                if inv_pred > 0 and abs(inv_pred * np.float64(depth[y, x]) - 1.0) <= tol_rel:
-                    out[y, x] = True
+                inv_pred = -(n0 * ur[j] + n1 * v + n2) / d
+                hit = cr[j] & (inv_pred > 0) & (abs(inv_pred * np.float64(zr[j]) - 1.0) <= tol_rel)
+                orow[j] = orow[j] | hit

@@ -26,7 +26,7 @@ from numba import njit
 from numpy.typing import NDArray
 
 from depthgram.errors import InputError
-from depthgram.segmentation.order_stats import kth_smallest, next_smallest
+from depthgram.segmentation.order_stats import kth_pair
 
 __all__ = ["PROFILES", "SensorModel", "estimate_sensor", "sensor_model"]
 
@@ -221,20 +221,28 @@ def _counting_order(z: NDArray[np.float64]) -> NDArray[np.intp]:
     n = z.size
     if n == 0:
         return np.empty(0, np.intp)
-    lo = z.min()
+    lo = z[0]
+    hi = z[0]
+    for i in range(1, n):
+        lo = min(lo, z[i])
+        hi = max(hi, z[i])
+    if hi - lo >= 1 << 20:
+        return np.empty(0, np.intp)
+    span = int(hi - lo) + 1
+    count = np.zeros(span + 1, np.int64)
+    key = np.empty(n, np.int32)
     for i in range(n):
         v = z[i] - lo
-        if v != math.floor(v) or v >= 1 << 20:
+        d = int(v)
+        if d != v:
             return np.empty(0, np.intp)
-    span = int(z.max() - lo) + 1
-    count = np.zeros(span + 1, np.int64)
-    for i in range(n):
-        count[int(z[i] - lo) + 1] += 1
+        key[i] = d
+        count[d + 1] += 1
     for j in range(span):
         count[j + 1] += count[j]
     out = np.empty(n, np.intp)
     for i in range(n):
-        d = int(z[i] - lo)
+        d = key[i]
         out[count[d]] = i
         count[d] += 1
     return out
@@ -269,9 +277,9 @@ def _median(a: NDArray[np.float64]) -> float:
     n = a.size
     h = n // 2
     if n % 2:
-        return kth_smallest(a, h)
-    lo = kth_smallest(a, h - 1)
-    return (lo + next_smallest(a, h - 1)) / 2.0
+        return kth_pair(a, h)[0]
+    lo, hi = kth_pair(a, h - 1)
+    return (lo + hi) / 2.0
 
 
 @njit(cache=True, nogil=True)
@@ -282,8 +290,7 @@ def _percentile20(a: NDArray[np.float64]) -> float:
     j = math.floor(vi)
     if vi >= n - 1:
         return float(a.max())
-    lo = kth_smallest(a, j)
-    hi = next_smallest(a, j)
+    lo, hi = kth_pair(a, j)
     t = vi - j
     diff = hi - lo
     return hi - diff * (1.0 - t) if t >= 0.5 else lo + diff * t

@@ -27,7 +27,7 @@ from depthgram.segmentation.objects import SceneObject
 from depthgram.segmentation.orientation import HORIZONTAL, VERTICAL
 from depthgram.segmentation.planes import coplanar_groups, planes_from_sums
 
-__all__ = ["add_labels", "drop_pieces", "slice_parts", "support_kind", "support_pieces"]
+__all__ = ["add_labels", "drop_pieces", "slice_parts", "support_kind", "support_pieces", "support_pieces_fit"]
 
 
 def slice_parts(
@@ -53,7 +53,8 @@ def slice_parts(
         Slice thickness (px) from the object's extent across the slices (px), e.g.
         :meth:`depthgram.segmentation.SegmentConfig.slice_step`.
     depth_label : callable
-        Depth (mm) -> global depth label.
+        Depths (mm, an array) -> global depth labels, elementwise (as
+        :meth:`depthgram.segmentation.histogram.Bands.depth_label`).
     first_id : int
         Id of the first part (parts are not in the label map; ids only name them).
     """
@@ -71,6 +72,10 @@ def slice_parts(
     parts = make_objects(part_map, stats, intrinsics=shifted)
     parts.sort(key=lambda p: p.depth)
     fn = depth_label  # callable, typed loosely to keep this module free of Bands
+    # every part's label in one call (one numpy call per part cost more on small frames); a
+    # callable giving one label whatever the depth is broadcast
+    depths = np.array([p.depth for p in parts], np.float64)
+    part_labels = np.broadcast_to(np.asarray(fn(depths)), depths.shape).tolist()  # type: ignore[operator]
     out = []
     for j, p in enumerate(parts):
         cx, cy = p.center_xy
@@ -79,7 +84,7 @@ def slice_parts(
             SceneObject(
                 id=first_id + j,
                 kind="part",
-                depth_label=int(fn(p.depth)),  # type: ignore[operator]
+                depth_label=int(part_labels[j]),
                 depth=p.depth,
                 depth_std=p.depth_std,
                 area=p.area,
@@ -252,16 +257,46 @@ def support_pieces(
     sums : ndarray (n + 1, N_COLUMNS), boxes : ndarray (n + 1, 4), planes : ndarray (n + 1, 9)
         Statistics (``KEY`` 0), inclusive boxes and plane sums per component (row 0 unused).
     """
+    labels, n, sums, boxes, planes, _ = support_pieces_fit(
+        depth_mm, valid, classes, cls, cam, jump_rel=jump_rel, bridge=bridge, min_fit_px=min_fit_px
+    )
+    return labels, n, sums, boxes, planes
+
+
+def support_pieces_fit(
+    depth_mm: NDArray[np.float32],
+    valid: NDArray[np.bool_],
+    classes: NDArray[np.int8],
+    cls: int,
+    cam: Intrinsics,
+    *,
+    jump_rel: float,
+    bridge: int,
+    min_fit_px: int,
+) -> tuple[
+    NDArray[np.int32],
+    int,
+    NDArray[np.float64],
+    NDArray[np.int64],
+    NDArray[np.float64],
+    tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]] | None,
+]:
+    """:func:`support_pieces`, and ``planes_from_sums`` of the returned plane sums when it was taken.
+
+    The last item is ``(normal, off, count)`` of the pieces when no pieces were joined (the
+    fit that decided it), None otherwise, so that a caller does not solve the same planes again.
+    """
     state = _class_state(valid, classes, np.int8(cls))
     labels, n, sums, boxes, planes = label_keyed_planes(
         depth_mm, state, depth_mm, cam.fx, cam.fy, cam.cx, cam.cy, rel=jump_rel, bridge=bridge
     )
     if n < 2:
-        return labels, n, sums, boxes, planes
-    normal, off, count = planes_from_sums(planes)
+        return labels, n, sums, boxes, planes, None
+    fit = planes_from_sums(planes)
+    normal, off, count = fit
     lut, m = coplanar_groups(normal, off, count, min_fit_px=min_fit_px)
     if m == n:
-        return labels, n, sums, boxes, planes
+        return labels, n, sums, boxes, planes, fit
     msums = np.zeros((m + 1, sums.shape[1]))
     np.add.at(msums, lut, sums)
     msums[:, KEY] = 0.0
@@ -275,4 +310,4 @@ def support_pieces(
     np.maximum.at(mboxes[:, 2], lut, boxes[:, 2])
     np.maximum.at(mboxes[:, 3], lut, boxes[:, 3])
     merged = relabel(labels, lut)
-    return merged, m, msums, mboxes, mplanes
+    return merged, m, msums, mboxes, mplanes, None

@@ -28,6 +28,7 @@ from numpy.typing import NDArray
 from depthgram.segmentation.label import ACTIVE, BLOCK, HOLE
 from depthgram.segmentation.label.stats import relabel_stats
 from depthgram.segmentation.label.unionfind import resolve as _resolve
+from depthgram.segmentation.label.unionfind import resolve_tables
 from depthgram.segmentation.label.unionfind import union as _union
 from depthgram.segmentation.order_stats import kth_smallest, next_smallest
 from depthgram.segmentation.sensor import SensorModel
@@ -41,6 +42,7 @@ __all__ = [
     "merge_openings",
     "reattach",
     "surface_state",
+    "surfaces_kept",
 ]
 
 
@@ -124,21 +126,30 @@ def concave_creases(
     return _creases(ws, den, ok, c32, np.float32(0.5 * k * k), int(scale_px), geom, noise_scale)
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def _inverse(z: NDArray[np.float32], valid: NDArray[np.bool_]) -> tuple[NDArray[np.float32], NDArray[np.float32]]:
+    # 1000 / z and 1 where there is a reading, else 0: every pixel divided and masked (numpy's
+    # division rule, no zero test), so that the row loop vectorises
     h, w = z.shape
-    inv = np.zeros((h, w), np.float32)
-    m = np.zeros((h, w), np.float32)
+    inv = np.empty((h, w), np.float32)
+    m = np.empty((h, w), np.float32)
     thousand = np.float32(1000.0)
+    zero = np.float32(0.0)
+    one = np.float32(1.0)
     for y in range(h):
+        zr = z[y]
+        vr = valid[y]
+        ir = inv[y]
+        mr = m[y]
         for x in range(w):
-            if valid[y, x]:
-                inv[y, x] = thousand / z[y, x]
-                m[y, x] = 1.0
+            ok = vr[x]
+            q = thousand / zr[x]
+            ir[x] = q if ok else zero
+            mr[x] = one if ok else zero
     return inv, m
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def _creases(
     ws: NDArray[np.float32],
     den: NDArray[np.float32],
@@ -161,19 +172,26 @@ def _creases(
     one = np.float32(1.0)
     two = np.float32(2.0)
     four = np.float32(4.0)
+    c0, c1, c2, c3 = c[0], c[1], c[2], c[3]
+    zero = np.float32(0.0)
     for y in range(h):
+        wr = ws[y]
+        dr = den[y]
+        vr = valid[y]
+        hr = has[y]
+        br = bend[y]
+        # every pixel computed, then masked (numpy's division rule: a window without enough
+        # readings divides by a small or zero count harmlessly), so that the divisions vectorise
         for x in range(w):
-            if den[y, x] >= min_den:
-                has[y, x] = valid[y, x]  # the result is kept where there is a reading only
-                wc = ws[y, x] / den[y, x]
-                ws[y, x] = wc
-                z = thousand / wc
-                sq = z * z
-                res = max(c[0] + c[1] * sq, two * (c[2] + c[3] * sq))
-                noise = res / two / max(z, one) * noise_scale
-                bend[y, x] = max(geom, four * noise) * wc
-            else:
-                ws[y, x] = 0.0
+            keep = dr[x] >= min_den
+            wc = wr[x] / dr[x]
+            z = thousand / wc
+            sq = z * z
+            res = max(c0 + c1 * sq, two * (c2 + c3 * sq))
+            noise = res / two / max(z, one) * noise_scale
+            hr[x] = keep & vr[x]  # the result is kept where there is a reading only
+            wr[x] = wc if keep else zero
+            br[x] = max(geom, four * noise) * wc if keep else zero
     # the neighbours' own `has` is not needed: a neighbour without a mean reads 0 here, which
     # fails the jump test against a positive mean as it failed numpy's validity test
     out = np.zeros((h, w), np.bool_)
@@ -300,7 +318,7 @@ def label_surfaces(
         1..n in raster order of each component's first pixel; 0 elsewhere.
     n : int
     """
-    lab, parent, nxt = _label_surfaces(
+    lab, parent, nxt, _ = _label_surfaces(
         np.ascontiguousarray(depth_mm, np.float32),
         np.ascontiguousarray(state, np.int8),
         float(tol_0),
@@ -310,6 +328,167 @@ def label_surfaces(
     )
     labels, n, _, _ = _resolve(lab, parent, nxt, _NO_SUMS, _NO_BOXES, 0, False)
     return labels, int(n)
+
+
+def surfaces_kept(
+    depth_mm: NDArray[np.float32],
+    state: NDArray[np.int8],
+    facing: NDArray[np.bool_],
+    *,
+    tol_0: float,
+    tol_2: float,
+    slope_per_px: float,
+    bridge_px: int,
+    min_px: int,
+    max_px: int,
+) -> tuple[NDArray[np.int32], int, NDArray[np.float64], NDArray[np.int64]]:
+    """Return the surfaces of ``min_px`` pixels or more once loose pixels are reattached, with statistics.
+
+    :func:`label_surfaces`, :func:`loosen_small`, :func:`reattach` (up to ``max_px`` steps) and
+    :func:`keep_large` in a row, with the same labels and statistics, in fewer passes over
+    the frame: the labeller counts its pixels; one pass marks the loose pixels and the seeds
+    of the growth, which works in place on the provisional labels read through their final
+    ids; one pass relabels with the statistics. No pass counts labels again: the surfaces
+    left after loosening all have ``min_px`` pixels or more and growth only adds to them, so
+    ``keep_large`` keeps exactly those.
+
+    Returns
+    -------
+    labels : ndarray of int32, shape (H, W)
+        1..n as :func:`keep_large` numbers them; 0 elsewhere.
+    n : int
+    sums : ndarray of float64, shape (n + 1, N_COLUMNS)
+    boxes : ndarray of int64, shape (n + 1, 4)
+        The statistics table and inclusive boxes of :func:`keep_large`.
+    """
+    z = np.ascontiguousarray(depth_mm, np.float32)
+    lab, parent, nxt, pcount = _label_surfaces(
+        z, np.ascontiguousarray(state, np.int8), float(tol_0), float(tol_2), float(slope_per_px), int(bridge_px)
+    )
+    table, count = _kept_table(lab, parent, nxt, pcount, int(min_px))
+    _loosen_grow(
+        lab,
+        table,
+        np.ascontiguousarray(facing, np.bool_),
+        z,
+        float(tol_0),
+        float(tol_2),
+        float(slope_per_px),
+        int(max_px),
+    )
+    labels, n, sums, boxes = _keep_through(lab, table, count, int(min_px), z)
+    return labels, int(n), sums, boxes
+
+
+@njit(cache=True)
+def _kept_table(
+    lab: NDArray[np.int32], parent: NDArray[np.int32], nxt: int, pcount: NDArray[np.int64], min_px: int
+) -> tuple[NDArray[np.int32], NDArray[np.int64]]:
+    # provisional label -> the final one resolve gives it (raster order of first pixels), or 0
+    # for surfaces under min_px pixels (loosen_small); and the pixels per final label (0 for
+    # the loosened ones)
+    final, n, _, _ = resolve_tables(lab, parent, nxt, _NO_SUMS, _NO_BOXES, 0, False)
+    count = np.zeros(n + 1, np.int64)
+    for i in range(1, nxt):
+        count[final[i]] += pcount[i]
+    small = count < min_px
+    small[0] = True
+    table = np.zeros(nxt, np.int32)
+    for i in range(1, nxt):
+        table[i] = 0 if small[final[i]] else final[i]
+    for i in range(n + 1):
+        if small[i]:
+            count[i] = 0
+    return table, count
+
+
+@njit(cache=True)
+def _loosen_grow(
+    lab: NDArray[np.int32],
+    table: NDArray[np.int32],
+    facing: NDArray[np.bool_],
+    depth: NDArray[np.float32],
+    t0: float,
+    t2: float,
+    sl: float,
+    max_steps: int,
+) -> None:
+    # loosen_small and reattach's _grow on the provisional labels, read through `table` (a
+    # pixel's label is table[lab]): one pass marks the loose pixels (facing, label 0) and
+    # queues the seeds (loose, beside a labelled pixel) in raster order, then the same
+    # breadth-first growth; a grown pixel takes its neighbour's provisional label, which is
+    # the same label through the table. `lab` is written in place.
+    h, w = lab.shape
+    loose = np.zeros((h, w), np.bool_)
+    pending = np.zeros((h, w), np.bool_)
+    queue = np.empty(h * w + 1, np.int64)  # reserved only: pages past the queue's end stay untouched
+    steps = np.empty(h * w + 1, np.int32)
+    tail = 0
+    for y in range(h):
+        for x in range(w):
+            if facing[y, x] and table[lab[y, x]] == 0:
+                loose[y, x] = True
+                if (
+                    (x > 0 and table[lab[y, x - 1]] > 0)
+                    or (x < w - 1 and table[lab[y, x + 1]] > 0)
+                    or (y > 0 and table[lab[y - 1, x]] > 0)
+                    or (y < h - 1 and table[lab[y + 1, x]] > 0)
+                ):
+                    queue[tail] = y * w + x
+                    steps[tail] = 1
+                    pending[y, x] = True
+                    tail += 1
+    head = 0
+    while head < tail:
+        p = queue[head]
+        k = steps[head]
+        head += 1
+        y = p // w
+        x = p - y * w
+        z = depth[y, x]
+        best = 0
+        for d in range(4):
+            yy = y + (1 if d == 0 else -1 if d == 1 else 0)
+            xx = x + (1 if d == 2 else -1 if d == 3 else 0)
+            if yy < 0 or yy >= h or xx < 0 or xx >= w or table[lab[yy, xx]] == 0:
+                continue
+            zz = depth[yy, xx]
+            zm = min(z, zz)
+            if abs(z - zz) <= t0 + t2 * zm * zm + sl * zm:
+                best = lab[yy, xx]
+                break
+        if best == 0:
+            continue
+        lab[y, x] = best
+        if k >= max_steps:
+            continue
+        for d in range(4):
+            yy = y + (1 if d == 0 else -1 if d == 1 else 0)
+            xx = x + (1 if d == 2 else -1 if d == 3 else 0)
+            if 0 <= yy < h and 0 <= xx < w and loose[yy, xx] and table[lab[yy, xx]] == 0 and not pending[yy, xx]:
+                pending[yy, xx] = True
+                queue[tail] = yy * w + xx
+                steps[tail] = k + 1
+                tail += 1
+
+
+@njit(cache=True)
+def _keep_through(
+    lab: NDArray[np.int32], table: NDArray[np.int32], count: NDArray[np.int64], min_px: int, depth: NDArray[np.float32]
+) -> tuple[NDArray[np.int32], int, NDArray[np.float64], NDArray[np.int64]]:
+    # keep_large of the labels table[lab], in the one relabelling pass of relabel_stats
+    n = count.size - 1
+    lut = np.zeros(n + 1, np.int32)
+    m = 0
+    for i in range(1, n + 1):
+        if count[i] >= min_px:
+            m += 1
+            lut[i] = m
+    through = np.empty(table.size, np.int32)
+    for i in range(table.size):
+        through[i] = lut[table[i]]
+    out, sums, box = relabel_stats(lab, through, m, depth)
+    return out, m, sums, box
 
 
 #: Stand-ins for the statistics :func:`depthgram.segmentation.label.unionfind.resolve` does not read here.
@@ -326,7 +505,7 @@ def _continuous(za: np.float32, zb: np.float32, gap: int, t0: float, t2: float, 
 @njit(cache=True)
 def _label_surfaces(
     depth: NDArray[np.float32], state: NDArray[np.int8], t0: float, t2: float, sl: float, bridge: int
-) -> tuple[NDArray[np.int32], NDArray[np.int32], int]:
+) -> tuple[NDArray[np.int32], NDArray[np.int32], int, NDArray[np.int64]]:
     # Hand-written: no library labels components under a depth-difference rule with hole
     # bridging (scipy and OpenCV label binary images). The first pass of a two-pass labeller:
     # a pixel continuing its left neighbour (the last active pixel of the row, across at most
@@ -338,6 +517,7 @@ def _label_surfaces(
     h, w = depth.shape
     lab = np.zeros((h, w), np.int32)
     parent = np.empty(h * w + 1, np.int32)  # reserved only: pages of unused labels stay untouched
+    count = np.empty(h * w + 1, np.int64)  # pixels per provisional label, for surfaces_kept
     lastrow = np.full(w, -1, np.int64)
     nxt = 1
     for y in range(h):
@@ -355,6 +535,7 @@ def _label_surfaces(
                     up = lab[ly, x]
                 if left == 0 and up == 0:
                     parent[nxt] = nxt
+                    count[nxt] = 0
                     here = nxt
                     nxt += 1
                 elif up == 0 or up == left:
@@ -365,12 +546,13 @@ def _label_surfaces(
                     here = left
                     _union(parent, left, up)
                 lab[y, x] = here
+                count[here] += 1
                 last = x
                 lastrow[x] = y
             elif s == BLOCK:
                 last = -1
                 lastrow[x] = -1
-    return lab, parent, nxt
+    return lab, parent, nxt, count
 
 
 def reattach(
@@ -718,7 +900,15 @@ def keep_large(
     (:func:`depthgram.segmentation.label.stats.relabel_stats`), for numpy's bincount, the
     relabelling pass and the statistics pass.
     """
-    count = _count_labels(labels, n)
+    return _keep_counted(labels, _count_labels(labels, n), min_px, depth)
+
+
+@njit(cache=True)
+def _keep_counted(
+    labels: NDArray[np.int32], count: NDArray[np.int64], min_px: int, depth: NDArray[np.float32]
+) -> tuple[NDArray[np.int32], int, NDArray[np.float64], NDArray[np.int64]]:
+    # keep_large with the pixels per label already counted
+    n = count.size - 1
     lut = np.zeros(n + 1, np.int32)
     m = 0
     for i in range(1, n + 1):
