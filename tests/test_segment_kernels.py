@@ -627,3 +627,68 @@ def test_creases_compiled_equal_numpy(seed: int) -> None:
             got = concave_creases(depth, valid, sensor, scale_px=r, min_angle_deg=10.0, focal_px=500.0)
             assert ref.any()
             assert np.array_equal(got, ref)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_coplanar_groups_are_the_components_of_the_coplanar_pairs(seed: int) -> None:
+    # the definition: large pieces i, j join when their normals agree within the angle and
+    # their offsets within the share; groups are the connected components of those pairs,
+    # numbered 1..m by their smallest piece; small pieces stay alone
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    from depthgram.segmentation.planes import coplanar_groups
+
+    rng = np.random.default_rng(seed)
+    for _ in range(50):
+        n = int(rng.integers(2, 60))
+        base = rng.normal(0, 1, (4, 3))
+        base /= np.linalg.norm(base, axis=1)[:, None]
+        normal = base[rng.integers(0, 4, n + 1)] + rng.normal(0, 0.05, (n + 1, 3))
+        normal /= np.linalg.norm(normal, axis=1)[:, None]
+        off = rng.choice([800.0, 1500.0, 2500.0], n + 1) * (1 + rng.normal(0, 0.03, n + 1))
+        count = rng.integers(0, 200, n + 1).astype(np.float64)
+        lut, m = coplanar_groups(normal, off, count, min_fit_px=50)
+        big = (count >= 50) & (np.arange(n + 1) > 0)
+        pairs = [
+            (i, j)
+            for i in range(1, n + 1)
+            for j in range(i + 1, n + 1)
+            if big[i]
+            and big[j]
+            and normal[i] @ normal[j] > math.cos(math.radians(10.0))
+            and abs(off[i] - off[j]) <= 0.08 * max(off[i], off[j])
+        ]
+        rows, cols = (list(v) for v in zip(*pairs, strict=True)) if pairs else ([], [])
+        graph = coo_matrix((np.ones(len(rows)), (rows, cols)), shape=(n + 1, n + 1))
+        _, comp = connected_components(graph, directed=False)
+        first = {c: int(np.flatnonzero(comp == c)[0]) for c in np.unique(comp)}
+        order = sorted(first.values())
+        want = np.array([order.index(first[c]) for c in comp], np.int32)
+        np.testing.assert_array_equal(lut, want)
+        assert m == len(order) - 1 and lut.dtype == np.int32
+
+
+def test_merged_rows_equal_numpy_add_at() -> None:
+    from depthgram.segmentation.slices import _merge_rows
+
+    rng = np.random.default_rng(5)
+    for _ in range(20):
+        n = int(rng.integers(1, 40))
+        m = int(rng.integers(1, n + 1))
+        lut = np.concatenate(([0], rng.integers(1, m + 1, n))).astype(np.int32)
+        sums, planes = rng.normal(0, 1e3, (n + 1, 8)), rng.normal(0, 1.0, (n + 1, 9))
+        boxes = rng.integers(0, 500, (n + 1, 4)).astype(np.int64)
+        ref_s = np.zeros((m + 1, 8))
+        np.add.at(ref_s, lut, sums)
+        ref_p = np.zeros((m + 1, 9))
+        np.add.at(ref_p, lut, planes)
+        ref_b = np.empty((m + 1, 4), np.int64)
+        ref_b[:, :2] = np.iinfo(np.int64).max
+        ref_b[:, 2:] = -1
+        for c, f in ((0, np.minimum), (1, np.minimum), (2, np.maximum), (3, np.maximum)):
+            f.at(ref_b[:, c], lut, boxes[:, c])
+        got_s, got_p, got_b = _merge_rows(lut, m, sums, planes, boxes)
+        np.testing.assert_array_equal(got_s, ref_s)
+        np.testing.assert_array_equal(got_p, ref_p)
+        np.testing.assert_array_equal(got_b, ref_b)

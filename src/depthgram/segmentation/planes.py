@@ -726,20 +726,41 @@ def coplanar_groups(
     join = np.triu(same_dir & close, 1)
     if not join.any():
         return ident, n
-    parent = list(range(n + 1))
+    lut, m = _join_groups(join, big.astype(np.intp), n)
+    return lut, int(m)
 
-    def root(i: int) -> int:
-        while parent[i] != i:
-            i = parent[i]
-        return i
 
-    for i, j in zip(*np.nonzero(join), strict=True):
-        a, b = root(int(big[i])), root(int(big[j]))
-        if a != b:
-            parent[max(a, b)] = min(a, b)
-    roots = np.array([root(i) for i in range(n + 1)])
-    uniq, lut = np.unique(roots, return_inverse=True)
-    return lut.astype(np.int32), int(uniq.size - 1)
+@njit(cache=True)
+def _join_groups(join: NDArray[np.bool_], big: NDArray[np.intp], n: int) -> tuple[NDArray[np.int32], int]:
+    # union of the joined pairs (the smaller root becomes the root), then the groups numbered
+    # 1..m in the order of their smallest piece (np.unique of the roots); pieces 0..n. A Python
+    # loop over every piece (hundreds of noise specks on a real frame) cost more than the rest.
+    parent = np.arange(n + 1)
+    k = join.shape[0]
+    for i in range(k):
+        for j in range(k):
+            if not join[i, j]:
+                continue
+            a = big[i]
+            while parent[a] != a:
+                a = parent[a]
+            b = big[j]
+            while parent[b] != b:
+                b = parent[b]
+            if a != b:
+                parent[max(a, b)] = min(a, b)
+    lut = np.empty(n + 1, np.int32)
+    m = -1
+    for i in range(n + 1):
+        r = i
+        while parent[r] != r:
+            r = parent[r]
+        if r == i:
+            m += 1
+            lut[i] = m
+        else:
+            lut[i] = lut[r]
+    return lut, m
 
 
 def near_planes(

@@ -297,17 +297,31 @@ def support_pieces_fit(
     lut, m = coplanar_groups(normal, off, count, min_fit_px=min_fit_px)
     if m == n:
         return labels, n, sums, boxes, planes, fit
-    msums = np.zeros((m + 1, sums.shape[1]))
-    np.add.at(msums, lut, sums)
+    msums, mplanes, mboxes = _merge_rows(lut, m, sums, planes, boxes)
     msums[:, KEY] = 0.0
-    mplanes = np.zeros((m + 1, planes.shape[1]))
-    np.add.at(mplanes, lut, planes)
+    merged = relabel(labels, lut)
+    return merged, m, msums, mboxes, mplanes, None
+
+
+@njit(cache=True)
+def _merge_rows(
+    lut: NDArray[np.int32], m: int, sums: NDArray[np.float64], planes: NDArray[np.float64], boxes: NDArray[np.int64]
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.int64]]:
+    # the rows of the joined pieces added (sums, plane sums) and their boxes' union, row by
+    # row in index order as np.add.at / np.minimum.at / np.maximum.at add them (the same sums)
+    msums = np.zeros((m + 1, sums.shape[1]), np.float64)
+    mplanes = np.zeros((m + 1, planes.shape[1]), np.float64)
     mboxes = np.empty((m + 1, 4), np.int64)
     mboxes[:, :2] = np.iinfo(np.int64).max
     mboxes[:, 2:] = -1
-    np.minimum.at(mboxes[:, 0], lut, boxes[:, 0])
-    np.minimum.at(mboxes[:, 1], lut, boxes[:, 1])
-    np.maximum.at(mboxes[:, 2], lut, boxes[:, 2])
-    np.maximum.at(mboxes[:, 3], lut, boxes[:, 3])
-    merged = relabel(labels, lut)
-    return merged, m, msums, mboxes, mplanes, None
+    for i in range(lut.size):
+        g = lut[i]
+        for c in range(sums.shape[1]):
+            msums[g, c] += sums[i, c]
+        for c in range(planes.shape[1]):
+            mplanes[g, c] += planes[i, c]
+        mboxes[g, 0] = min(mboxes[g, 0], boxes[i, 0])
+        mboxes[g, 1] = min(mboxes[g, 1], boxes[i, 1])
+        mboxes[g, 2] = max(mboxes[g, 2], boxes[i, 2])
+        mboxes[g, 3] = max(mboxes[g, 3], boxes[i, 3])
+    return msums, mplanes, mboxes
