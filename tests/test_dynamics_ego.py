@@ -75,7 +75,7 @@ def test_a_still_camera_gives_no_motion() -> None:
         noisy = (a + rng.normal(0.0, 3.0, a.shape) * (a > 0)).astype(np.float32)
         motion = ego.update(noisy, K)
     assert motion is not None and motion.still
-    assert np.nanmax(np.abs(motion.image_motion((H, W), a))) < 1e-9  # px
+    assert np.nanmax(np.abs(motion.image_motion((H, W), a))) < 1e-3  # px (float32 arithmetic)
 
 
 def test_icp_without_valid_depth_gives_no_motion_and_the_tracker_goes_on() -> None:
