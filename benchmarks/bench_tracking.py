@@ -127,7 +127,9 @@ def real_rows(frames: int = 300) -> dict[str, float] | None:
         fr = make_frame(raw, invalid_values=(65535,), index=k, intrinsics=Intrinsics(585.0, 585.0, 320.0, 240.0))
         seg = segment(fr.depth, valid=fr.valid, intrinsics=fr.intrinsics)
         t0 = time.thread_time()
-        upd = tracker.update(seg.objects, k / 30.0, fr.size, FramePixels(fr.depth, seg.labels))  # as the pipeline
+        upd = tracker.update(
+            seg.objects, k / 30.0, fr.size, FramePixels(fr.depth, seg.labels, fr.intrinsics)
+        )  # as the pipeline
         t_track += time.thread_time() - t0
         n_obj += len(seg.objects)
         speeds += [abs(m.v_radial) for m in upd.motions.values() if m.v_radial is not None]
@@ -155,15 +157,24 @@ def truth_rows(
     min_age: int = 3,
     config: TrackerConfig | None = None,
     depth: str = "core",
-) -> dict[str, object] | None:
+    image_motions: Sequence[str] = ("shift", "camera"),
+) -> dict[str, dict[str, object]] | None:
     """The tracker against the true radial velocity of 7-Scenes' static objects, from the poses.
 
     Every object of at least ``min_fraction`` of the frame, from the ``min_age``-th frame of
     its track, is scored against :func:`depthgram.dynamics.evaluate.radial_velocity_from_poses`
     (central difference over the neighbouring frames' camera poses, 30 frames/s). ``depth``
-    ``core`` hands the tracker the frame's pixels (the depth change of each object's core),
-    ``plain`` only the objects (their mean depth), ``median`` each object's median depth.
-    Returns None when ``../shared/data`` is absent.
+    ``core`` hands the tracker the frame's pixels and intrinsics (the depth change of each
+    object's core), ``plain`` only the objects (their mean depth), ``median`` each object's
+    median depth. With ``core``, one tracker per ``image_motions`` entry (``config.image_motion``)
+    reads the same segmentations, side by side. Returns None when ``../shared/data`` is absent.
+
+    Returns
+    -------
+    dict
+        Per variant (``core/shift``, ``core/camera``, ``plain``, ...): ``within``, ``err_p50``,
+        ``err_p95`` (mm/s), ``by_kind``, ``ms_per_update`` (thread CPU time of the tracker's
+        update, the core and the image motion included).
     """
     from pathlib import Path
 
@@ -185,13 +196,19 @@ def truth_rows(
         poses.append(t)
     fps = 30.0
     k_int = (585.0, 585.0, 320.0, 240.0)
-    tracker = Tracker(config)
-    age: dict[int, int] = {}
-    err: list[float] = []
-    tru: list[float] = []
-    sig: list[float] = []
-    kinds: list[str] = []
-    eligible = 0
+    cfg = config if config is not None else TrackerConfig()
+    names = [f"core/{m}" for m in image_motions] if depth == "core" else [depth]
+    trackers = {
+        name: Tracker(dataclasses.replace(cfg, image_motion=name.split("/")[1]) if "/" in name else cfg)
+        for name in names
+    }
+    age: dict[str, dict[int, int]] = {name: {} for name in names}
+    err: dict[str, list[float]] = {name: [] for name in names}
+    tru: dict[str, list[float]] = {name: [] for name in names}
+    sig: dict[str, list[float]] = {name: [] for name in names}
+    kinds: dict[str, list[str]] = {name: [] for name in names}
+    cpu = dict.fromkeys(names, 0.0)
+    eligible = dict.fromkeys(names, 0)
     for k, p in enumerate(paths):
         raw = cv2.imread(str(p), cv2.IMREAD_UNCHANGED)
         fr = make_frame(raw, invalid_values=(65535,), index=k, intrinsics=Intrinsics(*k_int))
@@ -206,41 +223,58 @@ def truth_rows(
                 dataclasses.replace(o, depth=float(z), kind="object" if o.kind == "compound" else o.kind)
                 for o, z in zip(objects, np.atleast_1d(med), strict=True)
             )
-        pixels = FramePixels(fr.depth, seg.labels) if depth == "core" else None
-        upd = tracker.update(objects, k / fps, fr.size, pixels)
-        for m in upd.motions.values():
-            age[m.track_id] = age.get(m.track_id, 0) + 1
-        if k == 0 or k == len(paths) - 1:
-            continue
-        big = [o for o in seg.objects if o.area_fraction >= min_fraction and age[upd.motions[o.id].track_id] >= min_age]
-        if not big:
-            continue
-        inv = np.linalg.inv(poses[k])
-        truth = radial_velocity_from_poses(
-            fr.depth, seg.labels, [o.id for o in big], k_int, inv @ poses[k - 1], inv @ poses[k + 1], 2 / fps
-        )
-        for oid, vt in truth.items():
-            eligible += 1
-            m = upd.motions[oid]
-            if m.v_radial is None:
+        pixels = FramePixels(fr.depth, seg.labels, fr.intrinsics) if depth == "core" else None
+        truth: dict[int, float] | None = None
+        for name, tracker in trackers.items():
+            t0 = time.thread_time()
+            upd = tracker.update(objects, k / fps, fr.size, pixels)
+            cpu[name] += time.thread_time() - t0
+            for m in upd.motions.values():
+                age[name][m.track_id] = age[name].get(m.track_id, 0) + 1
+            if k == 0 or k == len(paths) - 1:
                 continue
-            err.append(m.v_radial - vt)
-            tru.append(vt)
-            kinds.append(next(o.kind for o in big if o.id == oid))
-            sig.append(np.nan if m.v_sigma is None else m.v_sigma)
-    e, t = np.array(err), np.array(tru)
-    p50, p95 = np.percentile(np.abs(e), [50, 95]) if e.size else (np.nan, np.nan)
-    return {
-        "frames": float(len(paths)), "eligible": float(eligible), "readings": float(e.size),
-        "within": within_share(e, t), "err_p50": float(p50), "err_p95": float(p95),
-        "truth_p50": float(np.median(np.abs(t))) if t.size else float("nan"),
-        "z_within_2sigma": float(np.mean(np.abs(e) <= 2 * np.array(sig))) if e.size else float("nan"),
-        "by_kind": {
-            kind: (within_share(e[sel], t[sel]), int(sel.sum()), float(np.median(np.abs(e[sel]))),
-                   float(np.percentile(np.abs(e[sel]), 95)))
-            for kind in sorted(set(kinds)) for sel in [np.array(kinds) == kind]
-        },
-    }  # fmt: skip
+            big = [
+                o
+                for o in seg.objects
+                if o.area_fraction >= min_fraction and age[name][upd.motions[o.id].track_id] >= min_age
+            ]
+            if not big:
+                continue
+            if truth is None:
+                inv = np.linalg.inv(poses[k])
+                truth = radial_velocity_from_poses(
+                    fr.depth, seg.labels, [o.id for o in seg.objects if o.area_fraction >= min_fraction],
+                    k_int, inv @ poses[k - 1], inv @ poses[k + 1], 2 / fps,
+                )  # fmt: skip
+            for o in big:
+                if o.id not in truth:
+                    continue
+                vt = truth[o.id]
+                eligible[name] += 1
+                m = upd.motions[o.id]
+                if m.v_radial is None:
+                    continue
+                err[name].append(m.v_radial - vt)
+                tru[name].append(vt)
+                kinds[name].append(o.kind)
+                sig[name].append(np.nan if m.v_sigma is None else m.v_sigma)
+    out: dict[str, dict[str, object]] = {}
+    for name in names:
+        e, t, kk = np.array(err[name]), np.array(tru[name]), np.array(kinds[name])
+        p50, p95 = np.percentile(np.abs(e), [50, 95]) if e.size else (np.nan, np.nan)
+        out[name] = {
+            "frames": float(len(paths)), "eligible": float(eligible[name]), "readings": float(e.size),
+            "within": within_share(e, t), "err_p50": float(p50), "err_p95": float(p95),
+            "truth_p50": float(np.median(np.abs(t))) if t.size else float("nan"),
+            "z_within_2sigma": float(np.mean(np.abs(e) <= 2 * np.array(sig[name]))) if e.size else float("nan"),
+            "ms_per_update": 1e3 * cpu[name] / len(paths),
+            "by_kind": {
+                kind: (within_share(e[sel], t[sel]), int(sel.sum()), float(np.median(np.abs(e[sel]))),
+                       float(np.percentile(np.abs(e[sel]), 95)))
+                for kind in sorted(set(kinds[name])) for sel in [kk == kind]
+            },
+        }  # fmt: skip
+    return out
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -257,7 +291,17 @@ def main(argv: Sequence[str] | None = None) -> int:
         default="core",
         help="depth change per object: its core (pixels handed over, the pipeline's way), its mean or median depth",
     )
+    p.add_argument(
+        "--image-motion",
+        choices=("camera", "shift"),
+        action="append",
+        default=None,
+        help="with --depth core: how the core is moved back (TrackerConfig.image_motion); repeat to compare "
+        "(default: shift and camera side by side)",
+    )
     args = p.parse_args(argv)
+    if args.image_motion is None:
+        args.image_motion = ["shift", "camera"]
     cfg = TrackerConfig() if args.estimator is None else TrackerConfig(estimator=args.estimator)
     print(f"estimator: {cfg.estimator}")
     frames = 60 if args.quick else 300
@@ -274,21 +318,25 @@ def main(argv: Sequence[str] | None = None) -> int:
             f"{r['within_25_30']:.3f} ({r['readings']} readings)  |err| p50 {r['err_p50']:.1f} "
             f"p95 {r['err_p95']:.1f} mm/s  id switches {r['switches']}  lost frames {r['lost']}  ids {r['ids']}"
         )
-    gt = truth_rows(frames, config=cfg, depth=args.depth)
+    gt = truth_rows(frames, config=cfg, depth=args.depth, image_motions=args.image_motion)
     if gt is None:
         print("7-Scenes ground truth: ../shared/data not found")
     else:
         print(
-            f"7-Scenes redkitchen against the poses' truth (objects >= 1 % of the frame, from the 3rd frame of "
-            f"each track), {int(gt['frames'])} frames: within 25 %+30 mm/s {gt['within']:.3f} of "
-            f"{int(gt['readings'])} readings ({int(gt['eligible'])} eligible)  |err| p50 {gt['err_p50']:.1f} "
-            f"p95 {gt['err_p95']:.1f} mm/s  (|v_true| p50 {gt['truth_p50']:.1f})  "
-            f"|err| <= 2 v_sigma {gt['z_within_2sigma']:.3f}  (depth: {args.depth})"
+            "7-Scenes redkitchen against the poses' truth (objects >= 1 % of the frame, from the 3rd frame of "
+            "each track): share within 25 %+30 mm/s, |err| p50 and p95 (mm/s), tracker update cost (thread CPU)"
         )
-        by_kind = gt["by_kind"]
-        assert isinstance(by_kind, dict)
-        for kind, (w, n, e50, e95) in by_kind.items():
-            print(f"  {kind:9s} within {w:.3f} of {n:4d}  |err| p50 {e50:.0f} p95 {e95:.0f} mm/s")
+        for name, r in gt.items():
+            print(
+                f"  {name:12s} within {r['within']:.3f} of {int(r['readings'])} readings "
+                f"({int(r['eligible'])} eligible, {int(r['frames'])} frames)  |err| p50 {r['err_p50']:.1f} "
+                f"p95 {r['err_p95']:.1f}  (|v_true| p50 {r['truth_p50']:.1f})  |err| <= 2 v_sigma "
+                f"{r['z_within_2sigma']:.3f}  {r['ms_per_update']:.2f} ms/update"
+            )
+            by_kind = r["by_kind"]
+            assert isinstance(by_kind, dict)
+            for kind, (w, n, e50, e95) in by_kind.items():
+                print(f"      {kind:9s} within {w:.3f} of {n:4d}  |err| p50 {e50:.0f} p95 {e95:.0f} mm/s")
     real = real_rows(frames)
     if real is None:
         print("real sequence: ../shared/data not found")

@@ -108,7 +108,12 @@ def test_pipeline_hands_the_tracker_its_pixels() -> None:
         want = []
         for fr in frames:
             seg = segment(fr.depth, valid=fr.valid, intrinsics=fr.intrinsics, sensor=sensor)
-            upd = tr.update(seg.objects, fr.time_s, fr.size, FramePixels(fr.depth, seg.labels) if with_pixels else None)
+            upd = tr.update(
+                seg.objects,
+                fr.time_s,
+                fr.size,
+                FramePixels(fr.depth, seg.labels, fr.intrinsics) if with_pixels else None,
+            )
             want.append({m.track_id: m.v_radial for m in upd.motions.values()})
         same = all({t: m.v_radial for t, m in g.items()} == w for g, w in zip(got, want, strict=True))
         assert same == with_pixels

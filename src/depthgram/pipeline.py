@@ -397,7 +397,7 @@ class Pipeline:
         if not still:
             # the pixels let the tracker read each object's depth change from its core
             use_core = cfg.tracker.depth_from == "core"
-            pixels = FramePixels(frame.depth, seg.labels) if use_core else None
+            pixels = FramePixels(frame.depth, seg.labels, frame.intrinsics) if use_core else None
             update = self._tracker.update(seg.objects, frame.time_s, frame.size, pixels)
             seg = _relabel(seg, {oid: m.track_id for oid, m in update.motions.items()})
             motions = {m.track_id: m for m in update.motions.values()}

@@ -119,8 +119,18 @@ class TrackerConfig:
         do not move it (:mod:`depthgram.dynamics.core`; compare on 7-Scenes' posed truth with
         ``benchmarks/bench_tracking.py --depth core|mean``); or ``mean``, the change of the
         object's mean depth alone, as the paper. ``core`` needs each frame's depth and label
-        map and costs about 5 ms per 640x480 frame; ``mean`` needs neither (the pipeline then
-        does not hand them over), for small computers.
+        map and costs about 5 ms per 640x480 frame, more with ``image_motion = "camera"``
+        (``benchmarks/bench_tracking.py``); ``mean`` needs neither (the pipeline then does not
+        hand them over), for small computers.
+    image_motion : str
+        How the core's pixels are moved back to the previous frame (with ``depth_from =
+        "core"``): ``camera``, each pixel by the image motion of its still point under the
+        camera's own motion, found by ICP on the two frames' depth
+        (:class:`depthgram.dynamics.core.EgoMotion`; needs the frame's intrinsics, else it
+        falls back to ``shift``), or ``shift``, one shift for the whole frame by phase
+        correlation (:func:`depthgram.dynamics.core.image_shift`). Either way each tracked
+        object's own image motion is tried beside it. Compare with
+        ``benchmarks/bench_tracking.py --image-motion camera|shift``.
     """
 
     queue_length: int = 4
@@ -152,6 +162,7 @@ class TrackerConfig:
     innovation_gate: float = 4.0
     ttc_min_sigmas: float = 1.5
     depth_from: str = "core"
+    image_motion: str = "camera"
 
     def __post_init__(self) -> None:
         for name in ("queue_length", "min_hits", "max_missed", "border_px"):
@@ -177,6 +188,7 @@ class TrackerConfig:
         _check(self.center_tau_s > 0, "center_tau_s", self.center_tau_s, "> 0 s")
         _check(self.estimator in ("kalman", "queue"), "estimator", self.estimator, "'kalman' or 'queue'")
         _check(self.depth_from in ("core", "mean"), "depth_from", self.depth_from, "'core' or 'mean'")
+        _check(self.image_motion in ("camera", "shift"), "image_motion", self.image_motion, "'camera' or 'shift'")
         _check(self.innovation_gate > 0, "innovation_gate", self.innovation_gate, "> 0")
         _check(
             self.depth_sigma_mm + self.depth_sigma_floor_mm > 0,

@@ -248,7 +248,9 @@ def evaluate_tracking(
             method: dict[str, Any] = {} if segmenter == "segment" else {"method": segmenter}
             seg = segment(fr.depth, valid=fr.valid, intrinsics=fr.intrinsics, **method)
             labels, objects = seg.labels, seg.objects
-        upd = tracker.update(objects, fr.time_s, fr.size, FramePixels(fr.depth, labels) if core else None)
+        upd = tracker.update(
+            objects, fr.time_s, fr.size, FramePixels(fr.depth, labels, fr.intrinsics) if core else None
+        )
         prim = primary_segments(labels, sf.instances)
         seg_area = {o.id: o.area for o in objects}
         queues = {t.last.id: t.queue for t in tracker.tracks if t.missed == 0}

@@ -19,7 +19,7 @@ from numpy.typing import NDArray
 from scipy.optimize import linear_sum_assignment
 
 from depthgram.dynamics.config import NOMINAL_FPS, TrackerConfig
-from depthgram.dynamics.core import FramePixels, core_depth_change, image_shift
+from depthgram.dynamics.core import CameraMotion, EgoMotion, FramePixels, core_depth_change, image_shift
 from depthgram.dynamics.kernels import (
     CX,
     CY,
@@ -294,6 +294,7 @@ class Tracker:
         self._last: list[SceneObject] = []
         self._motion: list[Motion] = []
         self._pixels: FramePixels | None = None  # the previous frame's, when given
+        self._ego = EgoMotion()
 
     # ------------------------------------------------------------------ public views
     @property
@@ -491,6 +492,7 @@ class Tracker:
                 f"tracker frame {self._frame}: pixels must be (height, width) = {shape} like frame_size, got "
                 f"depth {np.shape(pixels.depth_mm)} and labels {np.shape(pixels.labels)}"
             )
+        camera = self._camera_motion(pixels)
         if prev is None:
             return out
         s = self._s
@@ -513,10 +515,24 @@ class Tracker:
         }
         if not pairs:
             return out
-        change = core_depth_change(prev, pixels, pairs, image_shift(prev.depth_mm, pixels.depth_mm))
+        change = core_depth_change(prev, pixels, pairs, image_shift(prev.depth_mm, pixels.depth_mm), camera=camera)
         for c, o in enumerate(objects):
             out[c] = change.get(o.id, math.nan)
         return out
+
+    def _camera_motion(self, pixels: FramePixels) -> CameraMotion | None:
+        """Return the camera's motion since the previous frame's pixels, or None to use one shift.
+
+        None without intrinsics, with ``config.image_motion == "shift"``, on the first frame and
+        where the ICP fails (:meth:`EgoMotion.update`). Every frame with intrinsics goes
+        through the ICP, so that the next frame finds its predecessor prepared.
+        """
+        if pixels.intrinsics is None or self.config.image_motion != "camera":
+            self._ego.reset()
+            return None
+        motion = self._ego.update(pixels.depth_mm, pixels.intrinsics)
+        # a still camera: the frame's shift (none, or a pan the ICP missed) moves the core
+        return None if motion is None or motion.still else motion
 
     def _estimate(
         self,

@@ -1,0 +1,162 @@
+"""The camera's own motion by ICP, and each pixel's image motion from it (issue 13), against exact truth.
+
+The simulator's ``table`` scene is ray-cast from two camera poses (a step sideways, down and
+forward and a tilt), so every pixel's true image motion follows from the poses.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from numpy.typing import NDArray
+
+from depthgram.dynamics import FramePixels, Tracker, TrackerConfig
+from depthgram.dynamics.core import CameraMotion, EgoMotion, core_depth_change
+from depthgram.frame import Intrinsics
+from depthgram.sensor.geometry import Camera, cast
+from depthgram.sensor.scenes import build_scene
+
+W, H = 320, 240
+BODIES = build_scene("table", (W, H)).bodies
+K = Camera(W, H).intrinsics
+Vec = tuple[float, float, float]
+
+
+def _axes(pitch_deg: float) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """World directions of the camera's x (right), y (down) and z (forward) axes."""
+    p = np.radians(pitch_deg)
+    return np.array([1.0, 0.0, 0.0]), np.array([0.0, -np.cos(p), -np.sin(p)]), np.array([0.0, -np.sin(p), np.cos(p)])
+
+
+def _render(pos: Vec, pitch_deg: float) -> NDArray[np.float32]:
+    return cast(Camera(W, H, position=pos, pitch_deg=pitch_deg), BODIES, 0.0).depth.astype(np.float32)
+
+
+def _true_motion(pos_a: Vec, pitch_a: float, pos_b: Vec, pitch_b: float, depth_b: NDArray[np.float32]) -> NDArray:
+    """Each pixel of view b: where its point was in view a, minus where it is (px), shape (H, W, 2)."""
+    u, v = np.meshgrid(np.arange(W, dtype=np.float64), np.arange(H, dtype=np.float64))
+    x, y = (u - K.cx) / K.fx * depth_b, (v - K.cy) / K.fy * depth_b
+    rb, db, fb = _axes(pitch_b)
+    ra, da, fa = _axes(pitch_a)
+    world = np.asarray(pos_b) + x[..., None] * rb + y[..., None] * db + depth_b[..., None] * fb
+    d = world - np.asarray(pos_a)
+    za = d @ fa
+    return np.stack([K.fx * (d @ ra) / za + K.cx - u, K.fy * (d @ da) / za + K.cy - v], axis=-1)
+
+
+POS_A, PITCH_A = (0.0, 1000.0, 0.0), 14.0
+POS_B, PITCH_B = (12.0, 995.0, 20.0), 14.6  # 24 mm and 0.6 degrees in one frame
+
+
+def test_icp_image_motion_matches_the_exact_motion_of_a_moving_camera() -> None:
+    a, b = _render(POS_A, PITCH_A), _render(POS_B, PITCH_B)
+    ego = EgoMotion()
+    assert ego.update(a, K) is None  # nothing to compare the first frame with
+    motion = ego.update(b, K)
+    assert motion is not None and not motion.still
+    got = motion.image_motion((H, W), b)
+    true = _true_motion(POS_A, PITCH_A, POS_B, PITCH_B, b)
+    seen = b > 0
+    err = np.hypot(*(got - true)[seen].T)
+    # the true motion is 6 px (median) and varies over the view by more than 5 px: one shift
+    # for the whole frame cannot hold it
+    size = np.hypot(*true[seen].T)
+    assert np.median(size) > 5.0 and np.ptp(true[seen][:, 0]) > 5.0
+    assert np.median(err) < 0.4 and np.percentile(err, 90) < 0.7  # px, measured 0.27 and 0.43
+    # the camera stepped 20 mm forward: the points were 20 mm further out, less what the tilt moves
+    assert motion.translation_mm[2] == pytest.approx(20.0, abs=3.0)
+
+
+def test_a_still_camera_gives_no_motion() -> None:
+    a = _render(POS_A, PITCH_A)
+    rng = np.random.default_rng(0)
+    ego = EgoMotion()
+    for _ in range(3):
+        noisy = (a + rng.normal(0.0, 3.0, a.shape) * (a > 0)).astype(np.float32)
+        motion = ego.update(noisy, K)
+    assert motion is not None and motion.still
+    assert np.nanmax(np.abs(motion.image_motion((H, W), a))) < 1e-9  # px
+
+
+def test_icp_without_valid_depth_gives_no_motion_and_the_tracker_goes_on() -> None:
+    ego = EgoMotion()
+    empty = np.zeros((H, W), np.float32)
+    assert ego.update(empty, K) is None
+    assert ego.update(empty, K) is None
+    a = _render(POS_A, PITCH_A)
+    labels = np.where(a > 0, 1, 0).astype(np.int32)
+    tr = Tracker()
+    from depthgram.dynamics.evaluate import objects_from_labels
+
+    for k, z in enumerate([a, empty, a]):
+        lab = labels if z.any() else np.zeros_like(labels)
+        tr.update(objects_from_labels(lab, z), k / 30.0, (W, H), FramePixels(z, lab, K))
+
+
+def test_a_change_of_intrinsics_starts_over() -> None:
+    a, b = _render(POS_A, PITCH_A), _render(POS_B, PITCH_B)
+    ego = EgoMotion()
+    ego.update(a, K)
+    other = Intrinsics(K.fx * 1.1, K.fy * 1.1, K.cx, K.cy)
+    assert ego.update(b, other) is None  # another camera: no motion from the last frame
+
+
+def test_camera_motion_reads_the_depth_change_of_a_floor_that_one_shift_misreads() -> None:
+    # The floor under a camera that steps forward and tilts: every still point's depth changes
+    # by what the poses say, and the core under the camera's motion reads that change; moved by
+    # one shift for the frame (even the true median one), a wrong part of the slanted floor.
+    a, b = _render(POS_A, PITCH_A), _render(POS_B, PITCH_B)
+    instances = cast(Camera(W, H, position=POS_B, pitch_deg=PITCH_B), BODIES, 0.0).instances
+    before = cast(Camera(W, H, position=POS_A, pitch_deg=PITCH_A), BODIES, 0.0).instances
+    ego = EgoMotion()
+    ego.update(a, K)
+    motion = ego.update(b, K)
+    assert motion is not None
+    true = _true_motion(POS_A, PITCH_A, POS_B, PITCH_B, b)
+    # the true depth change of each still point: its depth now less its depth in view a
+    u, v = np.meshgrid(np.arange(W, dtype=np.float64), np.arange(H, dtype=np.float64))
+    rb, db, fb = _axes(PITCH_B)
+    x, y = (u - K.cx) / K.fx * b, (v - K.cy) / K.fy * b
+    world = np.asarray(POS_B) + x[..., None] * rb + y[..., None] * db + b[..., None] * fb
+    z_then = (world - np.asarray(POS_A)) @ _axes(PITCH_A)[2]
+    floor = 1
+    ys, xs = np.nonzero(instances == floor)
+    box = (int(xs.min()), int(ys.min()), int(xs.max()) + 1, int(ys.max()) + 1)
+    pairs = {floor: (floor, box, (), 1.0)}
+    prev, now = FramePixels(a, before), FramePixels(b, instances)
+    median_shift = (float(np.median(true[..., 0][b > 0])), float(np.median(true[..., 1][b > 0])))
+    by_camera = core_depth_change(prev, now, pairs, median_shift, camera=motion)[floor]
+    by_shift = core_depth_change(prev, now, pairs, median_shift)[floor]
+    truth = float(np.mean((b - z_then)[instances == floor]))
+    # measured: truth -15.7 mm, camera -16.9 mm, shift -9.3 mm
+    assert by_camera == pytest.approx(truth, rel=0.1)
+    assert abs(by_shift - truth) > 3 * abs(by_camera - truth)
+
+
+def test_config_image_motion_takes_camera_or_shift_only() -> None:
+    from depthgram.errors import InputError
+
+    assert TrackerConfig().image_motion == "camera"
+    with pytest.raises(InputError, match="image_motion"):
+        TrackerConfig(image_motion="affine")
+
+
+def test_still_camera_motion_is_the_identity() -> None:
+    m = CameraMotion(np.eye(3), np.zeros(3), K)
+    assert m.still
+    x, y = m.previous_xy(np.array([10.0]), np.array([20.0]), np.array([1500.0]))
+    assert (float(x[0]), float(y[0])) == pytest.approx((10.0, 20.0))
+
+
+def test_the_motion_is_the_same_on_every_run() -> None:
+    # OpenCV's threads would add the ICP's sums in a varying order
+    a, b = _render(POS_A, PITCH_A), _render(POS_B, PITCH_B)
+    rng = np.random.default_rng(1)
+    frames = [(z + rng.normal(0.0, 5.0, z.shape) * (z > 0)).astype(np.float32) for z in (a, b, a)]
+    runs = []
+    for _ in range(3):
+        ego = EgoMotion()
+        ms = [ego.update(z, K) for z in frames]
+        runs.append([np.concatenate([m.rotation.ravel(), m.translation_mm]) for m in ms if m is not None])
+    assert len(runs[0]) == 2
+    assert all(np.array_equal(x, y) for run in runs[1:] for x, y in zip(runs[0], run, strict=True))
