@@ -692,3 +692,26 @@ def test_merged_rows_equal_numpy_add_at() -> None:
         np.testing.assert_array_equal(got_s, ref_s)
         np.testing.assert_array_equal(got_p, ref_p)
         np.testing.assert_array_equal(got_b, ref_b)
+
+
+def test_dropping_through_the_joined_table_is_joining_then_dropping() -> None:
+    # _support_class relabels joined pieces and drops small supports in one pass, through the
+    # table piece -> support -> kept support: the labels and classes of the two passes
+    from depthgram.segmentation.label import relabel
+    from depthgram.segmentation.slices import drop_pieces
+
+    rng = np.random.default_rng(6)
+    for _ in range(20):
+        n = int(rng.integers(2, 30))
+        m = int(rng.integers(1, n + 1))
+        merge = np.concatenate(([0], rng.integers(1, m + 1, n))).astype(np.int32)
+        keep = np.concatenate(([0], rng.integers(0, 2, m))).astype(bool)
+        lut = np.zeros(m + 1, np.int32)
+        lut[keep] = np.arange(1, int(keep.sum()) + 1, dtype=np.int32)
+        labels = rng.integers(0, n + 1, (17, 23)).astype(np.int32)
+        classes = rng.integers(0, 3, labels.shape).astype(np.int8)
+        c_two, c_one = classes.copy(), classes.copy()
+        two = drop_pieces(relabel(labels, merge), lut, c_two, 0)
+        one = drop_pieces(labels, lut[merge], c_one, 0)
+        np.testing.assert_array_equal(one, two)
+        np.testing.assert_array_equal(c_one, c_two)

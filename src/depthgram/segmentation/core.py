@@ -41,8 +41,7 @@ from depthgram.segmentation.slices import (
     drop_pieces,
     slice_parts,
     support_kind,
-    support_pieces,
-    support_pieces_fit,
+    support_pieces_lazy,
 )
 from depthgram.segmentation.surfaces import (
     concave_creases,
@@ -572,7 +571,8 @@ def _support_class(
     inclusive boxes of each support (row 0 unused).
     """
     fit_px = max(min_px // 2, 10)
-    lab, n, sums, boxes, planes, fit = support_pieces_fit(
+    # pieces joined into one support are relabelled once, by the last pass below
+    lab, merge, n, sums, boxes, planes, fit = support_pieces_lazy(
         depth, ok, classes, cls, cam, jump_rel=cfg.jump_rel, bridge=cfg.fill_holes_px, min_fit_px=fit_px
     )
     # noise makes some support pixels look facing; those lying on a big support's plane
@@ -583,7 +583,7 @@ def _support_class(
         near = near_planes(normal, off, count, boxes, depth, candidates, cam, min_px=min_px, tol_rel=cfg.jump_rel / 2)
         if near.any():
             np.copyto(classes, np.int8(cls), where=near)
-            lab, n, sums, boxes, planes = support_pieces(
+            lab, merge, n, sums, boxes, planes, _ = support_pieces_lazy(
                 depth, ok, classes, cls, cam, jump_rel=cfg.jump_rel, bridge=cfg.fill_holes_px, min_fit_px=fit_px
             )
     counts = sums[:, COUNT]
@@ -592,13 +592,15 @@ def _support_class(
     small = (counts < min_px) | (std < cfg.min_spread * mean)
     small[0] = False
     if not small.any():
-        return cls, lab, n, sums, boxes
+        return cls, (relabel(lab, merge) if merge is not None else lab), n, sums, boxes
     keep = ~small
     keep[0] = False
     lut = np.zeros(n + 1, dtype=np.int32)
     lut[keep] = np.arange(1, int(keep.sum()) + 1, dtype=np.int32)
     rows = np.concatenate(([0], np.flatnonzero(keep)))
-    return cls, drop_pieces(lab, lut, classes, FACING), rows.size - 1, sums[rows], boxes[rows]
+    # piece -> support -> kept support in one table: one pass joins and drops
+    through = lut[merge] if merge is not None else lut
+    return cls, drop_pieces(lab, through, classes, FACING), rows.size - 1, sums[rows], boxes[rows]
 
 
 def _stats_rows(sums: NDArray[np.float64], boxes: NDArray[np.int64], rows: NDArray[np.intp]) -> Stats:

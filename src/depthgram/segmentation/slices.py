@@ -27,7 +27,7 @@ from depthgram.segmentation.objects import SceneObject
 from depthgram.segmentation.orientation import HORIZONTAL, VERTICAL
 from depthgram.segmentation.planes import coplanar_groups, planes_from_sums
 
-__all__ = ["add_labels", "drop_pieces", "slice_parts", "support_kind", "support_pieces", "support_pieces_fit"]
+__all__ = ["add_labels", "drop_pieces", "slice_parts", "support_kind", "support_pieces", "support_pieces_lazy"]
 
 
 def slice_parts(
@@ -257,13 +257,13 @@ def support_pieces(
     sums : ndarray (n + 1, N_COLUMNS), boxes : ndarray (n + 1, 4), planes : ndarray (n + 1, 9)
         Statistics (``KEY`` 0), inclusive boxes and plane sums per component (row 0 unused).
     """
-    labels, n, sums, boxes, planes, _ = support_pieces_fit(
+    labels, merge, n, sums, boxes, planes, _ = support_pieces_lazy(
         depth_mm, valid, classes, cls, cam, jump_rel=jump_rel, bridge=bridge, min_fit_px=min_fit_px
     )
-    return labels, n, sums, boxes, planes
+    return (relabel(labels, merge) if merge is not None else labels), n, sums, boxes, planes
 
 
-def support_pieces_fit(
+def support_pieces_lazy(
     depth_mm: NDArray[np.float32],
     valid: NDArray[np.bool_],
     classes: NDArray[np.int8],
@@ -275,32 +275,35 @@ def support_pieces_fit(
     min_fit_px: int,
 ) -> tuple[
     NDArray[np.int32],
+    NDArray[np.int32] | None,
     int,
     NDArray[np.float64],
     NDArray[np.int64],
     NDArray[np.float64],
     tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]] | None,
 ]:
-    """:func:`support_pieces`, and ``planes_from_sums`` of the returned plane sums when it was taken.
+    """:func:`support_pieces` with the joining of pieces left to the caller's next pass.
 
-    The last item is ``(normal, off, count)`` of the pieces when no pieces were joined (the
-    fit that decided it), None otherwise, so that a caller does not solve the same planes again.
+    Returns the pieces' labels and the lookup table piece -> support (None when no pieces were
+    joined; ``merge[labels]`` is what :func:`support_pieces` returns), then n, sums, boxes and
+    plane sums of the supports as it does, and ``(normal, off, count)`` of the pieces when
+    none were joined (the fit that decided it), else None: a caller that relabels anyway
+    (dropping small supports) does it once, and does not solve the same planes again.
     """
     state = _class_state(valid, classes, np.int8(cls))
     labels, n, sums, boxes, planes = label_keyed_planes(
         depth_mm, state, depth_mm, cam.fx, cam.fy, cam.cx, cam.cy, rel=jump_rel, bridge=bridge
     )
     if n < 2:
-        return labels, n, sums, boxes, planes, None
+        return labels, None, n, sums, boxes, planes, None
     fit = planes_from_sums(planes)
     normal, off, count = fit
     lut, m = coplanar_groups(normal, off, count, min_fit_px=min_fit_px)
     if m == n:
-        return labels, n, sums, boxes, planes, fit
+        return labels, None, n, sums, boxes, planes, fit
     msums, mplanes, mboxes = _merge_rows(lut, m, sums, planes, boxes)
     msums[:, KEY] = 0.0
-    merged = relabel(labels, lut)
-    return merged, m, msums, mboxes, mplanes, None
+    return labels, lut, m, msums, mboxes, mplanes, None
 
 
 @njit(cache=True)
