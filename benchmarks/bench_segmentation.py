@@ -200,7 +200,8 @@ def threshold_stages(size: tuple[int, int], seed: int = 0) -> dict[str, float]:
 
 #: Steps of the default method timed by :func:`surfaces_stages` (functions looked up in core).
 STAGES = (
-    "check_depth", "_orientation", "_add_support_planes", "_support_class", "frame_sensor",
+    "check_depth", "_orientation", "_add_support_planes", "find_planes", "_support_class",
+    "support_pieces_lazy", "near_planes", "drop_pieces", "frame_sensor",
     "_surface_objects", "bin_index", "depth_bands", "concave_creases", "surfaces_kept",
     "relabel", "label_stats_fused", "merge_openings", "make_objects", "add_labels", "_below_camera",
     "front_faces", "side_faces", "slice_parts",
@@ -213,7 +214,9 @@ def surfaces_stages(size: tuple[int, int], runs: int = 20, frame: Any = None) ->
     CPU time of this thread (``time.thread_time``), not wall time: on a shared machine a
     descheduled thread does not count, so the steps add up the same whatever the load. Each
     step's figure is its median over ``runs`` calls; steps nest (``_surface_objects`` holds
-    ``surfaces_kept`` and the others listed after it up to ``make_objects``). The time inside
+    ``surfaces_kept`` and the others listed after it up to ``make_objects``,
+    ``_add_support_planes`` holds ``find_planes``, ``_support_class`` holds
+    ``support_pieces_lazy``, ``near_planes`` and ``drop_pieces``). The time inside
     compiled kernels is that of every numba function called from Python in the segmentation
     package; the rest of the call is numpy, OpenCV and the Python around them.
     """
