@@ -53,3 +53,41 @@ def test_describe_with_workers_prints_the_same_lines(capsys: pytest.CaptureFixtu
     with pytest.raises(SystemExit):
         main(["describe", "sim:approach?frames=2", "--workers", "0"])
     assert "at least 1" in capsys.readouterr().err
+
+
+def test_image_motion_prepared_beside_the_segmentation_reads_the_same_motions() -> None:
+    """Tracker.prepare (run by the pipeline in a thread) changes where the work is done, not its result."""
+    import dataclasses
+
+    from depthgram.dynamics import FramePixels, Tracker, TrackerConfig
+    from depthgram.segmentation import segment
+
+    frames = _frames("approach", 10)
+    segs = [segment(f.depth, valid=f.valid, intrinsics=f.intrinsics) for f in frames]
+    readings = []
+    for prepare in (False, True):
+        tracker = Tracker(TrackerConfig(fps=30.0))
+        out = []
+        for f, seg in zip(frames, segs, strict=True):
+            if prepare:
+                tracker.prepare(f.depth, f.intrinsics)
+            upd = tracker.update(seg.objects, None, f.size, FramePixels(f.depth, seg.labels, f.intrinsics))
+            out.append({k: dataclasses.astuple(m) for k, m in upd.motions.items()})
+        readings.append(out)
+    assert readings[0] == readings[1]
+    assert any(m[1] is not None for frame in readings[1] for m in frame.values())  # velocities were read
+    # a prepared motion for another depth array is not used for this one
+    tracker = Tracker(TrackerConfig(fps=30.0))
+    tracker.prepare(frames[1].depth, frames[1].intrinsics)
+    upd = tracker.update(segs[0].objects, None, frames[0].size, FramePixels(frames[0].depth, segs[0].labels))
+    assert upd.motions  # ran on its own
+
+
+def test_the_pipeline_reads_the_same_motions_with_and_without_the_motion_thread() -> None:
+    frames = _frames("approach", 10)
+    threaded = list(Pipeline(Config()).run(frames))
+    pipe = Pipeline(Config())
+    pipe._prepare_motion = lambda frame: None  # type: ignore[method-assign]
+    inline = list(pipe.run(frames))
+    assert [r.motions for r in threaded] == [r.motions for r in inline]
+    assert [r.sentence for r in threaded] == [r.sentence for r in inline]

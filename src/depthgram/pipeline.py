@@ -13,7 +13,7 @@ import time
 import tomllib
 from collections import deque
 from collections.abc import Iterable, Iterator, Mapping
-from concurrent.futures import Future, ProcessPoolExecutor
+from concurrent.futures import Future, ProcessPoolExecutor, ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -315,6 +315,7 @@ class Pipeline:
         self._prev: Frame | None = None
         self._untimed_stills = ""  # the reason, once an untimed source is taken for stills
         self._untimed_pairs = [0, 0]  # untimed successive pairs seen, and how many were unrelated
+        self._motion_thread: ThreadPoolExecutor | None = None  # made on first use
 
     def reset(self) -> None:
         """Forget all tracks and the sensor estimate (start of a new recording)."""
@@ -383,8 +384,27 @@ class Pipeline:
     def process(self, frame: Frame) -> SceneResult:
         """Segment one frame, build its tree, update tracks and plan actions."""
         t0 = time.perf_counter()
-        seg = _segment(*_segment_args(frame, self.config.segment, self._sensor_model(frame)))
+        args = _segment_args(frame, self.config.segment, self._sensor_model(frame))
+        motion = self._prepare_motion(frame)
+        seg = _segment(*args)
+        if motion is not None:
+            motion.result()
         return self._describe(frame, seg, t0)
+
+    def _prepare_motion(self, frame: Frame) -> Future[None] | None:
+        """Start the tracker's image motion of ``frame`` in a thread beside its segmentation.
+
+        The camera's motion (ICP) and the frame's shift need the depth alone, and both release
+        the GIL for most of their time, as do the segmentation's compiled kernels (``nogil``):
+        on 2 cores the two overlap (docs/design-notes.md, the real-time loop). None when no
+        motion will be read from this frame's pixels.
+        """
+        cfg = self.config
+        if not self.track or cfg.stills is True or cfg.tracker.depth_from != "core":
+            return None
+        if self._motion_thread is None:
+            self._motion_thread = ThreadPoolExecutor(max_workers=1, thread_name_prefix="depthgram-motion")
+        return self._motion_thread.submit(self._tracker.prepare, frame.depth, frame.intrinsics)
 
     def _describe(self, frame: Frame, seg: Segmentation, t0: float) -> SceneResult:
         """Everything after the segmentation, in frame order: tracks, tree, plan."""
@@ -452,13 +472,19 @@ class Pipeline:
                 args = _segment_args(frame, self.config.segment, self._sensor_model(frame))
                 pending.append((frame, pool.submit(_segment_copied, *args), time.perf_counter()))
                 if len(pending) > workers:
-                    done, fut, t0 = pending.popleft()
-                    yield self._describe(done, fut.result(), t0)
+                    yield self._finish(*pending.popleft())
             while pending:
-                done, fut, t0 = pending.popleft()
-                yield self._describe(done, fut.result(), t0)
+                yield self._finish(*pending.popleft())
         finally:
             pool.shutdown(wait=True, cancel_futures=True)
+
+    def _finish(self, frame: Frame, segmented: Future[Segmentation], t0: float) -> SceneResult:
+        """:meth:`_describe` a frame segmented by a worker, its image motion found meanwhile."""
+        motion = self._prepare_motion(frame)
+        seg = segmented.result()
+        if motion is not None:
+            motion.result()
+        return self._describe(frame, seg, t0)
 
 
 def _segment_args(

@@ -102,7 +102,7 @@ def column_clearance(frame: Frame, config: ActConfig | None = None) -> NDArray[n
     return _column_min(depth, np.ascontiguousarray(frame.valid, np.bool_), lo.astype(np.float32), hi.astype(np.float32))
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _column_min(
     depth: NDArray[np.float32], valid: NDArray[np.bool_], lo: NDArray[np.float32], hi: NDArray[np.float32]
 ) -> NDArray[np.float64]:

@@ -64,6 +64,7 @@ from depthgram.dynamics.kernels import (
 )
 from depthgram.dynamics.match import cost_params
 from depthgram.errors import InputError
+from depthgram.frame import Intrinsics
 from depthgram.scene.tree import Motion
 from depthgram.segmentation.objects import SceneObject
 
@@ -295,6 +296,8 @@ class Tracker:
         self._motion: list[Motion] = []
         self._pixels: FramePixels | None = None  # the previous frame's, when given
         self._ego = EgoMotion()
+        # this frame's image motion when prepare() found it ahead of update(): (depth, camera, shift)
+        self._prepared: tuple[object, CameraMotion | None, tuple[float, float] | None] | None = None
 
     # ------------------------------------------------------------------ public views
     @property
@@ -362,6 +365,32 @@ class Tracker:
             self._dt = t - self._t_last
         self._t_last = t
         return t
+
+    def prepare(self, depth_mm: NDArray[np.floating], intrinsics: Intrinsics | None) -> None:
+        """Find this frame's image motion from its depth alone, ahead of :meth:`update`.
+
+        Optional: :meth:`update` finds it itself when not prepared. The camera's motion (ICP) and
+        the frame's shift need only the depth, so a caller may run this beside the
+        segmentation of the same frame, in another thread (the pipeline does: both release the
+        GIL for most of their time). The next :meth:`update` must come with ``pixels`` holding
+        this same ``depth_mm`` array; any other update discards what was prepared.
+
+        Parameters
+        ----------
+        depth_mm : ndarray of float, shape (H, W)
+            This frame's depth (mm), 0 or NaN where invalid.
+        intrinsics : Intrinsics or None
+            The camera's intrinsics (px); None reads a single shift only.
+        """
+        self._prepared = None
+        if self.config.depth_from != "core":
+            return
+        prev = self._pixels
+        camera = self._camera_motion(depth_mm, intrinsics)
+        shift = None
+        if prev is not None and np.shape(prev.depth_mm) == np.shape(depth_mm):
+            shift = image_shift(prev.depth_mm, depth_mm)
+        self._prepared = (depth_mm, camera, shift)
 
     def update(
         self,
@@ -492,7 +521,11 @@ class Tracker:
                 f"tracker frame {self._frame}: pixels must be (height, width) = {shape} like frame_size, got "
                 f"depth {np.shape(pixels.depth_mm)} and labels {np.shape(pixels.labels)}"
             )
-        camera = self._camera_motion(pixels)
+        prepared, self._prepared = self._prepared, None
+        if prepared is not None and prepared[0] is pixels.depth_mm:
+            camera, shift = prepared[1], prepared[2]
+        else:
+            camera, shift = self._camera_motion(pixels.depth_mm, pixels.intrinsics), None
         if prev is None:
             return out
         s = self._s
@@ -515,22 +548,24 @@ class Tracker:
         }
         if not pairs:
             return out
-        change = core_depth_change(prev, pixels, pairs, image_shift(prev.depth_mm, pixels.depth_mm), camera=camera)
+        if shift is None:
+            shift = image_shift(prev.depth_mm, pixels.depth_mm)
+        change = core_depth_change(prev, pixels, pairs, shift, camera=camera)
         for c, o in enumerate(objects):
             out[c] = change.get(o.id, math.nan)
         return out
 
-    def _camera_motion(self, pixels: FramePixels) -> CameraMotion | None:
-        """Return the camera's motion since the previous frame's pixels, or None to use one shift.
+    def _camera_motion(self, depth_mm: NDArray[np.floating], intrinsics: Intrinsics | None) -> CameraMotion | None:
+        """Return the camera's motion since the previous frame, or None to use one shift.
 
         None without intrinsics, with ``config.image_motion == "shift"``, on the first frame and
         where the ICP fails (:meth:`EgoMotion.update`). Every frame with intrinsics goes
         through the ICP, so that the next frame finds its predecessor prepared.
         """
-        if pixels.intrinsics is None or self.config.image_motion != "camera":
+        if intrinsics is None or self.config.image_motion != "camera":
             self._ego.reset()
             return None
-        motion = self._ego.update(pixels.depth_mm, pixels.intrinsics)
+        motion = self._ego.update(depth_mm, intrinsics)
         # a still camera: the frame's shift (none, or a pan the ICP missed) moves the core
         return None if motion is None or motion.still else motion
 

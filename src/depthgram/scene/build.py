@@ -139,7 +139,7 @@ def _contact_fractions(
     return _contacts_below(np.ascontiguousarray(labels), ids, boxes, todo, column_of, int(rows), n)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _contacts_below(
     labels: NDArray[np.integer],
     ids: NDArray[np.int64],

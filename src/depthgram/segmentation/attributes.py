@@ -94,7 +94,7 @@ def fused_stats(
     return out, stats, s[:, KEY]
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _attribute_table(
     count: NDArray[np.float64],
     sz: NDArray[np.float64],

@@ -18,7 +18,7 @@ from depthgram.segmentation.label import ACTIVE, BLOCK, HOLE
 __all__ = ["band_state", "bin_linear", "bin_pixels", "depth_range"]
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _range(depth: NDArray[np.float32], valid: NDArray[np.bool_]) -> tuple[float, float, int]:
     h, w = depth.shape
     lo = np.inf
@@ -36,7 +36,7 @@ def _range(depth: NDArray[np.float32], valid: NDArray[np.bool_]) -> tuple[float,
     return lo, hi, n
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _bins(
     depth: NDArray[np.float32], valid: NDArray[np.bool_], lo: float, step: float, log: bool, nb: int
 ) -> tuple[NDArray[np.int32], NDArray[np.int64]]:
@@ -76,7 +76,7 @@ def _bins(
     return out, counts[0, 1:] + counts[1, 1:] + counts[2, 1:] + counts[3, 1:]
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _band_state(
     bins: NDArray[np.int32], lut: NDArray[np.int32], valid: NDArray[np.bool_], include: NDArray[np.bool_], use: bool
 ) -> tuple[NDArray[np.float32], NDArray[np.int8]]:
@@ -98,7 +98,7 @@ def _band_state(
     return band, state
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _range_bits(bits: NDArray[np.uint32]) -> tuple[float, float, int]:
     # positive float32 values order like their bit patterns, and 0 - 1 wraps to the largest
     # uint32, so integer min/max (which vectorise, unlike NaN-aware float min) give the range;
@@ -149,7 +149,7 @@ def bin_pixels(
     return _bins(depth_mm, valid, float(lo), float(step), bool(log), int(nb))
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _bin_linear(
     depth: NDArray[np.float32], valid: NDArray[np.bool_], bits: NDArray[np.uint32], use_bits: bool, step: float
 ) -> tuple[NDArray[np.int32], NDArray[np.int64], float, int]:

@@ -108,7 +108,7 @@ def _best_contact(contact: NDArray[np.int64], needed: NDArray[np.float64]) -> di
     return out
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _contacts(
     labels: NDArray[np.int32],
     depth: NDArray[np.float32],
@@ -142,7 +142,7 @@ def _contacts(
     return out
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _contacts_in_boxes(
     labels: NDArray[np.int32],
     depth: NDArray[np.float32],

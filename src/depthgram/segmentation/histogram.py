@@ -96,7 +96,7 @@ class Bands:
         return np.searchsorted(self.upper, np.asarray(depth_mm), side="left")
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _cuts(
     smooth: NDArray[np.float64], peaks: NDArray[np.intp], t: float, nearest: bool
 ) -> tuple[NDArray[np.int32], NDArray[np.int64], NDArray[np.int64]]:
@@ -144,7 +144,7 @@ def _gaussian_weights(sigma: float) -> NDArray[np.float64]:
     return weights
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _smooth_padded(counts: NDArray[np.int64], weights: NDArray[np.float64]) -> NDArray[np.float64]:
     # scipy's gaussian_filter1d (mode "reflect") with the same weights and the same order of
     # operations, so the same numbers (a test compares them on random histograms), written

@@ -137,7 +137,7 @@ def _field(
     return cls, normals
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _keep_slopes(
     gx: NDArray[np.float32],
     gy: NDArray[np.float32],
@@ -169,7 +169,7 @@ def _keep_slopes(
     return mk
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def _classify(
     sgx: NDArray[np.float32],
     sgy: NDArray[np.float32],
@@ -226,7 +226,7 @@ def _jumps(z: NDArray[np.float32], valid: NDArray[np.bool_], jump_rel: float) ->
     return _jumps_rows(np.ascontiguousarray(z), np.ascontiguousarray(valid), np.float32(jump_rel))
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _jumps_rows(z: NDArray[np.float32], valid: NDArray[np.bool_], rel: np.float32) -> NDArray[np.bool_]:
     # per row: the steps, then the edge test, then both neighbours of an edge step marked, each
     # a branch-free loop (selects, so they vectorise); the numpy version made seven full-frame
@@ -281,7 +281,7 @@ def _slope(f: np.float32, b: np.float32, okf: bool, okb: bool, fstep: np.float32
     return g / fstep if okf | okb else np.float32(0.0)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def _one_sided_rows(inv: NDArray[np.float32], valid: NDArray[np.bool_], step: int) -> NDArray[np.float32]:
     # one pass instead of ten full-frame numpy temporaries; same float32 arithmetic. The
     # columns with both neighbours in the frame take a loop of their own, free of index tests
@@ -310,7 +310,7 @@ def _one_sided_rows(inv: NDArray[np.float32], valid: NDArray[np.bool_], step: in
     return out
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def _one_sided_cols(inv: NDArray[np.float32], valid: NDArray[np.bool_], step: int) -> NDArray[np.float32]:
     # _one_sided_rows along columns (same arithmetic), a whole row of columns at a time,
     # without the three transposed copies
@@ -344,7 +344,7 @@ def _one_sided_cols(inv: NDArray[np.float32], valid: NDArray[np.bool_], step: in
     return out
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _jumps_cols(z: NDArray[np.float32], valid: NDArray[np.bool_], rel: np.float32) -> NDArray[np.bool_]:
     # _jumps_rows along columns (same float32 tests), a whole row of columns at a time, without
     # the transposed copies in and out, which cost more than the tests
@@ -391,7 +391,7 @@ def upsample_classes(cls: NDArray[np.int8], valid: NDArray[np.bool_], k: int) ->
     return _upsample(cls, np.ascontiguousarray(valid), int(k))
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _upsample(cls: NDArray[np.int8], valid: NDArray[np.bool_], k: int) -> NDArray[np.int8]:
     # one pass for numpy's two repeats, crop, masked write and copy
     # (a table of source columns: an integer division per pixel made it several times slower)

@@ -220,7 +220,7 @@ def find_planes(
     return planes
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _assign(
     depth: NDArray[np.float32],
     valid: NDArray[np.bool_],
@@ -278,7 +278,7 @@ def _ransac(
     return float(best[0]), float(best[1]), float(best[2])
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _hypotheses(
     u: NDArray[np.float64], v: NDArray[np.float64], pick: NDArray[np.int64]
 ) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
@@ -301,7 +301,7 @@ def _hypotheses(
     return a, good
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _best_hypothesis(
     coef: NDArray[np.float64],
     u: NDArray[np.float64],
@@ -338,7 +338,7 @@ def _best_hypothesis(
     return arg
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _grid_points(
     z_sub: NDArray[np.float32], left: NDArray[np.bool_], step: int, tol_mm: np.float32, tol_rel: np.float32
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
@@ -367,7 +367,7 @@ def _grid_points(
     return u, v, z, tz
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _inliers(
     u: NDArray[np.float64],
     v: NDArray[np.float64],
@@ -400,7 +400,7 @@ def _inliers(
     return uo, vo, qo
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _take_residual(
     z: NDArray[np.float32],
     left: NDArray[np.bool_],
@@ -470,7 +470,7 @@ def flush_plane_run(
     out[i, 8] += sq
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _plane_sums(
     labels: NDArray[np.int32],
     n: int,
@@ -583,7 +583,7 @@ def plane_sums_in_boxes(
     )
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _plane_sums_boxes(
     labels: NDArray[np.int32],
     n: int,
@@ -638,7 +638,7 @@ def sample_points(depth_mm: NDArray[np.float32], step: int, cam: Intrinsics) -> 
     return _sample_points(np.asarray(depth_mm, np.float32), int(step), cam.fx, cam.fy, cam.cx, cam.cy)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _sample_points(
     depth: NDArray[np.float32], step: int, fx: float, fy: float, cx: float, cy: float
 ) -> NDArray[np.float64]:
@@ -730,7 +730,7 @@ def coplanar_groups(
     return lut, int(m)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _join_groups(join: NDArray[np.bool_], big: NDArray[np.intp], n: int) -> tuple[NDArray[np.int32], int]:
     # union of the joined pairs (the smaller root becomes the root), then the groups numbered
     # 1..m in the order of their smallest piece (np.unique of the roots); pieces 0..n. A Python
@@ -790,7 +790,7 @@ def near_planes(
     return out
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def _near(
     out: NDArray[np.bool_],
     ids: NDArray[np.intp],

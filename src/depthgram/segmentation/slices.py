@@ -98,7 +98,7 @@ def slice_parts(
     return tuple(out)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _part_sums(
     labels: NDArray[np.int32],
     depth: NDArray[np.float32],
@@ -172,7 +172,7 @@ def support_kind(cls: int, centroid_y_mm: float, is_lowest: bool) -> str:
     return "floor" if is_lowest else "compound"
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _class_state(valid: NDArray[np.bool_], classes: NDArray[np.int8], cls: np.int8) -> NDArray[np.int8]:
     # labeller state in one pass: pixels of the class are active, other readings block
     # bridges, pixels without a reading are holes (numpy: three full-frame passes)
@@ -189,7 +189,7 @@ def add_labels(labels: NDArray[np.int32], more: NDArray[np.int32], offset: int) 
     _add_labels(labels, more, np.int32(offset))
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _add_labels(labels: NDArray[np.int32], more: NDArray[np.int32], offset: np.int32) -> None:
     h, w = labels.shape
     for y in range(h):
@@ -209,7 +209,7 @@ def drop_pieces(
     return _drop_pieces(labels, lut, classes, np.int8(to_class))
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _drop_pieces(
     labels: NDArray[np.int32], lut: NDArray[np.int32], classes: NDArray[np.int8], to_class: np.int8
 ) -> NDArray[np.int32]:
@@ -306,7 +306,7 @@ def support_pieces_lazy(
     return labels, lut, m, msums, mboxes, mplanes, None
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _merge_rows(
     lut: NDArray[np.int32], m: int, sums: NDArray[np.float64], planes: NDArray[np.float64], boxes: NDArray[np.int64]
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.int64]]:

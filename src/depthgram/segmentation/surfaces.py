@@ -380,7 +380,7 @@ def surfaces_kept(
     return labels, int(n), sums, boxes
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _kept_table(
     lab: NDArray[np.int32], parent: NDArray[np.int32], nxt: int, pcount: NDArray[np.int64], min_px: int
 ) -> tuple[NDArray[np.int32], NDArray[np.int64]]:
@@ -402,7 +402,7 @@ def _kept_table(
     return table, count
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _loosen_grow(
     lab: NDArray[np.int32],
     table: NDArray[np.int32],
@@ -472,7 +472,7 @@ def _loosen_grow(
                 tail += 1
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _keep_through(
     lab: NDArray[np.int32], table: NDArray[np.int32], count: NDArray[np.int64], min_px: int, depth: NDArray[np.float32]
 ) -> tuple[NDArray[np.int32], int, NDArray[np.float64], NDArray[np.int64]]:
@@ -502,7 +502,7 @@ def _continuous(za: np.float32, zb: np.float32, gap: int, t0: float, t2: float, 
     return bool(abs(za - zb) <= t0 + t2 * zm * zm + gap * sl * zm)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _label_surfaces(
     depth: NDArray[np.float32], state: NDArray[np.int8], t0: float, t2: float, sl: float, bridge: int
 ) -> tuple[NDArray[np.int32], NDArray[np.int32], int, NDArray[np.int64]]:
@@ -586,7 +586,7 @@ def reattach(
     return out
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _grow(
     labels: NDArray[np.int32],
     depth: NDArray[np.float32],
@@ -747,7 +747,7 @@ def merge_openings(
     return out
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _opening_parents(
     labels: NDArray[np.int32],
     depth: NDArray[np.float32],
@@ -833,7 +833,7 @@ def _opening_parents(
         parent[r] = a
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _median32(a: NDArray[np.float32]) -> Any:
     # np.median of float32 values, in float32 as numpy computes it (the mean of the two middle
     # values of an even count)
@@ -847,7 +847,7 @@ def _median32(a: NDArray[np.float32]) -> Any:
     return (lo + hi) / np.float32(2.0)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def surface_state(valid: NDArray[np.bool_], facing: NDArray[np.bool_], creases: NDArray[np.bool_]) -> NDArray[np.int8]:
     """Labeller state of :func:`label_surfaces`.
 
@@ -867,7 +867,7 @@ def surface_state(valid: NDArray[np.bool_], facing: NDArray[np.bool_], creases: 
     return out
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def loosen_small(labels: NDArray[np.int32], n: int, facing: NDArray[np.bool_], min_px: int) -> NDArray[np.bool_]:
     """Facing pixels without a label or in a component under ``min_px`` pixels.
 
@@ -887,7 +887,7 @@ def loosen_small(labels: NDArray[np.int32], n: int, facing: NDArray[np.bool_], m
     return loose
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def keep_large(
     labels: NDArray[np.int32], n: int, min_px: int, depth: NDArray[np.float32]
 ) -> tuple[NDArray[np.int32], int, NDArray[np.float64], NDArray[np.int64]]:
@@ -903,7 +903,7 @@ def keep_large(
     return _keep_counted(labels, _count_labels(labels, n), min_px, depth)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _keep_counted(
     labels: NDArray[np.int32], count: NDArray[np.int64], min_px: int, depth: NDArray[np.float32]
 ) -> tuple[NDArray[np.int32], int, NDArray[np.float64], NDArray[np.int64]]:
@@ -919,7 +919,7 @@ def _keep_counted(
     return out, m, sums, box
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _count_labels(labels: NDArray[np.int32], n: int) -> NDArray[np.int64]:
     # pixels per label
     h, w = labels.shape

@@ -63,7 +63,7 @@ def check_depth_far(
     return depth, ok, int(n_far)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _valid_pixels(
     depth: NDArray[np.float32], valid: NDArray[np.bool_], use_valid: bool, far: float
 ) -> tuple[NDArray[np.bool_], bool, int]:

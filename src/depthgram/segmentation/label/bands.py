@@ -23,7 +23,7 @@ __all__ = ["label_bands_stats"]
 _SUM_FLAGS = {"reassoc", "nsz", "contract"}
 
 
-@njit(cache=True, fastmath=_SUM_FLAGS)
+@njit(cache=True, nogil=True, fastmath=_SUM_FLAGS)
 def _label_bands(
     bins: NDArray[np.int32],
     lut: NDArray[np.int32],
@@ -202,7 +202,7 @@ def label_bands_stats(
 _NO_MASK = np.zeros((1, 1), np.bool_)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _label_bands_resolved(
     bins: NDArray[np.int32],
     lut: NDArray[np.int32],

@@ -33,7 +33,7 @@ __all__ = ["ACTIVE", "BLOCK", "HOLE", "label_keyed", "label_keyed_planes", "labe
 HOLE, ACTIVE, BLOCK = 0, 1, 2
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _label_runs(
     key: NDArray[np.float32],
     state: NDArray[np.int8],
@@ -224,7 +224,7 @@ def label_keyed_stats(
     return labels, int(n), sums, boxes
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _relabel_planes(
     lab: NDArray[np.int32],
     final: NDArray[np.int32],

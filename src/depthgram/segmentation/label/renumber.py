@@ -9,7 +9,7 @@ from numpy.typing import NDArray
 __all__ = ["relabel"]
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _relabel(labels: NDArray[np.int32], lut: NDArray[np.int32]) -> NDArray[np.int32]:
     h, w = labels.shape
     out = np.empty((h, w), np.int32)

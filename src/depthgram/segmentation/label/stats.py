@@ -182,7 +182,7 @@ def _gather(
     return out, sums, box
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _stats(
     labels: NDArray[np.int32], n: int, depth: NDArray[np.float32], key: NDArray[np.float32]
 ) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
@@ -190,7 +190,7 @@ def _stats(
     return sums, box
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def relabel_stats(
     labels: NDArray[np.int32], lut: NDArray[np.int32], m: int, depth: NDArray[np.float32]
 ) -> tuple[NDArray[np.int32], NDArray[np.float64], NDArray[np.int64]]:

@@ -30,7 +30,7 @@ def find(parent: NDArray[np.int32], i: int) -> int:
     return root
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def union(parent: NDArray[np.int32], a: int, b: int) -> int:
     """Join the sets of ``a`` and ``b``; the smaller root becomes the root. Returns it."""
     ra = find(parent, a)
@@ -42,7 +42,7 @@ def union(parent: NDArray[np.int32], a: int, b: int) -> int:
     return rb
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def resolve(
     lab: NDArray[np.int32],
     parent: NDArray[np.int32],
@@ -72,7 +72,7 @@ def resolve(
     return lab, n, sums, boxes
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def resolve_tables(
     lab: NDArray[np.int32],
     parent: NDArray[np.int32],
