@@ -28,6 +28,7 @@ import os
 import platform
 import subprocess
 import sys
+import textwrap
 import time
 from collections.abc import Callable, Sequence
 from functools import partial
@@ -245,14 +246,14 @@ def build(quick: bool = False) -> str:
     ]
     pipe = bench_pipeline.real_pipeline_row(30 if quick else 100)
     if pipe is not None:
-        parts += [
-            f"Whole pipeline (segment, tree, tracks, plan) on {pipe['frames']} 7-Scenes frames at 640 x 480, wall",
-            "time (the tracker's image motion runs in a second thread beside the segmentation): median",
-            f"{pipe['wall_ms']:.1f} ms ({pipe['fps']:.0f} frames/s), p95 {pipe['wall_p95_ms']:.1f} ms, max",
-            f"{pipe['wall_max_ms']:.1f} ms; CPU time of all threads {pipe['cpu_ms']:.1f} ms, of the calling thread",
-            f"{pipe['ms']:.1f} ms; segmentation alone {pipe['segment_ms']:.1f} ms (thread CPU).",
-            "",
-        ]
+        text = (
+            f"Whole pipeline (segment, tree, tracks, plan) on {pipe['frames']} 7-Scenes frames at 640 x 480, "
+            "wall time (the tracker's image motion runs in a second thread beside the segmentation): "
+            f"median {pipe['wall_ms']:.1f} ms ({pipe['fps']:.0f} frames/s), p95 {pipe['wall_p95_ms']:.1f} ms, "
+            f"max {pipe['wall_max_ms']:.1f} ms; CPU time of all threads {pipe['cpu_ms']:.1f} ms, of the calling "
+            f"thread {pipe['ms']:.1f} ms; segmentation alone {pipe['segment_ms']:.1f} ms (thread CPU)."
+        )
+        parts += [*textwrap.wrap(text, width=100), ""]
 
     methods = list(table1.METHODS)
     methods += [(n, {"method": "slices", **kw}) for n, kw in table1.READINGS]

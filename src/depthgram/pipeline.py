@@ -470,7 +470,7 @@ class Pipeline:
         try:
             for frame in frames:
                 args = _segment_args(frame, self.config.segment, self._sensor_model(frame))
-                pending.append((frame, pool.submit(_segment_copied, *args), time.perf_counter()))
+                pending.append((frame, pool.submit(_segment, *args, True), time.perf_counter()))
                 if len(pending) > workers:
                     yield self._finish(*pending.popleft())
             while pending:
@@ -500,27 +500,19 @@ def _segment(
     intrinsics: Intrinsics | None,
     config: SegmentConfig,
     sensor: SensorModel | None,
+    copy: bool = False,
 ) -> Segmentation:
-    """Segment one frame."""
-    return segment(depth, valid=valid, intrinsics=intrinsics, config=config, sensor=sensor)
+    """Segment one frame; module level, so that a worker process can run it.
 
-
-def _segment_copied(
-    depth: NDArray[np.floating],
-    valid: NDArray[np.bool_],
-    intrinsics: Intrinsics | None,
-    config: SegmentConfig,
-    sensor: SensorModel | None,
-) -> Segmentation:
-    """:func:`_segment` in a worker process, on copies of the arrays it was sent.
-
-    An unpickled array lies inside the message's bytes, aligned differently from one numpy
-    allocates; numpy's vectorised sums then add in another order and an object's mean depth
-    differed in its last bit from the same frame segmented in the main process (seen as
-    0.1 mm/s in one printed velocity in 100 frames of 7-Scenes). A copy is allocated as the
-    main process's arrays are.
+    A worker passes ``copy``: an unpickled array lies inside the message's bytes, aligned
+    differently from one numpy allocates; numpy's vectorised sums then add in another order
+    and an object's mean depth differed in its last bit from the same frame segmented in the
+    main process (seen as 0.1 mm/s in one printed velocity in 100 frames of 7-Scenes). A copy
+    is allocated as the main process's arrays are.
     """
-    return _segment(np.array(depth), np.array(valid), intrinsics, config, sensor)
+    if copy:
+        depth, valid = np.array(depth), np.array(valid)
+    return segment(depth, valid=valid, intrinsics=intrinsics, config=config, sensor=sensor)
 
 
 def _occluded_motion(track: Any) -> Motion:
