@@ -413,11 +413,13 @@ def _loosen_grow(
     sl: float,
     max_steps: int,
 ) -> None:
-    # loosen_small and reattach's _grow on the provisional labels, read through `table` (a
-    # pixel's label is table[lab]): one pass marks the loose pixels (facing, label 0) and
-    # queues the seeds (loose, beside a labelled pixel) in raster order, then the same
-    # breadth-first growth; a grown pixel takes its neighbour's provisional label, which is
-    # the same label through the table. `lab` is written in place.
+    # Hand-written: a breadth-first growth with a per-step depth test has no library kernel
+    # (a distance transform finds the nearest label but cannot follow the surface).
+    # loosen_small and reattach's growth on labels read through `table` (a pixel's label is
+    # table[lab]; reattach passes final labels and the identity table): one pass marks the
+    # loose pixels (facing, label 0) and queues the seeds (loose, beside a labelled pixel) in
+    # raster order, then the breadth-first growth; a grown pixel takes its neighbour's label
+    # in `lab`, which is the same label through the table. `lab` is written in place.
     h, w = lab.shape
     loose = np.zeros((h, w), np.bool_)
     pending = np.zeros((h, w), np.bool_)
@@ -574,88 +576,18 @@ def reattach(
     """
     out = np.array(labels, dtype=np.int32, copy=True)
     if loose.any():
-        _grow(
+        # the default's growth on provisional labels, here through the identity table
+        _loosen_grow(
             out,
-            np.ascontiguousarray(depth_mm, np.float32),
+            np.arange(int(out.max(initial=0)) + 1, dtype=np.int32),
             np.ascontiguousarray(loose, np.bool_),
+            np.ascontiguousarray(depth_mm, np.float32),
             float(tol_0),
             float(tol_2),
             float(slope_per_px),
             int(max_px),
         )
     return out
-
-
-@njit(cache=True, nogil=True)
-def _grow(
-    labels: NDArray[np.int32],
-    depth: NDArray[np.float32],
-    loose: NDArray[np.bool_],
-    t0: float,
-    t2: float,
-    sl: float,
-    max_steps: int,
-) -> None:
-    # Hand-written: a breadth-first growth with a per-step depth test has no library kernel
-    # (a distance transform finds the nearest label but cannot follow the surface).
-    h, w = labels.shape
-    n_loose = 0
-    for y in range(h):
-        for x in range(w):
-            if loose[y, x] and labels[y, x] == 0:
-                n_loose += 1
-    if n_loose == 0:
-        return
-    queue = np.empty(n_loose + 1, np.int64)
-    steps = np.zeros(n_loose + 1, np.int32)
-    head = 0
-    tail = 0
-    pending = np.zeros((h, w), np.bool_)
-    # seeds: loose pixels next to a labelled one
-    for y in range(h):
-        for x in range(w):
-            if loose[y, x] and labels[y, x] == 0:
-                if (
-                    (x > 0 and labels[y, x - 1] > 0)
-                    or (x < w - 1 and labels[y, x + 1] > 0)
-                    or (y > 0 and labels[y - 1, x] > 0)
-                    or (y < h - 1 and labels[y + 1, x] > 0)
-                ):
-                    queue[tail] = y * w + x
-                    steps[tail] = 1
-                    pending[y, x] = True
-                    tail += 1
-    while head < tail:
-        p = queue[head]
-        k = steps[head]
-        head += 1
-        y = p // w
-        x = p - y * w
-        z = depth[y, x]
-        best = 0
-        for d in range(4):
-            yy = y + (1 if d == 0 else -1 if d == 1 else 0)
-            xx = x + (1 if d == 2 else -1 if d == 3 else 0)
-            if yy < 0 or yy >= h or xx < 0 or xx >= w or labels[yy, xx] == 0:
-                continue
-            zz = depth[yy, xx]
-            zm = min(z, zz)
-            if abs(z - zz) <= t0 + t2 * zm * zm + sl * zm:
-                best = labels[yy, xx]
-                break
-        if best == 0:
-            continue
-        labels[y, x] = best
-        if k >= max_steps:
-            continue
-        for d in range(4):
-            yy = y + (1 if d == 0 else -1 if d == 1 else 0)
-            xx = x + (1 if d == 2 else -1 if d == 3 else 0)
-            if 0 <= yy < h and 0 <= xx < w and loose[yy, xx] and labels[yy, xx] == 0 and not pending[yy, xx]:
-                pending[yy, xx] = True
-                queue[tail] = yy * w + xx
-                steps[tail] = k + 1
-                tail += 1
 
 
 def merge_openings(
