@@ -391,10 +391,7 @@ class Pipeline:
         t0 = time.perf_counter()
         args = _segment_args(frame, self.config.segment, self._sensor_model(frame))
         motion = self._prepare_motion(frame)
-        seg = _segment(*args)
-        if motion is not None:
-            motion.result()
-        return self._describe(frame, seg, t0)
+        return self._describe(frame, _segment(*args), t0, motion)
 
     def _prepare_motion(self, frame: Frame) -> Future[None] | None:
         """Start the tracker's image motion of ``frame`` in a thread beside its segmentation.
@@ -411,8 +408,13 @@ class Pipeline:
             self._motion_thread = ThreadPoolExecutor(max_workers=1, thread_name_prefix="depthgram-motion")
         return self._motion_thread.submit(self._tracker.prepare, frame.depth, frame.intrinsics)
 
-    def _describe(self, frame: Frame, seg: Segmentation, t0: float) -> SceneResult:
-        """Everything after the segmentation, in frame order: tracks, tree, plan."""
+    def _describe(self, frame: Frame, seg: Segmentation, t0: float, motion: Future[None] | None) -> SceneResult:
+        """Everything after the segmentation, in frame order: tracks, tree, plan.
+
+        ``motion`` is the tracker's image motion of this frame being found (:meth:`_prepare_motion`).
+        """
+        if motion is not None:
+            motion.result()
         cfg = self.config
         motions: dict[int, Motion] = {}
         occluded: tuple[tuple[SceneObject, Motion], ...] = ()
@@ -486,10 +488,7 @@ class Pipeline:
     def _finish(self, frame: Frame, segmented: Future[Segmentation], t0: float) -> SceneResult:
         """:meth:`_describe` a frame segmented by a worker, its image motion found meanwhile."""
         motion = self._prepare_motion(frame)
-        seg = segmented.result()
-        if motion is not None:
-            motion.result()
-        return self._describe(frame, seg, t0)
+        return self._describe(frame, segmented.result(), t0, motion)
 
 
 def _segment_args(
