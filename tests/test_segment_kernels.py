@@ -792,3 +792,24 @@ def test_dropping_through_the_joined_table_is_joining_then_dropping() -> None:
         out = np.full(labels.shape, -1, np.int32)
         add_through(out, labels, table, boxes[1:][keep[1:]])
         np.testing.assert_array_equal(out, np.where(kept > 0, kept + 7, -1))
+
+
+def test_load_rare_kernels_loads_the_kernels_of_the_rare_branches() -> None:
+    # a stream's first frames may take none of these branches; a real-time caller loads their
+    # kernels before the stream. With the very argument types of segment's calls: a frame that
+    # takes the branches afterwards compiles no new signature
+    from depthgram.segmentation import segment
+    from depthgram.segmentation.core import load_rare_kernels
+    from depthgram.segmentation.label import keyed, stats
+    from depthgram.segmentation.label.unionfind import resolve_tables
+    from depthgram.segmentation.slices import _class_state, _merge_rows
+    from depthgram.sensor import simulate
+
+    load_rare_kernels()
+    kernels = (keyed._label_runs, keyed._relabel_planes, resolve_tables, _class_state, _merge_rows, stats._stats)
+    before = [len(k.signatures) for k in kernels]
+    assert all(before)
+    for scene in ("table", "corridor"):
+        f = next(iter(simulate(scene, 1, size=(176, 132), seed=0))).frame
+        segment(f)  # a support labelled again after its near pixels joined it (both scenes)
+    assert [len(k.signatures) for k in kernels] == before
