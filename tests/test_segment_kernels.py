@@ -25,6 +25,7 @@ from depthgram.segmentation.label import (
     label_keyed_planes,
     label_keyed_stats,
 )
+from depthgram.segmentation.label.keyed import label_two_classes
 from depthgram.segmentation.objects import SceneObject
 from depthgram.segmentation.orientation import _jumps, _jumps_cols, _one_sided, _one_sided_cols, upsample_classes
 from depthgram.segmentation.planes import near_planes, plane_sums, planes_from_sums
@@ -95,6 +96,43 @@ def test_keyed_planes_equal_keyed_stats_then_plane_sums_exactly() -> None:
         np.testing.assert_array_equal(boxes, want[3])
         np.testing.assert_array_equal(planes, planes_want)
         assert planes.shape == (n + 1, 9)
+
+
+def test_two_classes_in_one_pass_equal_one_labelling_per_class_exactly() -> None:
+    # the supports' first labelling takes horizontal and vertical pixels in one pass: each
+    # class's labels, sums, boxes and plane sums must be those of its own pass to the last bit
+    rng = np.random.default_rng(13)
+    for t in range(300):
+        h, w = (int(v) for v in rng.integers(1, 30, 2))
+        valid = rng.random((h, w)) > (0.1 if t % 2 else 0.35)
+        if t % 3 == 0:  # smooth depth: long runs and components crossing bridges
+            depth = (1000 + 20 * np.arange(w)[None, :] + 5 * np.arange(h)[:, None]).astype(np.float32)
+            depth += rng.random((h, w)).astype(np.float32) * 30
+        else:
+            depth = (rng.random((h, w)) * 1000 + 500).astype(np.float32)
+        depth[~valid] = 0
+        # blocks of one class with specks of the others, so runs of one class cross the other
+        classes = np.repeat(np.repeat(rng.integers(0, 3, (h // 3 + 1, w // 4 + 1)), 3, 0), 4, 1)[:h, :w]
+        specks = rng.random((h, w)) < 0.15
+        classes = np.where(specks, rng.integers(0, 3, (h, w)), classes).astype(np.int8)
+        bridge = int(rng.integers(0, 4))
+        rel = float(rng.choice([0.02, 0.05, 0.3]))
+        fx, fy = (float(v) for v in rng.random(2) * 500 + 100)
+        cx, cy = float(rng.random() * w), float(rng.random() * h)
+        lab, na, nb, sums, boxes, planes = label_two_classes(
+            depth, valid, classes, 1, 2, fx, fy, cx, cy, rel=rel, bridge=bridge
+        )
+        for cls, base, n in ((1, 0, na), (2, na, nb)):
+            state = np.where(valid, np.where(classes == cls, ACTIVE, BLOCK), HOLE).astype(np.int8)
+            want = label_keyed_planes(depth, state, depth, fx, fy, cx, cy, rel=rel, bridge=bridge)
+            rows = np.r_[0, base + 1 : base + n + 1]
+            mine = (lab > base) & (lab <= base + n)
+            np.testing.assert_array_equal(np.where(mine, lab - base, 0), want[0])
+            assert n == want[1]
+            np.testing.assert_array_equal(sums[rows], want[2])
+            np.testing.assert_array_equal(boxes[rows], want[3])
+            np.testing.assert_array_equal(planes[rows], want[4])
+        assert not lab[~valid].any() and not lab[(classes != 1) & (classes != 2)].any()
 
 
 def test_plane_sums_in_boxes_equal_plane_sums_of_the_wanted_labels() -> None:
@@ -695,23 +733,40 @@ def test_merged_rows_equal_numpy_add_at() -> None:
 
 
 def test_dropping_through_the_joined_table_is_joining_then_dropping() -> None:
-    # _support_class relabels joined pieces and drops small supports in one pass, through the
-    # table piece -> support -> kept support: the labels and classes of the two passes
+    # _support_class reads a class's pieces through one table piece -> support -> kept support:
+    # the dropped supports' pixels go back to the facing class inside their boxes only, and the
+    # kept ones join the objects' label map inside theirs. The same classes and labels as
+    # joining the pieces, then dropping, over the whole frame; another class's pieces (values
+    # outside base + 1 .. base + n) are left alone.
     from depthgram.segmentation.label import relabel
-    from depthgram.segmentation.slices import drop_pieces
+    from depthgram.segmentation.slices import add_through, drop_classes
 
     rng = np.random.default_rng(6)
-    for _ in range(20):
+    for _ in range(40):
         n = int(rng.integers(2, 30))
         m = int(rng.integers(1, n + 1))
+        base = int(rng.integers(0, 5))
         merge = np.concatenate(([0], rng.integers(1, m + 1, n))).astype(np.int32)
         keep = np.concatenate(([0], rng.integers(0, 2, m))).astype(bool)
         lut = np.zeros(m + 1, np.int32)
         lut[keep] = np.arange(1, int(keep.sum()) + 1, dtype=np.int32)
-        labels = rng.integers(0, n + 1, (17, 23)).astype(np.int32)
+        labels = rng.integers(0, base + n + 4, (17, 23)).astype(np.int32)
         classes = rng.integers(0, 3, labels.shape).astype(np.int8)
-        c_two, c_one = classes.copy(), classes.copy()
-        two = drop_pieces(relabel(labels, merge), lut, c_two, 0)
-        one = drop_pieces(labels, lut[merge], c_one, 0)
-        np.testing.assert_array_equal(one, two)
-        np.testing.assert_array_equal(c_one, c_two)
+        mine = (labels > base) & (labels <= base + n)
+        support = relabel(np.where(mine, labels - base, 0), merge)
+        kept = lut[support]
+        want_classes = np.where(mine & (kept == 0), np.int8(0), classes)
+        # the supports' inclusive boxes (x0, y0, x1, y1) from their pixels
+        boxes = np.zeros((m + 1, 4), np.int64)
+        for g in range(1, m + 1):
+            ys, xs = np.nonzero(support == g)
+            boxes[g] = (xs.min(), ys.min(), xs.max(), ys.max()) if ys.size else (23, 17, -1, -1)
+        through = lut[merge]
+        got_classes = classes.copy()
+        drop_classes(labels, through, base, got_classes, 0, boxes[1:][~keep[1:]])
+        np.testing.assert_array_equal(got_classes, want_classes)
+        table = np.zeros(base + n + 4, np.int32)
+        table[base + 1 : base + n + 1] = np.where(through[1:] > 0, through[1:] + 7, 0)
+        out = np.full(labels.shape, -1, np.int32)
+        add_through(out, labels, table, boxes[1:][keep[1:]])
+        np.testing.assert_array_equal(out, np.where(kept > 0, kept + 7, -1))

@@ -14,7 +14,7 @@ from depthgram.segmentation.attributes import Stats, make_objects
 from depthgram.segmentation.config import SegmentConfig
 from depthgram.segmentation.contacts import front_faces, side_faces
 from depthgram.segmentation.histogram import Bands, bin_index, depth_bands
-from depthgram.segmentation.label import label_bands_stats, label_stats_fused, relabel
+from depthgram.segmentation.label import label_bands_stats, label_stats_fused, label_two_classes, relabel
 from depthgram.segmentation.label.stats import COUNT, KEY, N_SUMS, SUM_Z, SUM_ZZ
 from depthgram.segmentation.objects import Histogram, SceneObject, Segmentation
 from depthgram.segmentation.orientation import (
@@ -37,8 +37,9 @@ from depthgram.segmentation.planes import (
 from depthgram.segmentation.region import region_grow
 from depthgram.segmentation.sensor import SensorModel, estimate_sensor, sensor_model
 from depthgram.segmentation.slices import (
-    add_labels,
-    drop_pieces,
+    add_through,
+    drop_classes,
+    join_pieces,
     slice_parts,
     support_kind,
     support_pieces_lazy,
@@ -270,7 +271,7 @@ def _slices(
     classes, wanted = _pixel_classes(depth, ok, cam, cfg)
     min_px = cfg.min_pixels(depth.size)
     # supports first: a piece of surface too small to matter goes back to the facing pixels
-    support_maps = [_support_class(depth, ok, classes, cls, cam, cfg, min_px) for cls in wanted]
+    support_maps = _supports(depth, ok, classes, wanted, cam, cfg, min_px)
     facing = classes == FACING
     if cfg.method == "surfaces":
         sensor = sensor or frame_sensor(depth, ok, cfg)
@@ -328,7 +329,7 @@ def _stack_supports(
     objects: list[SceneObject],
     fsums: NDArray[np.float64],
     fboxes: NDArray[np.int64],
-    support_maps: list[tuple[int, NDArray[np.int32], int, NDArray[np.float64], NDArray[np.int64]]],
+    support_maps: list[_SupportMap],
     cam: Intrinsics,
 ) -> _Stack:
     """Add the supports' labels after the facing objects' (in place) and stack their statistics."""
@@ -337,14 +338,21 @@ def _stack_supports(
     all_sums = [fsums[:, :N_SUMS]]
     all_boxes = [fboxes]
     cls_of: dict[int, int] = {}
-    for cls, lab, n, sums, boxes in support_maps:
-        if n == 0:
+    # one table per label map (the classes labelled together share one): map value -> id
+    luts: dict[int, tuple[NDArray[np.int32], NDArray[np.int32], list[NDArray[np.int64]]]] = {}
+    for sm in support_maps:
+        if sm.n == 0:
             continue
-        add_labels(labels, lab, next_id - 1)
-        cls_of.update((i, cls) for i in range(next_id, next_id + n))
-        all_sums.append(sums[1:, :N_SUMS])
-        all_boxes.append(boxes[1:])
-        next_id += n
+        _, lut, in_boxes = luts.setdefault(id(sm.labels), (sm.labels, np.zeros(sm.size, np.int32), []))
+        in_boxes.append(sm.boxes[1:])
+        kept = sm.through[1:]
+        lut[sm.base + 1 : sm.base + kept.size + 1] = np.where(kept > 0, kept + np.int32(next_id - 1), 0)
+        cls_of.update((i, sm.cls) for i in range(next_id, next_id + sm.n))
+        all_sums.append(sm.sums[1:, :N_SUMS])
+        all_boxes.append(sm.boxes[1:])
+        next_id += sm.n
+    for lab, lut, in_boxes in luts.values():
+        add_through(labels, lab, lut, np.concatenate(in_boxes))
     total = np.concatenate(all_sums)
     total_boxes = np.concatenate(all_boxes)
     sup_stats = _stats_rows(total, total_boxes, np.r_[0, first_support:next_id])
@@ -556,6 +564,56 @@ def _add_support_planes(
         classes[plane.inliers] = HORIZONTAL if abs(n[1]) >= abs(n[0]) else VERTICAL
 
 
+@dataclass
+class _SupportMap:
+    """The supports of one orientation class, read from a label map through a table.
+
+    Pieces ``base + 1 .. base + len(through) - 1`` of ``labels`` are this class's (a map
+    labelled for two classes holds the other's too); ``through`` maps piece - base to its
+    support 1..n, or 0 for a piece dropped (whose pixels went back to the facing class).
+    """
+
+    cls: int  # orientation class
+    labels: NDArray[np.int32]  # label map holding the pieces
+    base: int  # the pieces' values in `labels` start after this
+    size: int  # one more than the largest value of `labels`
+    through: NDArray[np.int32]  # (pieces + 1,) piece -> support or 0
+    n: int  # supports
+    sums: NDArray[np.float64]  # (n + 1, N_COLUMNS) statistics per support (row 0 unused)
+    boxes: NDArray[np.int64]  # (n + 1, 4) inclusive boxes per support
+
+
+_Pieces = tuple[NDArray[np.int32], int, int, int, NDArray[np.float64], NDArray[np.int64], NDArray[np.float64]]
+
+
+def _supports(
+    depth: NDArray[np.float32],
+    ok: NDArray[np.bool_],
+    classes: NDArray[np.int8],
+    wanted: list[int],
+    cam: Intrinsics,
+    cfg: SegmentConfig,
+    min_px: int,
+) -> list[_SupportMap]:
+    """Return the supports of each wanted class, in order (:func:`_support_class`; ``classes`` updated).
+
+    Both classes' pieces come from one labelling pass. One class's later steps do not change
+    the other's pieces: they turn facing pixels into its own class or its own pixels back into
+    facing ones, and both are blocking readings to the other class's labeller.
+    """
+    first: dict[int, _Pieces] = {}
+    if len(wanted) == 2:
+        lab, na, nb, sums, boxes, planes = label_two_classes(
+            depth, ok, classes, wanted[0], wanted[1], cam.fx, cam.fy, cam.cx, cam.cy,
+            rel=cfg.jump_rel, bridge=cfg.fill_holes_px,
+        )  # fmt: skip
+        rows = np.r_[0, na + 1 : na + nb + 1]
+        size = na + nb + 1
+        first[wanted[0]] = (lab, 0, size, na, sums[: na + 1], boxes[: na + 1], planes[: na + 1])
+        first[wanted[1]] = (lab, na, size, nb, sums[rows], boxes[rows], planes[rows])
+    return [_support_class(depth, ok, classes, cls, cam, cfg, min_px, first.get(cls)) for cls in wanted]
+
+
 def _support_class(
     depth: NDArray[np.float32],
     ok: NDArray[np.bool_],
@@ -564,17 +622,24 @@ def _support_class(
     cam: Intrinsics,
     cfg: SegmentConfig,
     min_px: int,
-) -> tuple[int, NDArray[np.int32], int, NDArray[np.float64], NDArray[np.int64]]:
+    pieces: _Pieces | None = None,
+) -> _SupportMap:
     """Supports of one orientation class, small or flat ones handed back to the facing pixels.
 
-    Updates ``classes`` in place. Returns the class, labels 1..n, n, and the statistics and
-    inclusive boxes of each support (row 0 unused).
+    Updates ``classes`` in place. ``pieces``: the class's pieces already labelled (label map,
+    the value before its first piece, the map's size, and the count, statistics, inclusive
+    boxes and plane sums of the pieces); labelled here when None.
     """
     fit_px = max(min_px // 2, 10)
-    # pieces joined into one support are relabelled once, by the last pass below
-    lab, merge, n, sums, boxes, planes, fit = support_pieces_lazy(
-        depth, ok, classes, cls, cam, jump_rel=cfg.jump_rel, bridge=cfg.fill_holes_px, min_fit_px=fit_px
-    )
+    if pieces is None:
+        lab, merge, n, sums, boxes, planes, fit = support_pieces_lazy(
+            depth, ok, classes, cls, cam, jump_rel=cfg.jump_rel, bridge=cfg.fill_holes_px, min_fit_px=fit_px
+        )
+        n_pieces = merge.size - 1 if merge is not None else n
+        base, size = 0, n_pieces + 1
+    else:
+        lab, base, size, n_pieces, psums, pboxes, pplanes = pieces
+        merge, n, sums, boxes, planes, fit = join_pieces(n_pieces, psums, pboxes, pplanes, min_fit_px=fit_px)
     # noise makes some support pixels look facing; those lying on a big support's plane
     # go back to it (an upright object meets that plane only along its base row)
     candidates = ok & (classes == FACING)
@@ -586,21 +651,27 @@ def _support_class(
             lab, merge, n, sums, boxes, planes, _ = support_pieces_lazy(
                 depth, ok, classes, cls, cam, jump_rel=cfg.jump_rel, bridge=cfg.fill_holes_px, min_fit_px=fit_px
             )
+            n_pieces = merge.size - 1 if merge is not None else n
+            base, size = 0, n_pieces + 1
     counts = sums[:, COUNT]
     mean = sums[:, SUM_Z] / np.maximum(counts, 1)
     std = np.sqrt(np.maximum(sums[:, SUM_ZZ] / np.maximum(counts, 1) - mean * mean, 0))
     small = (counts < min_px) | (std < cfg.min_spread * mean)
     small[0] = False
     if not small.any():
-        return cls, (relabel(lab, merge) if merge is not None else lab), n, sums, boxes
+        through = merge if merge is not None else np.arange(n_pieces + 1, dtype=np.int32)
+        return _SupportMap(cls, lab, base, size, through, n, sums, boxes)
     keep = ~small
     keep[0] = False
     lut = np.zeros(n + 1, dtype=np.int32)
     lut[keep] = np.arange(1, int(keep.sum()) + 1, dtype=np.int32)
     rows = np.concatenate(([0], np.flatnonzero(keep)))
-    # piece -> support -> kept support in one table: one pass joins and drops
+    # piece -> support -> kept support in one table: the dropped pieces' pixels go back to the
+    # facing class now (the next class's steps read it); the map is read through it once, when
+    # the supports join the objects' label map
     through = lut[merge] if merge is not None else lut
-    return cls, drop_pieces(lab, through, classes, FACING), rows.size - 1, sums[rows], boxes[rows]
+    drop_classes(lab, through, base, classes, FACING, boxes[small])
+    return _SupportMap(cls, lab, base, size, through, rows.size - 1, sums[rows], boxes[rows])
 
 
 def _stats_rows(sums: NDArray[np.float64], boxes: NDArray[np.int64], rows: NDArray[np.intp]) -> Stats:

@@ -14,6 +14,7 @@ touches it at the same depth.
 from __future__ import annotations
 
 from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 from numba import njit
@@ -27,7 +28,15 @@ from depthgram.segmentation.objects import SceneObject
 from depthgram.segmentation.orientation import HORIZONTAL, VERTICAL
 from depthgram.segmentation.planes import coplanar_groups, planes_from_sums
 
-__all__ = ["add_labels", "drop_pieces", "slice_parts", "support_kind", "support_pieces", "support_pieces_lazy"]
+__all__ = [
+    "add_through",
+    "drop_classes",
+    "join_pieces",
+    "slice_parts",
+    "support_kind",
+    "support_pieces",
+    "support_pieces_lazy",
+]
 
 
 def slice_parts(
@@ -184,48 +193,79 @@ def _class_state(valid: NDArray[np.bool_], classes: NDArray[np.int8], cls: np.in
     return out
 
 
-def add_labels(labels: NDArray[np.int32], more: NDArray[np.int32], offset: int) -> None:
-    """Write ``more + offset`` into ``labels`` (in place) wherever ``more`` > 0."""
-    _add_labels(labels, more, np.int32(offset))
+def add_through(
+    labels: NDArray[np.int32], more: NDArray[np.int32], lut: NDArray[np.int32], boxes: NDArray[np.int64]
+) -> None:
+    """Write ``lut[more]`` into ``labels`` (in place) wherever it is > 0.
 
-
-@njit(cache=True, nogil=True)
-def _add_labels(labels: NDArray[np.int32], more: NDArray[np.int32], offset: np.int32) -> None:
-    h, w = labels.shape
-    for y in range(h):
-        for x in range(w):
-            v = more[y, x]
-            if v:
-                labels[y, x] = v + offset
-
-
-def drop_pieces(
-    labels: NDArray[np.int32], lut: NDArray[np.int32], classes: NDArray[np.int8], to_class: int
-) -> NDArray[np.int32]:
-    """Labels renumbered through ``lut``; pixels of pieces it maps to 0 get class ``to_class``.
-
-    ``classes`` is updated in place.
+    ``lut`` must cover every value of ``more``; ``boxes`` (k, 4), inclusive (x0, y0, x1, y1),
+    must hold every pixel it maps above 0 (the supports' boxes): only they are read, unless
+    they cover more than the frame.
     """
-    return _drop_pieces(labels, lut, classes, np.int8(to_class))
+    _add_through(
+        labels, np.ascontiguousarray(more, np.int32), np.ascontiguousarray(lut, np.int32), _cover(boxes, labels)
+    )
 
 
 @njit(cache=True, nogil=True)
-def _drop_pieces(
-    labels: NDArray[np.int32], lut: NDArray[np.int32], classes: NDArray[np.int8], to_class: np.int8
-) -> NDArray[np.int32]:
-    # one pass for what numpy did in four (gather of the small flags, masked class write,
-    # gather of the new ids)
-    h, w = labels.shape
-    out = np.zeros((h, w), np.int32)
-    for y in range(h):
-        for x in range(w):
-            v = labels[y, x]
-            if v:
-                nv = lut[v]
-                out[y, x] = nv
-                if nv == 0:
+def _add_through(
+    labels: NDArray[np.int32], more: NDArray[np.int32], lut: NDArray[np.int32], boxes: NDArray[np.int64]
+) -> None:
+    # boxes may overlap: a pixel read twice is written the same value twice
+    for k in range(boxes.shape[0]):
+        for y in range(boxes[k, 1], boxes[k, 3] + 1):
+            src = more[y]
+            dst = labels[y]
+            # branch-free with unsigned indices, so that the gather vectorises
+            for ux in range(np.uint64(boxes[k, 0]), np.uint64(boxes[k, 2] + 1)):
+                v = lut[np.uint64(src[ux])]
+                dst[ux] = v if v else dst[ux]
+
+
+def _cover(boxes: NDArray[np.int64], image: NDArray[Any]) -> NDArray[np.int64]:
+    """``boxes`` (k, 4, inclusive), or the whole frame as one box when they cover more than it."""
+    h, w = image.shape
+    b = np.ascontiguousarray(boxes, np.int64).reshape(-1, 4)
+    area = int(((b[:, 2] - b[:, 0] + 1).clip(0) * (b[:, 3] - b[:, 1] + 1).clip(0)).sum())
+    return np.array([[0, 0, w - 1, h - 1]], np.int64) if area >= h * w else b
+
+
+def drop_classes(
+    labels: NDArray[np.int32],
+    through: NDArray[np.int32],
+    base: int,
+    classes: NDArray[np.int8],
+    to_class: int,
+    boxes: NDArray[np.int64],
+) -> None:
+    """Pixels of pieces ``base + 1 .. base + n`` of ``labels`` that ``through`` maps to 0 get class ``to_class``.
+
+    ``through`` has n + 1 entries (piece -> kept support, 0 = dropped); ``classes`` is updated
+    in place and other labels are not read (a label map may hold another class's pieces
+    after these). ``boxes`` (k, 4), inclusive, must hold every dropped piece (the dropped
+    supports' boxes): only they are read, unless they cover more than the frame.
+    """
+    _drop_classes(
+        labels, np.ascontiguousarray(through, np.int32), int(base), classes, np.int8(to_class), _cover(boxes, labels)
+    )
+
+
+@njit(cache=True, nogil=True)
+def _drop_classes(
+    labels: NDArray[np.int32],
+    through: NDArray[np.int32],
+    base: int,
+    classes: NDArray[np.int8],
+    to_class: np.int8,
+    boxes: NDArray[np.int64],
+) -> None:
+    n = through.size - 1
+    for k in range(boxes.shape[0]):
+        for y in range(boxes[k, 1], boxes[k, 3] + 1):
+            for x in range(boxes[k, 0], boxes[k, 2] + 1):
+                v = labels[y, x] - base
+                if v > 0 and v <= n and through[v] == 0:
                     classes[y, x] = to_class
-    return out
 
 
 def support_pieces(
@@ -294,16 +334,42 @@ def support_pieces_lazy(
     labels, n, sums, boxes, planes = label_keyed_planes(
         depth_mm, state, depth_mm, cam.fx, cam.fy, cam.cx, cam.cy, rel=jump_rel, bridge=bridge
     )
+    return (labels, *join_pieces(n, sums, boxes, planes, min_fit_px=min_fit_px))
+
+
+def join_pieces(
+    n: int,
+    sums: NDArray[np.float64],
+    boxes: NDArray[np.int64],
+    planes: NDArray[np.float64],
+    *,
+    min_fit_px: int,
+) -> tuple[
+    NDArray[np.int32] | None,
+    int,
+    NDArray[np.float64],
+    NDArray[np.int64],
+    NDArray[np.float64],
+    tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]] | None,
+]:
+    """Join the coplanar ones among ``n`` labelled pieces, by their tables alone.
+
+    ``sums``, ``boxes`` and ``planes`` are the tables of
+    :func:`depthgram.segmentation.label.label_keyed_planes` (row 0 unused). Returns what
+    :func:`support_pieces_lazy` returns after the labels: the lookup table piece -> support
+    (None when none joined), the number of supports, their tables, and the pieces' plane fit
+    when none joined (else None).
+    """
     if n < 2:
-        return labels, None, n, sums, boxes, planes, None
+        return None, n, sums, boxes, planes, None
     fit = planes_from_sums(planes)
     normal, off, count = fit
     lut, m = coplanar_groups(normal, off, count, min_fit_px=min_fit_px)
     if m == n:
-        return labels, None, n, sums, boxes, planes, fit
+        return None, n, sums, boxes, planes, fit
     msums, mplanes, mboxes = _merge_rows(lut, m, sums, planes, boxes)
     msums[:, KEY] = 0.0
-    return labels, lut, m, msums, mboxes, mplanes, None
+    return lut, m, msums, mboxes, mplanes, None
 
 
 @njit(cache=True, nogil=True)

@@ -3,7 +3,8 @@
 The modules, by responsibility:
 
 - :mod:`~depthgram.segmentation.label.keyed`: the keyed labeller (4-neighbours join when their
-  keys agree within a tolerance; holes of invalid pixels bridged), with or without statistics;
+  keys agree within a tolerance; holes of invalid pixels bridged), with or without statistics,
+  and for the pixels of two classes in one pass;
   the pixel states :data:`HOLE`, :data:`ACTIVE`, :data:`BLOCK`.
 - :mod:`~depthgram.segmentation.label.bands`: the run-based labeller of depth bands straight
   from the histogram bins.
@@ -19,7 +20,15 @@ The public names are re-exported here.
 from __future__ import annotations
 
 from depthgram.segmentation.label.bands import label_bands_stats
-from depthgram.segmentation.label.keyed import ACTIVE, BLOCK, HOLE, label_keyed, label_keyed_planes, label_keyed_stats
+from depthgram.segmentation.label.keyed import (
+    ACTIVE,
+    BLOCK,
+    HOLE,
+    label_keyed,
+    label_keyed_planes,
+    label_keyed_stats,
+    label_two_classes,
+)
 from depthgram.segmentation.label.renumber import relabel
 from depthgram.segmentation.label.stats import label_stats_fused
 
@@ -32,5 +41,6 @@ __all__ = [
     "label_keyed_planes",
     "label_keyed_stats",
     "label_stats_fused",
+    "label_two_classes",
     "relabel",
 ]

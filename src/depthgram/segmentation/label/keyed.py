@@ -22,11 +22,11 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-from depthgram.segmentation.label.stats import N_COLUMNS, flush_run
-from depthgram.segmentation.label.unionfind import resolve, resolve_tables, union
+from depthgram.segmentation.label.stats import KEY, N_COLUMNS, N_SUMS, flush_run
+from depthgram.segmentation.label.unionfind import find, resolve, resolve_tables, union
 from depthgram.segmentation.planes import flush_plane_run
 
-__all__ = ["ACTIVE", "BLOCK", "HOLE", "label_keyed", "label_keyed_planes", "label_keyed_stats"]
+__all__ = ["ACTIVE", "BLOCK", "HOLE", "label_keyed", "label_keyed_planes", "label_keyed_stats", "label_two_classes"]
 
 #: Pixel states for :func:`label_keyed`: a hole may be bridged, an active pixel is labelled,
 #: a blocking pixel (valid, but not part of any component) stops a bridge.
@@ -308,6 +308,251 @@ def label_keyed_planes(
     final, n, sums, boxes = resolve_tables(lab, parent, nxt, ps, pb, int(min_px), True)
     planes = _relabel_planes(lab, final, int(n), z, float(fx), float(fy), float(cx), float(cy))
     return lab, int(n), sums, boxes, planes
+
+
+@njit(cache=True, nogil=True)
+def _label_runs_two(
+    depth: NDArray[np.float32],
+    valid: NDArray[np.bool_],
+    classes: NDArray[np.int8],
+    ca: np.int8,
+    cb: np.int8,
+    rel: float,
+    bridge: int,
+) -> tuple[NDArray[np.int32], NDArray[np.int32], NDArray[np.int8], int, NDArray[np.float64], NDArray[np.int32]]:
+    # _label_runs with key = depth and statistics, for the pixels of two classes at once: what
+    # two calls with the states ACTIVE for one class, BLOCK for the other readings and HOLE
+    # elsewhere give, in one pass over the frame. A pixel of one class is a blocking reading to
+    # the other: a neighbour (or the last reading across a bridge) of the other class never
+    # joins, as a BLOCK pixel never does. Provisional labels are shared (each class's own are
+    # still increasing in raster order of creation, so _resolve_two numbers each class as
+    # _label_runs' resolve does), and each class keeps its own run of sums along a row: a run
+    # of one class is not cut by a pixel of the other (a BLOCK pixel does not cut it either),
+    # so every label's sums are added in the same order as by _label_runs.
+    h, w = depth.shape
+    lab = np.zeros((h, w), np.int32)
+    cap = h * w + 1
+    parent = np.empty(cap, np.int32)
+    pcls = np.empty(cap, np.int8)
+    sums = np.empty((cap, N_COLUMNS), np.float64)
+    boxes = np.empty((cap, 4), np.int32)
+    reach = bridge + 1
+    col_row = np.full(w, -reach - 1, np.int64)
+    col_lab = np.zeros(w, np.int32)
+    col_cls = np.zeros(w, np.int8)
+    col_key = np.zeros(w, np.float32)
+    nxt = 1
+    for y in range(h):
+        last_x = -reach - 1
+        last_lab = 0
+        last_cls = np.int8(0)
+        last_key = np.float32(0.0)
+        merged_up = 0
+        # the open run of sums of each class (a: ca, b: cb)
+        run_a = 0
+        ca_c = 0.0
+        ca_sz = 0.0
+        ca_szz = 0.0
+        ca_sx = 0.0
+        ca_sxz = 0.0
+        ca_x0 = 0
+        ca_x1 = 0
+        ca_k = np.float32(0.0)
+        run_b = 0
+        cb_c = 0.0
+        cb_sz = 0.0
+        cb_szz = 0.0
+        cb_sx = 0.0
+        cb_sxz = 0.0
+        cb_x0 = 0
+        cb_x1 = 0
+        cb_k = np.float32(0.0)
+        for x in range(w):
+            if not valid[y, x]:
+                continue
+            c = classes[y, x]
+            if c != ca and c != cb:
+                last_x = x
+                last_lab = 0
+                col_row[x] = y
+                col_lab[x] = 0
+                continue
+            kp = depth[y, x]
+            lim = rel * abs(kp)
+            left = 0
+            if last_lab != 0 and last_cls == c and x - last_x <= reach and abs(last_key - kp) <= lim:
+                left = last_lab
+            up = 0
+            cl = col_lab[x]
+            if cl != 0 and col_cls[x] == c and y - col_row[x] <= reach and abs(col_key[x] - kp) <= lim:
+                up = cl
+            if left == 0 and up == 0:
+                merged_up = 0
+                parent[nxt] = nxt
+                pcls[nxt] = c
+                sums[nxt, :] = 0.0
+                boxes[nxt, 0] = w
+                boxes[nxt, 1] = y
+                boxes[nxt, 2] = -1
+                boxes[nxt, 3] = -1
+                lab_here = nxt
+                nxt += 1
+            elif up == 0 or up == left:
+                lab_here = left
+            elif left == 0:
+                lab_here = up
+                merged_up = up
+            else:
+                lab_here = left
+                if up != merged_up:
+                    union(parent, left, up)
+                    merged_up = up
+            lab[y, x] = lab_here
+            last_x = x
+            last_lab = lab_here
+            last_cls = c
+            last_key = kp
+            col_row[x] = y
+            col_lab[x] = lab_here
+            col_cls[x] = c
+            col_key[x] = kp
+            z = np.float64(depth[y, x])
+            if c == ca:
+                if lab_here != run_a:
+                    if run_a != 0:
+                        flush_run(sums, boxes, run_a, ca_c, ca_sz, ca_szz, ca_sx, ca_sxz, y, ca_x0, ca_x1, ca_k)
+                    run_a = lab_here
+                    ca_c = 0.0
+                    ca_sz = 0.0
+                    ca_szz = 0.0
+                    ca_sx = 0.0
+                    ca_sxz = 0.0
+                    ca_x0 = x
+                    ca_k = kp
+                ca_c += 1.0
+                ca_sz += z
+                ca_szz += z * z
+                ca_sx += x
+                ca_sxz += x * z
+                ca_x1 = x
+            else:
+                if lab_here != run_b:
+                    if run_b != 0:
+                        flush_run(sums, boxes, run_b, cb_c, cb_sz, cb_szz, cb_sx, cb_sxz, y, cb_x0, cb_x1, cb_k)
+                    run_b = lab_here
+                    cb_c = 0.0
+                    cb_sz = 0.0
+                    cb_szz = 0.0
+                    cb_sx = 0.0
+                    cb_sxz = 0.0
+                    cb_x0 = x
+                    cb_k = kp
+                cb_c += 1.0
+                cb_sz += z
+                cb_szz += z * z
+                cb_sx += x
+                cb_sxz += x * z
+                cb_x1 = x
+        if run_a != 0:
+            flush_run(sums, boxes, run_a, ca_c, ca_sz, ca_szz, ca_sx, ca_sxz, y, ca_x0, ca_x1, ca_k)
+        if run_b != 0:
+            flush_run(sums, boxes, run_b, cb_c, cb_sz, cb_szz, cb_sx, cb_sxz, y, cb_x0, cb_x1, cb_k)
+    return lab, parent, pcls, nxt, sums, boxes
+
+
+@njit(cache=True, nogil=True)
+def _resolve_two(
+    lab: NDArray[np.int32],
+    parent: NDArray[np.int32],
+    pcls: NDArray[np.int8],
+    ca: np.int8,
+    nxt: int,
+    psums: NDArray[np.float64],
+    pboxes: NDArray[np.int32],
+) -> tuple[NDArray[np.int32], int, int, NDArray[np.float64], NDArray[np.int64]]:
+    # resolve_tables (min_px 1: nothing dropped) of both classes of _label_runs_two: the sets of
+    # class `ca` numbered 1..na and those of the other na + 1..na + nb, each in raster order of
+    # its first pixel; each set's rows added in provisional order, as resolve_tables adds them
+    final = np.zeros(nxt, np.int32)
+    na = 0
+    nb = 0
+    for i in range(1, nxt):
+        r = find(parent, i)
+        if r == i:
+            if pcls[i] == ca:
+                na += 1
+                final[i] = na
+            else:
+                nb += 1
+                final[i] = -nb
+        else:
+            final[i] = final[r]
+    for i in range(1, nxt):
+        if final[i] < 0:
+            final[i] = na - final[i]
+    n = na + nb
+    sums = np.zeros((n + 1, N_COLUMNS), np.float64)
+    boxes = np.empty((n + 1, 4), np.int64)
+    h, w = lab.shape
+    boxes[:, 0] = w
+    boxes[:, 1] = h
+    boxes[:, 2] = -1
+    boxes[:, 3] = -1
+    for i in range(1, nxt):
+        f = final[i]
+        for k in range(N_SUMS):
+            sums[f, k] += psums[i, k]
+        sums[f, KEY] = psums[i, KEY]
+        boxes[f, 0] = min(boxes[f, 0], pboxes[i, 0])
+        boxes[f, 1] = min(boxes[f, 1], pboxes[i, 1])
+        boxes[f, 2] = max(boxes[f, 2], pboxes[i, 2])
+        boxes[f, 3] = max(boxes[f, 3], pboxes[i, 3])
+    return final, na, nb, sums, boxes
+
+
+def label_two_classes(
+    depth_mm: NDArray[np.float32],
+    valid: NDArray[np.bool_],
+    classes: NDArray[np.int8],
+    cls_a: int,
+    cls_b: int,
+    fx: float,
+    fy: float,
+    cx: float,
+    cy: float,
+    *,
+    rel: float,
+    bridge: int,
+) -> tuple[NDArray[np.int32], int, int, NDArray[np.float64], NDArray[np.int64], NDArray[np.float64]]:
+    """:func:`label_keyed_planes` of the pixels of two classes, in one pass for both.
+
+    For each class, what ``label_keyed_planes(depth_mm, state, depth_mm, ..., rel=rel,
+    bridge=bridge)`` gives with ``state`` ACTIVE on the class's pixels, BLOCK on other readings
+    and HOLE where ``valid`` is False: the same components, numbers, sums, boxes and plane sums
+    to the last bit.
+
+    Returns
+    -------
+    labels : ndarray of int32, shape (H, W)
+        Components of class ``cls_a`` as 1..na, those of ``cls_b`` as na + 1..na + nb.
+    na, nb : int
+    sums, boxes, planes : ndarray
+        The tables of ``label_keyed_planes`` for the na + nb components (row 0 unused): class
+        ``cls_b``'s own tables are row 0 and rows na + 1.. of them.
+    """
+    z = np.ascontiguousarray(depth_mm, dtype=np.float32)
+    lab, parent, pcls, nxt, ps, pb = _label_runs_two(
+        z,
+        np.ascontiguousarray(valid, np.bool_),
+        np.ascontiguousarray(classes, np.int8),
+        np.int8(cls_a),
+        np.int8(cls_b),
+        float(rel),
+        int(bridge),
+    )
+    final, na, nb, sums, boxes = _resolve_two(lab, parent, pcls, np.int8(cls_a), nxt, ps, pb)
+    planes = _relabel_planes(lab, final, int(na + nb), z, float(fx), float(fy), float(cx), float(cy))
+    return lab, int(na), int(nb), sums, boxes, planes
 
 
 #: Stand-in for the depth image :func:`_label_runs` does not read without statistics.
