@@ -185,8 +185,8 @@ NCOL = 22
 # The parameter vector of `estimate`, built by depthgram.dynamics.tracker.estimate_params.
 (
     EP_USE_KALMAN, EP_DEPTH_SIGMA_MM, EP_DEPTH_SIGMA_FLOOR_MM, EP_ACCEL_SIGMA, EP_INNOVATION_GATE,
-    EP_TTC_MIN_SIGMAS, EP_MIN_SPEED, EP_V_SIGMA0, N_ESTIMATE_PARAMS,
-) = range(9)  # fmt: skip
+    EP_TTC_MIN_SIGMAS, EP_MIN_SPEED, EP_V_SIGMA0, EP_OWN_ACCEL_SIGMA, EP_OWN_V_SIGMA0, N_ESTIMATE_PARAMS,
+) = range(11)  # fmt: skip
 # Columns of the per-object feature array; F_READ says how its depth was read (0: mean depth,
 # 1: nearest part of a compound), see depthgram.dynamics.tracker.track_depth.
 F_CX, F_CY, F_Z, F_AREA, F_LABEL, F_X0, F_BEHIND, F_READ = 0, 1, 2, 3, 4, 5, 9, 10
@@ -547,6 +547,12 @@ def estimate(
     dt: float,
     p: NDArray[np.float64],
     offset: NDArray[np.float64],
+    core_dz: NDArray[np.float64],
+    still_dz: NDArray[np.float64],
+    kw: NDArray[np.float64],
+    kwp: NDArray[np.float64],
+    kwrej: NDArray[np.int64],
+    kwnis: NDArray[np.float64],
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
     """Radial velocity, time to collision and v_sigma of every live row (mm/s, s, mm/s).
 
@@ -563,6 +569,21 @@ def estimate(
     restart it there. Either way a time to collision needs a closing speed of at least
     ``ttc_min_sigmas`` v_sigma. ``offset`` moves each row's filter depth along with its queue
     (see :func:`step`).
+
+    With the camera's own motion known (``kalman`` only): ``still_dz`` is the depth change
+    (mm) each detected row would show since the previous frame if it stood still, ``core_dz``
+    the change its core shows (mm; NaN where unknown). The radial velocity is then
+    ``still_dz / dt`` plus the object's own velocity ``kw`` (mm/s, variance ``kwp``), filtered
+    from ``(core_dz - still_dz) / dt`` as a random walk with the same innovation gate
+    (``kwrej`` outliers in a row; NaN ``kw``: not started). Its process noise is
+    ``own_accel_sigma`` while the readings fit it, and grows up to ``accel_sigma`` with the
+    running mean ``kwnis`` of the normalised squared innovations where they do not (an
+    object that does change speed: the simulator's cart entering the view). The camera's part
+    needs no filter: it is read afresh each frame from the whole view, so it follows a
+    hand-held camera's shake without lag, and the filter only smooths what the object does
+    itself (on 7-Scenes within 25 % + 30 mm/s of the poses' truth: 0.72 without, 0.82 with).
+    The depth filter above takes that velocity over, so it coasts on it through frames
+    without the camera's motion.
     """
     use_kalman = p[EP_USE_KALMAN]
     sig1m = p[EP_DEPTH_SIGMA_MM]
@@ -572,6 +593,10 @@ def estimate(
     ttc_k = p[EP_TTC_MIN_SIGMAS]
     min_speed = p[EP_MIN_SPEED]
     v_sigma0 = p[EP_V_SIGMA0]
+    qw = p[EP_OWN_ACCEL_SIGMA] * dt
+    # how far the own filter's process noise may grow when its readings do not fit (variance)
+    nis_max = (accel / p[EP_OWN_ACCEL_SIGMA]) ** 2 if p[EP_OWN_ACCEL_SIGMA] > 0 else 1.0
+    w_sigma0 = p[EP_OWN_V_SIGMA0]
     nn = kx.shape[0]
     nq = qz.shape[1]
     v_out = np.full(nn, np.nan)
@@ -642,6 +667,47 @@ def estimate(
                     kp[i, 1, 1] = v_sigma0 * v_sigma0
                     kn[i] = 1
                     krej[i] = 0
+            if i >= n:
+                kw[i] = np.nan
+                kwp[i] = 0.0
+                kwrej[i] = 0
+            elif np.isfinite(kw[i]):
+                if s[i, STATUS] == ENTERING or s[i, STATUS] == LEAVING:
+                    # the visible part changes at the image's edge: its readings change for
+                    # reasons the own motion does not model (the simulator's cart entering)
+                    kwnis[i] = nis_max
+                kwp[i] += qw * qw * min(max(kwnis[i], 1.0), nis_max)
+            if s[i, MISSED] == 0 and np.isfinite(still_dz[i]):
+                if not np.isfinite(kw[i]):
+                    # most of what a camera sees stands still: no own motion until read
+                    kw[i] = 0.0
+                    kwp[i] = w_sigma0 * w_sigma0
+                    kwrej[i] = 0
+                    # a new track's own motion is not known yet: it starts fast and settles
+                    # as its readings agree (about six readings)
+                    kwnis[i] = nis_max
+                if np.isfinite(core_dz[i]):
+                    y0 = (core_dz[i] - still_dz[i]) / dt
+                    rw = r / (dt * dt)
+                    y = y0 - kw[i]
+                    sw = kwp[i] + rw
+                    # a running mean over about three readings; one outlier counts as 25 at most
+                    kwnis[i] += 0.3 * (min(y * y / sw, 25.0) - kwnis[i])
+                    if y * y <= gate_k * gate_k * sw:
+                        gain = kwp[i] / sw
+                        kw[i] += gain * y
+                        kwp[i] *= 1.0 - gain
+                        kwrej[i] = 0
+                    else:
+                        kwrej[i] += 1
+                        if kwrej[i] >= 3:
+                            kw[i] = y0
+                            kwp[i] = rw
+                            kwrej[i] = 0
+                kx[i, 1] = still_dz[i] / dt + kw[i]
+                kp[i, 0, 1] = 0.0
+                kp[i, 1, 0] = 0.0
+                kp[i, 1, 1] = kwp[i]
             if kn[i] >= 2:
                 v_out[i] = kx[i, 1]
                 sig[i] = np.sqrt(kp[i, 1, 1])

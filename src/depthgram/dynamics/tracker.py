@@ -19,7 +19,14 @@ from numpy.typing import NDArray
 from scipy.optimize import linear_sum_assignment
 
 from depthgram.dynamics.config import NOMINAL_FPS, TrackerConfig
-from depthgram.dynamics.core import CameraMotion, EgoMotion, FramePixels, core_depth_change, image_shift
+from depthgram.dynamics.core import (
+    CameraMotion,
+    EgoMotion,
+    FramePixels,
+    core_depth_change,
+    image_shift,
+    still_depth_change,
+)
 from depthgram.dynamics.kernels import (
     CX,
     CY,
@@ -28,6 +35,8 @@ from depthgram.dynamics.kernels import (
     EP_DEPTH_SIGMA_MM,
     EP_INNOVATION_GATE,
     EP_MIN_SPEED,
+    EP_OWN_ACCEL_SIGMA,
+    EP_OWN_V_SIGMA0,
     EP_TTC_MIN_SIGMAS,
     EP_USE_KALMAN,
     EP_V_SIGMA0,
@@ -227,6 +236,10 @@ def estimate_params(config: TrackerConfig) -> NDArray[np.float64]:
     p[EP_MIN_SPEED] = c.min_speed
     # The velocity uncertainty a (re)started filter begins with (mm/s).
     p[EP_V_SIGMA0] = 3000.0
+    p[EP_OWN_ACCEL_SIGMA] = c.own_accel_sigma
+    # The own velocity a track with the camera's motion known starts from is 0 (most of a view
+    # stands still), with this uncertainty (mm/s): a brisk walk.
+    p[EP_OWN_V_SIGMA0] = 1500.0
     return p
 
 
@@ -292,6 +305,10 @@ class Tracker:
         self._kp = np.zeros((16, 2, 2))  # its covariance
         self._kn = np.zeros(16, np.int64)  # readings folded in since the filter (re)started
         self._krej = np.zeros(16, np.int64)  # outliers rejected in a row
+        self._kw = np.full(16, np.nan)  # own radial velocity, the camera's part taken out (mm/s)
+        self._kwp = np.zeros(16)  # its variance
+        self._kwrej = np.zeros(16, np.int64)  # its outliers rejected in a row
+        self._kwnis = np.ones(16)  # running mean of its normalised squared innovations
         self._last: list[SceneObject] = []
         self._motion: list[Motion] = []
         self._pixels: FramePixels | None = None  # the previous frame's, when given
@@ -456,13 +473,17 @@ class Tracker:
             self._kp = np.concatenate([self._kp, np.zeros((more, 2, 2))])
             self._kn = np.concatenate([self._kn, np.zeros(more, np.int64)])
             self._krej = np.concatenate([self._krej, np.zeros(more, np.int64)])
+            self._kw = np.concatenate([self._kw, np.full(more, np.nan)])
+            self._kwp = np.concatenate([self._kwp, np.zeros(more)])
+            self._kwrej = np.concatenate([self._kwrej, np.zeros(more, np.int64)])
+            self._kwnis = np.concatenate([self._kwnis, np.ones(more)])
         s = self._s
         cost = predict_cost(s, n, f, math.hypot(width, height), t_now, self._dt, self._cost_params)
         if n and m:
             rows, cols = linear_sum_assignment(cost)
         else:
             rows = cols = _NO_PAIRS
-        dcore = self._core_changes(objects, pixels, rows, cols, cost, (width, height))
+        dcore, dstill = self._core_changes(objects, pixels, rows, cols, cost, (width, height))
         params = self._step_params
         obj_row, v_out, ttc, dead, restarted, k, offset = step(
             s, self._qt, self._qz, n, f, rows, cols, cost, t_now, self._dt,
@@ -473,7 +494,11 @@ class Tracker:
         if k:  # placeholders, filled below
             self._last.extend([objects[0]] * k)
             self._motion.extend([Motion(0)] * k)
-        v_out, ttc, v_sig = self._estimate(n, restarted, v_out, ttc, offset)
+        core_row = np.full(self._n, np.nan)
+        still_row = np.full(self._n, np.nan)
+        core_row[obj_row] = dcore
+        still_row[obj_row] = dstill
+        v_out, ttc, v_sig = self._estimate(n, restarted, v_out, ttc, offset, core_row, still_row)
 
         # Python objects only for what is returned.
         ids_l = s[: self._n, ID].astype(np.int64).tolist()
@@ -506,15 +531,17 @@ class Tracker:
         cols: NDArray[np.intp],
         cost: NDArray[np.float64],
         frame_size: tuple[int, int],
-    ) -> NDArray[np.float64]:
-        """Return each object's core depth change since the previous frame (mm; NaN where unknown).
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """Return each object's core depth change since the previous frame, and the change it would show standing still.
 
+        Both in mm, NaN where unknown; the second only where the camera's motion is known.
         This frame's pixels are kept for the next update.
         """
         prev, self._pixels = self._pixels, pixels
         out = np.full(len(objects), np.nan)
+        still = np.full(len(objects), np.nan)
         if pixels is None:
-            return out
+            return out, still
         shape = (frame_size[1], frame_size[0])
         if np.shape(pixels.depth_mm) != shape or np.shape(pixels.labels) != shape:
             raise InputError(
@@ -527,7 +554,11 @@ class Tracker:
         else:
             camera, shift = self._camera_motion(pixels.depth_mm, pixels.intrinsics), None
         if prev is None:
-            return out
+            return out, still
+        if camera is not None:
+            moved = still_depth_change(pixels, {o.id: o.bbox_xy for o in objects}, camera)
+            for c, o in enumerate(objects):
+                still[c] = moved.get(o.id, math.nan)
         s = self._s
         # Pairs with a track seen in the previous frame: its last object is that frame's segment.
         # The track's own image motion: its centre's move, and its smoothed image velocity,
@@ -547,13 +578,13 @@ class Tracker:
             if cost[i, c] < FORBIDDEN and s[i, MISSED] == 0
         }
         if not pairs:
-            return out
+            return out, still
         if shift is None:
             shift = image_shift(prev.depth_mm, pixels.depth_mm)
         change = core_depth_change(prev, pixels, pairs, shift, camera=camera)
         for c, o in enumerate(objects):
             out[c] = change.get(o.id, math.nan)
-        return out
+        return out, still
 
     def _camera_motion(self, depth_mm: NDArray[np.floating], intrinsics: Intrinsics | None) -> CameraMotion | None:
         """Return the camera's motion since the previous frame, or None to use one shift.
@@ -576,6 +607,8 @@ class Tracker:
         v_queue: NDArray[np.float64],
         ttc_queue: NDArray[np.float64],
         offset: NDArray[np.float64],
+        core_dz: NDArray[np.float64],
+        still_dz: NDArray[np.float64],
     ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
         """Radial velocity, time to collision and v_sigma of every live row (mm/s, s, mm/s).
 
@@ -585,6 +618,7 @@ class Tracker:
         return estimate(
             self._s[:nn], self._qt[:nn], self._qz[:nn], n, restarted, v_queue, ttc_queue,
             self._kx[:nn], self._kp[:nn], self._kn[:nn], self._krej[:nn], self._dt, self._estimate_params, offset,
+            core_dz, still_dz, self._kw[:nn], self._kwp[:nn], self._kwrej[:nn], self._kwnis[:nn],
         )  # fmt: skip
 
     def _drop(self, keep: NDArray[np.bool_]) -> None:
@@ -595,6 +629,10 @@ class Tracker:
         self._kp[:k] = self._kp[:n][keep]
         self._kn[:k] = self._kn[:n][keep]
         self._krej[:k] = self._krej[:n][keep]
+        self._kw[:k] = self._kw[:n][keep]
+        self._kwp[:k] = self._kwp[:n][keep]
+        self._kwrej[:k] = self._kwrej[:n][keep]
+        self._kwnis[:k] = self._kwnis[:n][keep]
         self._s[:k] = self._s[:n][keep]
         self._qt[:k] = self._qt[:n][keep]
         self._qz[:k] = self._qz[:n][keep]
