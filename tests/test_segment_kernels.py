@@ -584,6 +584,28 @@ def test_sensor_estimate_keeps_tied_depths_in_raster_order() -> None:
     assert (got.step_0, got.step_2, got.sigma_0, got.sigma_2) == (s0, s2, n0, n2)
 
 
+def test_sensor_ranges_counted_for_whole_depths_equal_the_general_route() -> None:
+    # whole-millimetre depths take the counting route of the per-range order statistics: the
+    # same steps, medians and spreads to the last bit as the masked copies and selections, also
+    # for a range too wide to count (falls back) and ranges with too few differences
+    from depthgram.segmentation.sensor import _range_estimates, _range_estimates_whole
+
+    rng = np.random.default_rng(21)
+    for t in range(600):
+        n = int(rng.integers(1, 2500))
+        k = int(rng.integers(1, 13))
+        scale = float(rng.choice([5, 50, 500, 3000, 400_000]))
+        z = np.round(rng.random(n) * scale + float(rng.choice([1, 300, 2000])))
+        if t % 3 == 0:
+            z = np.round(z / 7) * 7 + 1  # ties
+        d1 = np.abs(np.round(rng.normal(0, float(rng.choice([0.5, 2, 10, 100])), n)))
+        d2 = np.round(rng.normal(0, float(rng.choice([0.5, 2, 10, 100])), n))
+        order = np.argsort(z, kind="stable")
+        np.testing.assert_array_equal(
+            _range_estimates_whole(z, d1, d2, order, k), _range_estimates(z, d1, d2, order, k)
+        )
+
+
 def _surfaces_reference(
     depth: np.ndarray, state: np.ndarray, t0: float, t2: float, sl: float, bridge: int
 ) -> np.ndarray:
@@ -732,6 +754,30 @@ def test_merged_rows_equal_numpy_add_at() -> None:
         np.testing.assert_array_equal(got_b, ref_b)
 
 
+def test_join_near_is_near_planes_then_the_class_written() -> None:
+    # the supports take the facing pixels on their planes straight into the class map: the
+    # classes of near_planes on the facing candidates followed by a masked write
+    from depthgram.segmentation.planes import join_near
+
+    rng = np.random.default_rng(8)
+    for t in range(40):
+        depth, ok, cam = _floor_scene()
+        if t % 2:
+            depth = depth + rng.normal(0, 8, depth.shape).astype(np.float32) * ok
+        ok = ok & (rng.random(depth.shape) > 0.1)
+        classes = rng.choice(np.array([0, 1, 2], np.int8), depth.shape, p=[0.5, 0.4, 0.1])
+        _, _, _, boxes, planes = support_pieces(depth, ok, classes, 1, cam, jump_rel=0.25, bridge=2, min_fit_px=5)
+        normal, off, count = planes_from_sums(planes)
+        tol = float(rng.choice([0.01, 0.025, 0.1]))
+        min_px = int(rng.integers(1, 40))
+        near = near_planes(normal, off, count, boxes, depth, ok & (classes == 0), cam, min_px=min_px, tol_rel=tol)
+        want = classes.copy()
+        want[near] = 1
+        got = classes.copy()
+        assert join_near(got, ok, 1, 0, normal, off, count, boxes, depth, cam, min_px=min_px, tol_rel=tol) == near.sum()
+        np.testing.assert_array_equal(got, want)
+
+
 def test_dropping_through_the_joined_table_is_joining_then_dropping() -> None:
     # _support_class reads a class's pieces through one table piece -> support -> kept support:
     # the dropped supports' pixels go back to the facing class inside their boxes only, and the
@@ -770,3 +816,49 @@ def test_dropping_through_the_joined_table_is_joining_then_dropping() -> None:
         out = np.full(labels.shape, -1, np.int32)
         add_through(out, labels, table, boxes[1:][keep[1:]])
         np.testing.assert_array_equal(out, np.where(kept > 0, kept + 7, -1))
+
+
+def test_load_rare_kernels_loads_the_kernels_of_the_rare_branches() -> None:
+    # a stream's first frames may take none of these branches; a real-time caller loads their
+    # kernels before the stream. With the very argument types of segment's calls: a frame that
+    # takes the branches afterwards compiles no new signature
+    from depthgram.segmentation import segment
+    from depthgram.segmentation.core import load_rare_kernels
+    from depthgram.segmentation.label import keyed, stats
+    from depthgram.segmentation.label.unionfind import resolve_tables
+    from depthgram.segmentation.slices import _class_state, _merge_rows
+    from depthgram.sensor import simulate
+
+    load_rare_kernels()
+    kernels = (keyed._label_runs, keyed._relabel_planes, resolve_tables, _class_state, _merge_rows, stats._stats)
+    before = [len(k.signatures) for k in kernels]
+    assert all(before)
+    for scene in ("table", "corridor"):
+        f = next(iter(simulate(scene, 1, size=(176, 132), seed=0))).frame
+        segment(f)  # a support labelled again after its near pixels joined it (both scenes)
+    assert [len(k.signatures) for k in kernels] == before
+
+
+def test_percentile32_is_numpys_percentile_to_the_last_bit() -> None:
+    # numpy interpolates in float32 for a Python-number percentile and in float64 for a
+    # sequence of them; the compiled route reproduces both (the frame's far depth, the spread
+    # of a candidate plane)
+    from depthgram.segmentation.order_stats import percentile32
+
+    rng = np.random.default_rng(14)
+    for t in range(3000):
+        n = int(rng.integers(1, 300 if t % 2 else 2500))
+        kind = t % 4
+        if kind == 0:
+            a = np.round(rng.random(n) * 3000 + 300).astype(np.float32)  # millimetres: ties
+        elif kind == 1:
+            a = (rng.random(n) * 3000 + 300).astype(np.float32)
+        elif kind == 2:
+            a = (np.round(rng.random(n) * 20) * 11.76 + 500).astype(np.float32)  # 8-bit depth steps
+        else:
+            a = rng.normal(1000, 300, n).astype(np.float32)
+        for q in (5, 20, 50, 95):
+            assert percentile32(a.copy(), float(q), True) == float(np.percentile(a, q))
+        b = a.copy()
+        got = [percentile32(b, q, False) for q in (5.0, 50.0, 95.0)]
+        np.testing.assert_array_equal(got, np.percentile(a, (5, 50, 95)))

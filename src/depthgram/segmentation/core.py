@@ -15,8 +15,9 @@ from depthgram.segmentation.config import SegmentConfig
 from depthgram.segmentation.contacts import front_faces, side_faces
 from depthgram.segmentation.histogram import Bands, bin_index, depth_bands
 from depthgram.segmentation.label import label_bands_stats, label_stats_fused, label_two_classes, relabel
-from depthgram.segmentation.label.stats import COUNT, KEY, N_SUMS, SUM_Z, SUM_ZZ
+from depthgram.segmentation.label.stats import COUNT, KEY, N_COLUMNS, N_SUMS, SUM_Z, SUM_ZZ
 from depthgram.segmentation.objects import Histogram, SceneObject, Segmentation
+from depthgram.segmentation.order_stats import percentile32
 from depthgram.segmentation.orientation import (
     FACING,
     HORIZONTAL,
@@ -28,7 +29,7 @@ from depthgram.segmentation.orientation import (
 from depthgram.segmentation.paper_slices import paper_slices
 from depthgram.segmentation.planes import (
     find_planes,
-    near_planes,
+    join_near,
     plane_normal,
     plane_sums_in_boxes,
     planes_from_sums,
@@ -37,6 +38,7 @@ from depthgram.segmentation.planes import (
 from depthgram.segmentation.region import region_grow
 from depthgram.segmentation.sensor import SensorModel, estimate_sensor, sensor_model
 from depthgram.segmentation.slices import (
+    _merge_rows,
     add_through,
     drop_classes,
     join_pieces,
@@ -53,7 +55,7 @@ from depthgram.segmentation.surfaces import (
 )
 from depthgram.segmentation.validate import check_depth_far
 
-__all__ = ["segment"]
+__all__ = ["load_rare_kernels", "segment"]
 
 #: The defaults, built once: validating a config on every call is a visible share of a small frame.
 _DEFAULTS = SegmentConfig()
@@ -135,6 +137,28 @@ def segment(
     return replace(seg, beyond_far_px=n_far) if n_far else seg
 
 
+def load_rare_kernels() -> None:
+    """Load (on a fresh install: compile) the compiled kernels that only some frames reach.
+
+    The first frame of a stream loads the kernels its own branches take; one taking a branch
+    the first frames did not (a support labelled again after pixels near its plane joined it,
+    coplanar pieces joined, the statistics after merged openings) loaded or compiled its
+    kernels in the middle of the stream (470 ms on a fresh install). A real-time caller runs
+    this before the stream, after a first frame (``Pipeline.warm_up``).
+    """
+    z = np.full((2, 2), 1000.0, np.float32)
+    ok = np.ones((2, 2), np.bool_)
+    classes = np.full((2, 2), HORIZONTAL, np.int8)
+    cam = default_intrinsics(z.shape)
+    # a class labelled alone (its near pixels joined): labeller state, labeller, tables, planes
+    support_pieces_lazy(z, ok, classes, HORIZONTAL, cam, jump_rel=0.05, bridge=2, min_fit_px=1)
+    # coplanar pieces joined: their rows added
+    rows = np.zeros((3, N_COLUMNS), np.float64)
+    _merge_rows(np.array([0, 1, 1], np.int32), 1, rows, np.zeros((3, 9), np.float64), np.zeros((3, 4), np.int64))
+    # merged openings: the statistics of the joined surfaces
+    label_stats_fused(np.zeros((2, 2), np.int32), 0, z, np.zeros((2, 2), np.float32))
+
+
 def _segment(
     depth: NDArray[np.float32],
     ok: NDArray[np.bool_],
@@ -204,7 +228,8 @@ def _surface_objects(
     d2 = np.ascontiguousarray(depth[::2, ::2])
     m2 = np.ascontiguousarray(facing[::2, ::2])
     sample = d2[::2, ::2][m2[::2, ::2]]
-    far = float(np.percentile(sample, 95)) if sample.size else cfg.ref_depth_mm
+    # np.percentile's value, compiled (a numpy call costs more than the selection here)
+    far = percentile32(sample, 95.0, True) if sample.size else cfg.ref_depth_mm
     bin_far = max(cfg.bin_mm * far / cfg.ref_depth_mm, 3.0 * float(sensor.resolution(far)))
     # within the config's own bounds, so that a frame of absurd depths is binned, not refused here
     ref = min(max(far, 1.0), 1e6)
@@ -642,12 +667,12 @@ def _support_class(
         merge, n, sums, boxes, planes, fit = join_pieces(n_pieces, psums, pboxes, pplanes, min_fit_px=fit_px)
     # noise makes some support pixels look facing; those lying on a big support's plane
     # go back to it (an upright object meets that plane only along its base row)
-    candidates = ok & (classes == FACING)
-    if n and candidates.any():
+    if n:
         normal, off, count = fit if fit is not None else planes_from_sums(planes)
-        near = near_planes(normal, off, count, boxes, depth, candidates, cam, min_px=min_px, tol_rel=cfg.jump_rel / 2)
-        if near.any():
-            np.copyto(classes, np.int8(cls), where=near)
+        near = join_near(
+            classes, ok, cls, FACING, normal, off, count, boxes, depth, cam, min_px=min_px, tol_rel=cfg.jump_rel / 2
+        )
+        if near:
             lab, merge, n, sums, boxes, planes, _ = support_pieces_lazy(
                 depth, ok, classes, cls, cam, jump_rel=cfg.jump_rel, bridge=cfg.fill_holes_px, min_fit_px=fit_px
             )
