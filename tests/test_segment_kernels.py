@@ -378,6 +378,17 @@ def test_upsample_classes_repeats_and_clears_holes(k: int) -> None:
     np.testing.assert_array_equal(upsample_classes(cls, valid, k), want)
 
 
+@pytest.mark.parametrize("shape", [(19, 23), (20, 24), (1, 1), (2, 7)])
+def test_crease_upsampling_repeats_where_there_is_a_reading(shape: tuple[int, int]) -> None:
+    from depthgram.segmentation.surfaces import _upsample2
+
+    rng = np.random.default_rng(shape[0])
+    valid = rng.random(shape) < 0.8
+    sub = rng.random((-(-shape[0] // 2), -(-shape[1] // 2))) < 0.5
+    want = np.repeat(np.repeat(sub, 2, axis=0), 2, axis=1)[: shape[0], : shape[1]] & valid
+    np.testing.assert_array_equal(_upsample2(sub, valid), want)
+
+
 def test_front_face_folds_only_without_a_depth_jump() -> None:
     # support 3 (a table top, rows 0-1) above facing object 1 (its front, rows 2-3) at the
     # same depth; facing object 2 below it is 50 % farther (an object behind, not a face)

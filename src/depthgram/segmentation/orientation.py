@@ -394,14 +394,22 @@ def upsample_classes(cls: NDArray[np.int8], valid: NDArray[np.bool_], k: int) ->
 @njit(cache=True, nogil=True)
 def _upsample(cls: NDArray[np.int8], valid: NDArray[np.bool_], k: int) -> NDArray[np.int8]:
     # one pass for numpy's two repeats, crop, masked write and copy
-    # (a table of source columns: an integer division per pixel made it several times slower)
+    # (a table of source columns: an integer division per pixel made it several times slower;
+    # each source row expanded once for its k rows, whose loop is then a select that vectorises)
     h, w = valid.shape
     out = np.empty((h, w), np.int8)
     src = np.empty(w, np.int64)
     for x in range(w):
         src[x] = x // k
+    wide = np.empty(w, np.int8)
+    face = np.int8(FACING)
     for y in range(h):
-        crow = cls[y // k]
+        if y % k == 0:
+            crow = cls[y // k]
+            for x in range(w):
+                wide[x] = crow[src[x]]
+        vrow = valid[y]
+        orow = out[y]
         for x in range(w):
-            out[y, x] = crow[src[x]] if valid[y, x] else FACING
+            orow[x] = wide[x] if vrow[x] else face
     return out
