@@ -862,3 +862,30 @@ def test_percentile32_is_numpys_percentile_to_the_last_bit() -> None:
         b = a.copy()
         got = [percentile32(b, q, False) for q in (5.0, 50.0, 95.0)]
         np.testing.assert_array_equal(got, np.percentile(a, (5, 50, 95)))
+
+
+def test_bin_counts_equal_bin_index_counts() -> None:
+    # the surfaces' histogram counts whole depths value by value (one logarithm per distinct
+    # depth); the same edges and counts as binning every pixel, also for depths that are not
+    # whole or span too much to count (the per-pixel route)
+    from depthgram.segmentation.config import SegmentConfig
+    from depthgram.segmentation.histogram import bin_counts, bin_index
+
+    rng = np.random.default_rng(15)
+    for t in range(400):
+        h, w = (int(v) for v in rng.integers(1, 60, 2))
+        lo = float(rng.choice([1, 200, 400, 2000]))
+        span = float(rng.choice([3, 100, 3000, 20000, 100_000]))
+        depth = np.round(rng.random((h, w)) * span + lo).astype(np.float32)
+        if t % 5 == 0:
+            depth += np.float32(0.5) * (rng.random((h, w)) < 0.01)
+        valid = rng.random((h, w)) > 0.2
+        cfg = SegmentConfig(
+            depth_dependent_bins=True,
+            ref_depth_mm=float(rng.choice([500.0, 2000.0])),
+            bin_mm=float(rng.choice([5.0, 12.0, 40.0])),
+        )
+        edges, counts = bin_counts(depth, valid, cfg)
+        _, want_edges, want_counts = bin_index(depth, valid, cfg)
+        np.testing.assert_array_equal(edges, want_edges)
+        np.testing.assert_array_equal(counts, want_counts)

@@ -13,7 +13,7 @@ from depthgram.frame import Frame, Intrinsics, check_array_units
 from depthgram.segmentation.attributes import Stats, make_objects
 from depthgram.segmentation.config import SegmentConfig
 from depthgram.segmentation.contacts import front_faces, side_faces
-from depthgram.segmentation.histogram import Bands, bin_index, depth_bands
+from depthgram.segmentation.histogram import Bands, bin_counts, bin_index, depth_bands
 from depthgram.segmentation.label import label_bands_stats, label_stats_fused, label_two_classes, relabel
 from depthgram.segmentation.label.stats import COUNT, KEY, N_COLUMNS, N_SUMS, SUM_Z, SUM_ZZ
 from depthgram.segmentation.objects import Histogram, SceneObject, Segmentation
@@ -234,7 +234,7 @@ def _surface_objects(
     # within the config's own bounds, so that a frame of absurd depths is binned, not refused here
     ref = min(max(far, 1.0), 1e6)
     bin_cfg = cfg.with_overrides(depth_dependent_bins=True, ref_depth_mm=ref, bin_mm=min(max(bin_far, 0.01), 10_000.0))
-    _, edges, counts = bin_index(d2, m2, bin_cfg, zero_outside=False)
+    edges, counts = bin_counts(d2, m2, bin_cfg)
     bands = depth_bands(counts, edges, bin_cfg)
     r = crease_scale_px(depth.shape[1])
     creases = concave_creases(depth, ok, sensor, scale_px=r, min_angle_deg=cfg.crease_deg, focal_px=cam.fx)
