@@ -584,6 +584,28 @@ def test_sensor_estimate_keeps_tied_depths_in_raster_order() -> None:
     assert (got.step_0, got.step_2, got.sigma_0, got.sigma_2) == (s0, s2, n0, n2)
 
 
+def test_sensor_ranges_counted_for_whole_depths_equal_the_general_route() -> None:
+    # whole-millimetre depths take the counting route of the per-range order statistics: the
+    # same steps, medians and spreads to the last bit as the masked copies and selections, also
+    # for a range too wide to count (falls back) and ranges with too few differences
+    from depthgram.segmentation.sensor import _range_estimates, _range_estimates_whole
+
+    rng = np.random.default_rng(21)
+    for t in range(600):
+        n = int(rng.integers(1, 2500))
+        k = int(rng.integers(1, 13))
+        scale = float(rng.choice([5, 50, 500, 3000, 400_000]))
+        z = np.round(rng.random(n) * scale + float(rng.choice([1, 300, 2000])))
+        if t % 3 == 0:
+            z = np.round(z / 7) * 7 + 1  # ties
+        d1 = np.abs(np.round(rng.normal(0, float(rng.choice([0.5, 2, 10, 100])), n)))
+        d2 = np.round(rng.normal(0, float(rng.choice([0.5, 2, 10, 100])), n))
+        order = np.argsort(z, kind="stable")
+        np.testing.assert_array_equal(
+            _range_estimates_whole(z, d1, d2, order, k), _range_estimates(z, d1, d2, order, k)
+        )
+
+
 def _surfaces_reference(
     depth: np.ndarray, state: np.ndarray, t0: float, t2: float, sl: float, bridge: int
 ) -> np.ndarray:
@@ -770,3 +792,24 @@ def test_dropping_through_the_joined_table_is_joining_then_dropping() -> None:
         out = np.full(labels.shape, -1, np.int32)
         add_through(out, labels, table, boxes[1:][keep[1:]])
         np.testing.assert_array_equal(out, np.where(kept > 0, kept + 7, -1))
+
+
+def test_load_rare_kernels_loads_the_kernels_of_the_rare_branches() -> None:
+    # a stream's first frames may take none of these branches; a real-time caller loads their
+    # kernels before the stream. With the very argument types of segment's calls: a frame that
+    # takes the branches afterwards compiles no new signature
+    from depthgram.segmentation import segment
+    from depthgram.segmentation.core import load_rare_kernels
+    from depthgram.segmentation.label import keyed, stats
+    from depthgram.segmentation.label.unionfind import resolve_tables
+    from depthgram.segmentation.slices import _class_state, _merge_rows
+    from depthgram.sensor import simulate
+
+    load_rare_kernels()
+    kernels = (keyed._label_runs, keyed._relabel_planes, resolve_tables, _class_state, _merge_rows, stats._stats)
+    before = [len(k.signatures) for k in kernels]
+    assert all(before)
+    for scene in ("table", "corridor"):
+        f = next(iter(simulate(scene, 1, size=(176, 132), seed=0))).frame
+        segment(f)  # a support labelled again after its near pixels joined it (both scenes)
+    assert [len(k.signatures) for k in kernels] == before

@@ -15,7 +15,7 @@ from depthgram.segmentation.config import SegmentConfig
 from depthgram.segmentation.contacts import front_faces, side_faces
 from depthgram.segmentation.histogram import Bands, bin_index, depth_bands
 from depthgram.segmentation.label import label_bands_stats, label_stats_fused, label_two_classes, relabel
-from depthgram.segmentation.label.stats import COUNT, KEY, N_SUMS, SUM_Z, SUM_ZZ
+from depthgram.segmentation.label.stats import COUNT, KEY, N_COLUMNS, N_SUMS, SUM_Z, SUM_ZZ
 from depthgram.segmentation.objects import Histogram, SceneObject, Segmentation
 from depthgram.segmentation.orientation import (
     FACING,
@@ -37,6 +37,7 @@ from depthgram.segmentation.planes import (
 from depthgram.segmentation.region import region_grow
 from depthgram.segmentation.sensor import SensorModel, estimate_sensor, sensor_model
 from depthgram.segmentation.slices import (
+    _merge_rows,
     add_through,
     drop_classes,
     join_pieces,
@@ -53,7 +54,7 @@ from depthgram.segmentation.surfaces import (
 )
 from depthgram.segmentation.validate import check_depth_far
 
-__all__ = ["segment"]
+__all__ = ["load_rare_kernels", "segment"]
 
 #: The defaults, built once: validating a config on every call is a visible share of a small frame.
 _DEFAULTS = SegmentConfig()
@@ -133,6 +134,28 @@ def segment(
     depth, ok, n_far = check_depth_far(depth_mm, valid, cfg.far_mm)
     seg = _segment(depth, ok, intrinsics, cfg, sensor)
     return replace(seg, beyond_far_px=n_far) if n_far else seg
+
+
+def load_rare_kernels() -> None:
+    """Load (on a fresh install: compile) the compiled kernels that only some frames reach.
+
+    The first frame of a stream loads the kernels its own branches take; one taking a branch
+    the first frames did not (a support labelled again after pixels near its plane joined it,
+    coplanar pieces joined, the statistics after merged openings) loaded or compiled its
+    kernels in the middle of the stream (470 ms on a fresh install). A real-time caller runs
+    this before the stream, after a first frame (``Pipeline.warm_up``).
+    """
+    z = np.full((2, 2), 1000.0, np.float32)
+    ok = np.ones((2, 2), np.bool_)
+    classes = np.full((2, 2), HORIZONTAL, np.int8)
+    cam = default_intrinsics(z.shape)
+    # a class labelled alone (its near pixels joined): labeller state, labeller, tables, planes
+    support_pieces_lazy(z, ok, classes, HORIZONTAL, cam, jump_rel=0.05, bridge=2, min_fit_px=1)
+    # coplanar pieces joined: their rows added
+    rows = np.zeros((3, N_COLUMNS), np.float64)
+    _merge_rows(np.array([0, 1, 1], np.int32), 1, rows, np.zeros((3, 9), np.float64), np.zeros((3, 4), np.int64))
+    # merged openings: the statistics of the joined surfaces
+    label_stats_fused(np.zeros((2, 2), np.int32), 0, z, np.zeros((2, 2), np.float32))
 
 
 def _segment(

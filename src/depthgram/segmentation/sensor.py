@@ -163,8 +163,14 @@ def estimate_sensor(
     # which of the pixels tied at a range boundary fall on each side changes the estimate, so
     # ties keep raster order (a stable sort): numpy's default sort left it to the CPU's SIMD
     # level (docs/design-notes.md, "The sensor estimate's order")
-    order = stable_order(z)
-    fit = _range_estimates(z, d1, d2, order, n_bins)
+    order: NDArray[np.intp] = _counting_order(z)
+    if order.size == z.size:
+        # whole-millimetre depths (what most cameras give): their differences are whole too,
+        # and each range's order statistics are read from counts, without sorting copies
+        fit = _range_estimates_whole(z, d1, d2, order, n_bins)
+    else:
+        order = _radix_order(z.astype(np.float32).view(np.uint32))
+        fit = _range_estimates(z, d1, d2, order, n_bins)
     fit = fit[fit[:, 3] > 0]
     if not fit.shape[0]:
         return PROFILES["tof"]
@@ -339,6 +345,112 @@ def _range_estimates(
         out[i, 2] = math.sqrt(sigma2)
         out[i, 3] = 1.0
     return out
+
+
+#: Widest depth tolerance (mm) whose differences :func:`_range_estimates_whole` counts.
+_MAX_WHOLE_LIM = 1 << 13
+
+
+@njit(cache=True, nogil=True)
+def _range_estimates_whole(
+    z: NDArray[np.float64],
+    d1: NDArray[np.float64],
+    d2: NDArray[np.float64],
+    order: NDArray[np.intp],
+    k: int,
+) -> NDArray[np.float64]:
+    # _range_estimates for whole-number depths (so whole differences): the same values, each
+    # order statistic read from the counts of the range's differences in one pass over its
+    # pixels instead of masked copies and selections (an order statistic is a value of the
+    # sample whatever finds it; the arithmetic on them is _range_estimates'). A range whose
+    # tolerance is too wide to count is left to _range_estimates' own steps.
+    n = z.size
+    out = np.zeros((k, 4), np.float64)
+    each, extra = divmod(n, k)
+    # the ranges follow depth: the last one has the widest tolerance
+    top = min(math.ceil(0.05 * z[order[n - 1]]), _MAX_WHOLE_LIM) if n else 0
+    h1 = np.zeros(top + 1, np.int64)
+    h2 = np.zeros(2 * top + 1, np.int64)
+    h3 = np.zeros(4 * top + 2, np.int64)
+    lo = 0
+    for i in range(k):
+        hi = lo + each + (1 if i < extra else 0)
+        m = hi - lo
+        h = m // 2
+        zc = float(z[order[lo + h]]) if m % 2 else float((z[order[lo + h - 1]] + z[order[lo + h]]) / 2.0)
+        lim = 0.05 * zc
+        if lim > _MAX_WHOLE_LIM:
+            sel = order[lo:hi]
+            out[i] = _range_estimates(z[sel], d1[sel], d2[sel], np.arange(m), 1)[0]
+            lo = hi
+            continue
+        # differences kept: 1e-6 < |d1| < lim (whole: 1..top1) and |d2| < lim (-top2..top2)
+        top1 = math.ceil(lim) - 1
+        top2 = top1
+        n1 = 0
+        n2 = 0
+        for t in range(lo, hi):
+            j = order[t]
+            a = d1[j]
+            if a > 1e-6 and a < lim:
+                h1[int(a)] += 1
+                n1 += 1
+            c = d2[j]
+            if abs(c) < lim:
+                h2[int(c) + top2] += 1
+                n2 += 1
+        lo = hi
+        if n1 >= 20 and n2 >= 20:
+            # np.percentile(nz, 20) as _percentile20 takes it
+            vi = (n1 - 1) * (20 / 100)
+            jj = math.floor(vi)
+            if vi >= n1 - 1:
+                step = float(_kth_count(h1, top1 + 1, n1 - 1))
+            else:
+                p_lo = float(_kth_count(h1, top1 + 1, jj))
+                p_hi = float(_kth_count(h1, top1 + 1, jj + 1))
+                tt = vi - jj
+                diff = p_hi - p_lo
+                step = p_hi - diff * (1.0 - tt) if tt >= 0.5 else p_lo + diff * tt
+            # the median of b, then the median of |b - med| (whole or half numbers: counted
+            # at twice their value)
+            hb = n2 // 2
+            if n2 % 2:
+                med = float(_kth_count(h2, 2 * top2 + 1, hb) - top2)
+            else:
+                med = (
+                    float(_kth_count(h2, 2 * top2 + 1, hb - 1) - top2) + float(_kth_count(h2, 2 * top2 + 1, hb) - top2)
+                ) / 2.0
+            size3 = 4 * top2 + 2
+            for v in range(2 * top2 + 1):
+                cnt = h2[v]
+                if cnt:
+                    h3[int(abs(float(v - top2) - med) * 2.0)] += cnt
+            if n2 % 2:
+                dev = _kth_count(h3, size3, hb) / 2.0
+            else:
+                dev = (_kth_count(h3, size3, hb - 1) / 2.0 + _kth_count(h3, size3, hb) / 2.0) / 2.0
+            mad = dev * 1.4826
+            sigma2 = max(mad * mad - step * step / 2.0, 0.0) / 6.0
+            out[i, 0] = zc
+            out[i, 1] = step
+            out[i, 2] = math.sqrt(sigma2)
+            out[i, 3] = 1.0
+            h3[:size3] = 0
+        h1[: top1 + 1] = 0
+        h2[: 2 * top2 + 1] = 0
+    return out
+
+
+@njit(cache=True, nogil=True)
+def _kth_count(count: NDArray[np.int64], size: int, k: int) -> int:
+    # the index of the k-th (0-based) counted value among count[:size]
+    seen = 0
+    for v in range(size):
+        seen += count[v]
+        if seen > k:
+            return v
+    return size - 1
 
 
 def _fit_a_bz2(z: NDArray[np.float64], y: NDArray[np.float64]) -> tuple[float, float]:
