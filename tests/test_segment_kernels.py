@@ -754,6 +754,30 @@ def test_merged_rows_equal_numpy_add_at() -> None:
         np.testing.assert_array_equal(got_b, ref_b)
 
 
+def test_join_near_is_near_planes_then_the_class_written() -> None:
+    # the supports take the facing pixels on their planes straight into the class map: the
+    # classes of near_planes on the facing candidates followed by a masked write
+    from depthgram.segmentation.planes import join_near
+
+    rng = np.random.default_rng(8)
+    for t in range(40):
+        depth, ok, cam = _floor_scene()
+        if t % 2:
+            depth = depth + rng.normal(0, 8, depth.shape).astype(np.float32) * ok
+        ok = ok & (rng.random(depth.shape) > 0.1)
+        classes = rng.choice(np.array([0, 1, 2], np.int8), depth.shape, p=[0.5, 0.4, 0.1])
+        _, _, _, boxes, planes = support_pieces(depth, ok, classes, 1, cam, jump_rel=0.25, bridge=2, min_fit_px=5)
+        normal, off, count = planes_from_sums(planes)
+        tol = float(rng.choice([0.01, 0.025, 0.1]))
+        min_px = int(rng.integers(1, 40))
+        near = near_planes(normal, off, count, boxes, depth, ok & (classes == 0), cam, min_px=min_px, tol_rel=tol)
+        want = classes.copy()
+        want[near] = 1
+        got = classes.copy()
+        assert join_near(got, ok, 1, 0, normal, off, count, boxes, depth, cam, min_px=min_px, tol_rel=tol) == near.sum()
+        np.testing.assert_array_equal(got, want)
+
+
 def test_dropping_through_the_joined_table_is_joining_then_dropping() -> None:
     # _support_class reads a class's pieces through one table piece -> support -> kept support:
     # the dropped supports' pixels go back to the facing class inside their boxes only, and the
@@ -813,3 +837,55 @@ def test_load_rare_kernels_loads_the_kernels_of_the_rare_branches() -> None:
         f = next(iter(simulate(scene, 1, size=(176, 132), seed=0))).frame
         segment(f)  # a support labelled again after its near pixels joined it (both scenes)
     assert [len(k.signatures) for k in kernels] == before
+
+
+def test_percentile32_is_numpys_percentile_to_the_last_bit() -> None:
+    # numpy interpolates in float32 for a Python-number percentile and in float64 for a
+    # sequence of them; the compiled route reproduces both (the frame's far depth, the spread
+    # of a candidate plane)
+    from depthgram.segmentation.order_stats import percentile32
+
+    rng = np.random.default_rng(14)
+    for t in range(3000):
+        n = int(rng.integers(1, 300 if t % 2 else 2500))
+        kind = t % 4
+        if kind == 0:
+            a = np.round(rng.random(n) * 3000 + 300).astype(np.float32)  # millimetres: ties
+        elif kind == 1:
+            a = (rng.random(n) * 3000 + 300).astype(np.float32)
+        elif kind == 2:
+            a = (np.round(rng.random(n) * 20) * 11.76 + 500).astype(np.float32)  # 8-bit depth steps
+        else:
+            a = rng.normal(1000, 300, n).astype(np.float32)
+        for q in (5, 20, 50, 95):
+            assert percentile32(a.copy(), float(q), True) == float(np.percentile(a, q))
+        b = a.copy()
+        got = [percentile32(b, q, False) for q in (5.0, 50.0, 95.0)]
+        np.testing.assert_array_equal(got, np.percentile(a, (5, 50, 95)))
+
+
+def test_bin_counts_equal_bin_index_counts() -> None:
+    # the surfaces' histogram counts whole depths value by value (one logarithm per distinct
+    # depth); the same edges and counts as binning every pixel, also for depths that are not
+    # whole or span too much to count (the per-pixel route)
+    from depthgram.segmentation.config import SegmentConfig
+    from depthgram.segmentation.histogram import bin_counts, bin_index
+
+    rng = np.random.default_rng(15)
+    for t in range(400):
+        h, w = (int(v) for v in rng.integers(1, 60, 2))
+        lo = float(rng.choice([1, 200, 400, 2000]))
+        span = float(rng.choice([3, 100, 3000, 20000, 100_000]))
+        depth = np.round(rng.random((h, w)) * span + lo).astype(np.float32)
+        if t % 5 == 0:
+            depth += np.float32(0.5) * (rng.random((h, w)) < 0.01)
+        valid = rng.random((h, w)) > 0.2
+        cfg = SegmentConfig(
+            depth_dependent_bins=True,
+            ref_depth_mm=float(rng.choice([500.0, 2000.0])),
+            bin_mm=float(rng.choice([5.0, 12.0, 40.0])),
+        )
+        edges, counts = bin_counts(depth, valid, cfg)
+        _, want_edges, want_counts = bin_index(depth, valid, cfg)
+        np.testing.assert_array_equal(edges, want_edges)
+        np.testing.assert_array_equal(counts, want_counts)

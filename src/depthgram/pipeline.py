@@ -11,6 +11,7 @@ import math
 import multiprocessing
 import time
 import tomllib
+import warnings
 from collections import deque
 from collections.abc import Iterable, Iterator, Mapping
 from concurrent.futures import Future, ProcessPoolExecutor, ThreadPoolExecutor
@@ -378,7 +379,13 @@ class Pipeline:
         which otherwise stalls a frame now and then (docs/design-notes.md).
         """
         t0 = time.perf_counter()
-        Pipeline(self.config, track=self.track).process(frame)
+        throwaway = Pipeline(self.config, track=self.track)
+        throwaway.process(frame)
+        # A second frame, so that the tracker reads motion (its core's kernel) here too.
+        later = None if frame.time_s is None else frame.time_s + 1.0 / 30.0
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # the throwaway tracker's note on a missing frame rate
+            throwaway.process(dataclasses.replace(frame, index=frame.index + 1, time_s=later))
         # A kernel that only a rare branch reaches (the statistics after merged openings) was
         # compiled, on a fresh install, at the first frame taking that branch: 470 ms in the
         # middle of a 7-Scenes stream and 13 frames dropped. Called once here on a 2 x 2 frame.

@@ -15,7 +15,7 @@ from numpy.typing import NDArray
 
 from depthgram.segmentation.label import ACTIVE, BLOCK, HOLE
 
-__all__ = ["band_state", "bin_linear", "bin_pixels", "depth_range"]
+__all__ = ["band_state", "bin_linear", "bin_pixels", "depth_range", "log_counts"]
 
 
 @njit(cache=True, nogil=True)
@@ -147,6 +147,57 @@ def bin_pixels(
     clipped to ``nb - 1``.
     """
     return _bins(depth_mm, valid, float(lo), float(step), bool(log), int(nb))
+
+
+def log_counts(
+    depth_mm: NDArray[np.float32], valid: NDArray[np.bool_], lo_mm: float, hi_mm: float, lo: float, step: float, nb: int
+) -> NDArray[np.int64]:
+    """Return the counts of :func:`bin_pixels` with ``log`` (the bins themselves not written).
+
+    ``lo_mm`` and ``hi_mm`` are the smallest and largest valid depth. With whole-millimetre
+    depths each distinct depth's logarithm is taken once, not every pixel's: the same
+    function on the same value, so the same bins.
+    """
+    if lo_mm == math.floor(lo_mm) and hi_mm - lo_mm <= _MAX_WHOLE_SPAN:
+        counts, whole = _log_counts_whole(
+            depth_mm, valid, np.float32(lo_mm), int(hi_mm - lo_mm), float(lo), float(step), int(nb)
+        )
+        if whole:
+            return counts
+    return _bins(depth_mm, valid, float(lo), float(step), True, int(nb))[1]
+
+
+#: Widest span (mm) of whole depths :func:`log_counts` counts value by value.
+_MAX_WHOLE_SPAN = 1 << 16
+
+
+@njit(cache=True, nogil=True)
+def _log_counts_whole(
+    depth: NDArray[np.float32], valid: NDArray[np.bool_], zlo: np.float32, span: int, lo: float, step: float, nb: int
+) -> tuple[NDArray[np.int64], bool]:
+    # pixels per whole depth, then each depth's bin as _bins takes it (float32 logarithm,
+    # float64 after); (empty, False) at the first depth that is not whole
+    h, w = depth.shape
+    per = np.zeros(span + 1, np.int64)
+    for y in range(h):
+        zrow = depth[y]
+        vrow = valid[y]
+        for x in range(w):
+            if vrow[x]:
+                v = zrow[x] - zlo
+                i = int(v)
+                if i != v or i > span:
+                    return np.zeros(0, np.int64), False
+                per[i] += 1
+    counts = np.zeros(nb, np.int64)
+    top = nb - 1
+    for i in range(span + 1):
+        c = per[i]
+        if c:
+            z = np.float64(math.log(zlo + np.float32(i)))
+            b = np.int64((z - lo) / step)
+            counts[b if b < top else top] += c
+    return counts, True
 
 
 @njit(cache=True, nogil=True)

@@ -13,10 +13,11 @@ from depthgram.frame import Frame, Intrinsics, check_array_units
 from depthgram.segmentation.attributes import Stats, make_objects
 from depthgram.segmentation.config import SegmentConfig
 from depthgram.segmentation.contacts import front_faces, side_faces
-from depthgram.segmentation.histogram import Bands, bin_index, depth_bands
+from depthgram.segmentation.histogram import Bands, bin_counts, bin_index, depth_bands
 from depthgram.segmentation.label import label_bands_stats, label_stats_fused, label_two_classes, relabel
 from depthgram.segmentation.label.stats import COUNT, KEY, N_COLUMNS, N_SUMS, SUM_Z, SUM_ZZ
 from depthgram.segmentation.objects import Histogram, SceneObject, Segmentation
+from depthgram.segmentation.order_stats import percentile32
 from depthgram.segmentation.orientation import (
     FACING,
     HORIZONTAL,
@@ -28,7 +29,7 @@ from depthgram.segmentation.orientation import (
 from depthgram.segmentation.paper_slices import paper_slices
 from depthgram.segmentation.planes import (
     find_planes,
-    near_planes,
+    join_near,
     plane_normal,
     plane_sums_in_boxes,
     planes_from_sums,
@@ -227,12 +228,13 @@ def _surface_objects(
     d2 = np.ascontiguousarray(depth[::2, ::2])
     m2 = np.ascontiguousarray(facing[::2, ::2])
     sample = d2[::2, ::2][m2[::2, ::2]]
-    far = float(np.percentile(sample, 95)) if sample.size else cfg.ref_depth_mm
+    # np.percentile's value, compiled (a numpy call costs more than the selection here)
+    far = percentile32(sample, 95.0, True) if sample.size else cfg.ref_depth_mm
     bin_far = max(cfg.bin_mm * far / cfg.ref_depth_mm, 3.0 * float(sensor.resolution(far)))
     # within the config's own bounds, so that a frame of absurd depths is binned, not refused here
     ref = min(max(far, 1.0), 1e6)
     bin_cfg = cfg.with_overrides(depth_dependent_bins=True, ref_depth_mm=ref, bin_mm=min(max(bin_far, 0.01), 10_000.0))
-    _, edges, counts = bin_index(d2, m2, bin_cfg, zero_outside=False)
+    edges, counts = bin_counts(d2, m2, bin_cfg)
     bands = depth_bands(counts, edges, bin_cfg)
     r = crease_scale_px(depth.shape[1])
     creases = concave_creases(depth, ok, sensor, scale_px=r, min_angle_deg=cfg.crease_deg, focal_px=cam.fx)
@@ -665,12 +667,12 @@ def _support_class(
         merge, n, sums, boxes, planes, fit = join_pieces(n_pieces, psums, pboxes, pplanes, min_fit_px=fit_px)
     # noise makes some support pixels look facing; those lying on a big support's plane
     # go back to it (an upright object meets that plane only along its base row)
-    candidates = ok & (classes == FACING)
-    if n and candidates.any():
+    if n:
         normal, off, count = fit if fit is not None else planes_from_sums(planes)
-        near = near_planes(normal, off, count, boxes, depth, candidates, cam, min_px=min_px, tol_rel=cfg.jump_rel / 2)
-        if near.any():
-            np.copyto(classes, np.int8(cls), where=near)
+        near = join_near(
+            classes, ok, cls, FACING, normal, off, count, boxes, depth, cam, min_px=min_px, tol_rel=cfg.jump_rel / 2
+        )
+        if near:
             lab, merge, n, sums, boxes, planes, _ = support_pieces_lazy(
                 depth, ok, classes, cls, cam, jump_rel=cfg.jump_rel, bridge=cfg.fill_holes_px, min_fit_px=fit_px
             )

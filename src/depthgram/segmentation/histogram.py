@@ -21,11 +21,11 @@ from numpy.typing import NDArray
 from scipy.ndimage import gaussian_filter1d
 from scipy.signal import find_peaks
 
-from depthgram.segmentation.binning import bin_linear, bin_pixels, depth_range
+from depthgram.segmentation.binning import bin_linear, bin_pixels, depth_range, log_counts
 from depthgram.segmentation.config import SegmentConfig
 from depthgram.segmentation.objects import Histogram
 
-__all__ = ["Bands", "bin_index", "depth_bands"]
+__all__ = ["Bands", "bin_counts", "bin_index", "depth_bands"]
 
 
 def bin_index(
@@ -54,6 +54,26 @@ def bin_index(
     bins, counts = bin_pixels(depth, ok, l0, step, True, nb)
     edges = np.exp(l0 + step * np.arange(nb + 1))
     return bins, edges, counts
+
+
+def bin_counts(
+    depth_mm: NDArray[np.float32], valid: NDArray[np.bool_], config: SegmentConfig
+) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+    """Return the edges and counts of :func:`bin_index` (``zero_outside`` False), not the bin of every pixel."""
+    if not config.depth_dependent_bins:
+        _, edges, counts = bin_index(depth_mm, valid, config)
+        return edges, counts
+    depth = np.ascontiguousarray(depth_mm, np.float32)
+    ok = np.ascontiguousarray(valid, np.bool_)
+    lo, hi, n = depth_range(depth, ok)
+    if n == 0:
+        return np.zeros(1), np.zeros(0, np.int64)
+    step = math.log1p(config.bin_mm / config.ref_depth_mm)
+    l0 = math.log(lo)
+    nb = int((math.log(hi) - l0) / step) + 1
+    counts = log_counts(depth, ok, lo, hi, l0, step, nb)
+    edges = np.exp(l0 + step * np.arange(nb + 1))
+    return edges, counts
 
 
 class Bands:

@@ -8,11 +8,13 @@ point of view. An order statistic does not depend on how it is found, so these g
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-__all__ = ["kth_pair", "kth_smallest", "next_smallest"]
+__all__ = ["kth_pair", "kth_smallest", "next_smallest", "percentile32"]
 
 
 @njit(cache=True, nogil=True)
@@ -112,3 +114,33 @@ def kth_pair(a: NDArray[np.float64], k: int) -> tuple[float, float]:
     if k + 1 >= n:
         return first, first
     return first, next_smallest(a, k)
+
+
+@njit(cache=True, nogil=True)
+def percentile32(a: NDArray[np.float32], q: float, weak: bool) -> float:
+    """Return ``np.percentile(a, q)`` (method ``linear``) of float32 values, ``a`` reordered in place.
+
+    numpy interpolates between the two order statistics around ``(n - 1) q / 100`` in float32
+    when ``q`` is a Python number (``weak``) and in float64 when it is one of a sequence of
+    percentiles; both are reproduced here operation by operation, so the result is numpy's to
+    the last bit (a test compares them). ``a`` must not be empty.
+    """
+    n = a.size
+    vi = (n - 1) * (q / 100)
+    if vi >= n - 1:
+        top = a[0]
+        for i in range(1, n):
+            top = max(top, a[i])
+        return float(top)
+    j = math.floor(vi)
+    lo = np.float32(kth_smallest(a, j))
+    hi = np.float32(next_smallest(a, j))
+    diff = hi - lo  # float32, as numpy takes the difference of the two values
+    t = vi - j
+    if weak:
+        if t >= 0.5:
+            return float(hi - diff * np.float32(1.0 - t))
+        return float(lo + diff * np.float32(t))
+    if t >= 0.5:
+        return np.float64(hi) - np.float64(diff) * (1.0 - t)
+    return np.float64(lo) + np.float64(diff) * t
