@@ -40,7 +40,15 @@ from numpy.typing import NDArray
 
 from depthgram.frame import Intrinsics
 
-__all__ = ["CameraMotion", "EgoMotion", "FramePixels", "core_depth_change", "image_shift", "still_depth_change"]
+__all__ = [
+    "CameraMotion",
+    "EgoMotion",
+    "FramePixels",
+    "core_depth_change",
+    "image_shift",
+    "inner_edge_shift",
+    "still_depth_change",
+]
 
 #: Side of the grid on which the image shift is found (px of the down-sampled image).
 _SHIFT_W, _SHIFT_H = 160, 120
@@ -613,6 +621,44 @@ class _Core:
         prev = self.prev
         z0, lab0 = prev.depth_mm, prev.labels
         return _core_sums(self.z1, self.own, self.gx, self.gy, camera, a, z0, lab0, self.pid, _EDGE_FRACTION)
+
+
+def inner_edge_shift(
+    prev_box: tuple[int, int, int, int], box: tuple[int, int, int, int], size: tuple[int, int], border_px: int = 2
+) -> tuple[float, float] | None:
+    """Image motion (px) of an object cut by the image's edge, read from its edges inside the image.
+
+    An object entering or leaving the view moves its centre by its motion plus its growth or
+    shrinking at the edge; its edge inside the image moves with it alone (the simulator's person
+    walking in from the side: its centre moved 2 px a frame, its inner edge 4, its true motion).
+    Along an axis where the object touches one border in both frames, the other edge's move;
+    along an axis where it touches neither or both, the box centre's. None where it touches no
+    border in either frame (its centre's move says the same). As :func:`image_shift`'s: the point
+    at ``(x, y)`` now was at ``(x + dx, y + dy)`` before.
+
+    Parameters
+    ----------
+    prev_box, box : tuple of int
+        The object's bbox (x0, y0, x1, y1) px, half-open, in the previous frame and now.
+    size : tuple of int
+        (width, height) of the image (px).
+    border_px : int
+        Distance from the image's edge within which a box touches it (px).
+    """
+    out: list[float] = []
+    touched = False
+    for lo, hi, n in ((0, 2, size[0]), (1, 3, size[1])):
+        lo_then, lo_now = prev_box[lo] <= border_px, box[lo] <= border_px
+        hi_then, hi_now = prev_box[hi] >= n - border_px, box[hi] >= n - border_px
+        if lo_then and lo_now and not (hi_then or hi_now):
+            out.append(float(prev_box[hi] - box[hi]))
+            touched = True
+        elif hi_then and hi_now and not (lo_then or lo_now):
+            out.append(float(prev_box[lo] - box[lo]))
+            touched = True
+        else:
+            out.append(0.5 * (prev_box[lo] + prev_box[hi] - box[lo] - box[hi]))
+    return (out[0], out[1]) if touched else None
 
 
 def core_depth_change(

@@ -25,6 +25,7 @@ from depthgram.dynamics.core import (
     FramePixels,
     core_depth_change,
     image_shift,
+    inner_edge_shift,
     still_depth_change,
 )
 from depthgram.dynamics.kernels import (
@@ -166,6 +167,11 @@ def _features(objects: Sequence[SceneObject]) -> NDArray[np.float64]:
 
 
 _NO_PAIRS = np.zeros(0, np.intp)
+
+
+def _some(x: tuple[float, float] | None) -> tuple[tuple[float, float], ...]:
+    """``(x,)``, or ``()`` for None."""
+    return () if x is None else (x,)
 
 
 def _scale(z_prev: float, dz: float) -> float:
@@ -538,6 +544,7 @@ class Tracker:
         # The track's own image motion: its centre's move, and its smoothed image velocity,
         # which holds while the outline changes (entering, leaving, partly hidden) (px).
         dt = self._dt
+        cfg_border = self.config.border_px
         pairs = {
             objects[c].id: (
                 self._last[i].id,
@@ -545,6 +552,7 @@ class Tracker:
                 (
                     (s[i, CX] - objects[c].center_xy[0], s[i, CY] - objects[c].center_xy[1]),
                     (-s[i, VX] * dt, -s[i, VY] * dt),
+                    *_some(inner_edge_shift(self._last[i].bbox_xy, objects[c].bbox_xy, frame_size, cfg_border)),
                 ),
                 _scale(s[i, ZFIT], s[i, V] * dt),
             )

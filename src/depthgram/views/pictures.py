@@ -253,6 +253,10 @@ def draw_histogram(hist: Histogram, path: str | Path, *, title: str = "global de
     fig.savefig(path)
 
 
+#: Most tracks named in the tracks picture's legend; a hand-held recording has some seventy.
+_TRACK_LEGEND_MAX = 12
+
+
 def draw_tracks(
     times: Sequence[float],
     depth: Mapping[int, Sequence[float | None]],
@@ -275,8 +279,12 @@ def draw_tracks(
     a2.set_ylabel(f"v_radial ({v_unit})")
     a2.axhline(0, color="k", lw=0.5)
     a2.set_xlabel(f"time ({time_unit})")
-    if depth:
-        a1.legend(fontsize=7, ncol=min(6, len(depth)), loc="upper right")
-    a1.set_title("tracks: depth and radial velocity (positive = receding)", fontsize=9)
+    title = "tracks: depth and radial velocity (positive = receding)"
+    if 0 < len(depth) <= _TRACK_LEGEND_MAX:
+        # beside the plots, not over them: the legend of a hand-held recording covered the depths
+        a1.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0)
+    elif depth:
+        title += f"; {len(depth)} tracks (no legend beyond {_TRACK_LEGEND_MAX})"
+    a1.set_title(title, fontsize=9)
     fig.tight_layout()
     fig.savefig(path)
