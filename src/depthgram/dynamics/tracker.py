@@ -37,6 +37,7 @@ from depthgram.dynamics.kernels import (
     EP_INNOVATION_GATE,
     EP_MIN_SPEED,
     EP_OWN_ACCEL_SIGMA,
+    EP_OWN_MIN_SIGMAS,
     EP_OWN_V_SIGMA0,
     EP_TTC_MIN_SIGMAS,
     EP_USE_KALMAN,
@@ -246,6 +247,9 @@ def estimate_params(config: TrackerConfig) -> NDArray[np.float64]:
     # The own velocity a track with the camera's motion known starts from is 0 (most of a view
     # stands still), with this uncertainty (mm/s): a brisk walk.
     p[EP_OWN_V_SIGMA0] = 1500.0
+    # An object's own radial velocity counts once it is this many of its sigmas from standing
+    # still (dimensionless): a significance test against the still world most of a view is.
+    p[EP_OWN_MIN_SIGMAS] = 2.0
     return p
 
 
