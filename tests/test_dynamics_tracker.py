@@ -375,22 +375,27 @@ def test_compound_depth_ignores_one_nearer_sliver_at_its_edge() -> None:
     assert track_depth(o) == 2150.0  # a plain object: its mean depth
 
 
-def test_parameter_vectors_carry_each_setting_under_its_name() -> None:
+def test_kernel_settings_carry_each_config_field_under_its_name() -> None:
     import math
 
-    from depthgram.dynamics import kernels as K
+    from depthgram.dynamics.match import cost_params
     from depthgram.dynamics.tracker import estimate_params, step_params
 
-    cfg = TrackerConfig(estimator="queue", max_depth_jump_rate=0.7, border_px=3, center_tau_s=0.05, min_hits=2)
-    sp, ep = step_params(cfg), estimate_params(cfg)
-    assert sp.shape == (K.N_STEP_PARAMS,) and ep.shape == (K.N_ESTIMATE_PARAMS,)
-    assert (sp[K.SP_MAX_DEPTH_JUMP_RATE], sp[K.SP_BORDER_PX], sp[K.SP_CENTER_TAU_S], sp[K.SP_MIN_HITS]) == (
-        0.7, 3.0, 0.05, 2.0,
+    cfg = TrackerConfig(
+        estimator="queue", max_depth_jump_rate=0.7, border_px=3, center_tau_s=0.05, min_hits=2,
+        max_area_ratio=4.0, w_label=0.3, own_accel_sigma=1234.0, fit_border_entries=True,
     )  # fmt: skip
-    assert ep[K.EP_USE_KALMAN] == 0.0 and ep[K.EP_MIN_SPEED] == cfg.min_speed
+    sp, ep, cp = step_params(cfg), estimate_params(cfg), cost_params(cfg)
+    assert (sp.max_depth_jump_rate, sp.border_px, sp.center_tau_s, sp.min_hits) == (0.7, 3.0, 0.05, 2)
+    assert sp.fit_border_entries and sp.max_missed == cfg.max_missed and sp.area_tau_s == cfg.area_tau_s
+    assert not ep.kalman and ep.min_speed == cfg.min_speed and ep.own_accel_sigma == 1234.0
+    assert (ep.depth_sigma_mm, ep.innovation_gate) == (cfg.depth_sigma_mm, cfg.innovation_gate)
+    assert cp.log_max_area_ratio == math.log(4.0) and cp.w_label == 0.3 and cp.max_center_rate == cfg.max_center_rate
     # the filter judges jumps by its own innovation gate: the queue's jump test is off
     kalman = TrackerConfig(estimator="kalman", max_depth_jump_rate=0.7)
-    assert math.isinf(step_params(kalman)[K.SP_MAX_DEPTH_JUMP_RATE]) and estimate_params(kalman)[K.EP_USE_KALMAN] == 1
+    assert math.isinf(step_params(kalman).max_depth_jump_rate) and estimate_params(kalman).kalman
+    # one compiled signature whatever numeric types the config was given
+    assert all(isinstance(x, float) for x in cost_params(TrackerConfig(max_center_rate=3, w_area=1)))
 
 
 def test_status_codes_and_names_agree() -> None:

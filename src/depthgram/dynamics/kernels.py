@@ -13,6 +13,7 @@ numpy's per-call overhead of some fifty array expressions costs more than the ar
 from __future__ import annotations
 
 from enum import IntEnum
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
@@ -38,6 +39,62 @@ class Status(IntEnum):
 
 # Plain ints for the compiled kernels (numba freezes module globals as constants).
 VISIBLE, ENTERING, LEAVING, OCCLUDED = (int(x) for x in Status)
+
+
+class CostParams(NamedTuple):
+    """Gates and weights of the matching cost (:func:`cost_kernel`), from a TrackerConfig.
+
+    Built by :func:`depthgram.dynamics.match.cost_params`; the names are the config's fields
+    (see :class:`depthgram.dynamics.TrackerConfig` for units) unless said otherwise.
+    """
+
+    max_center_rate: float
+    gate_growth: float
+    max_depth_rate: float
+    log_max_area_ratio: float  # log(max_area_ratio)
+    min_iou: float
+    w_center: float
+    w_depth: float
+    w_area: float
+    w_iou: float
+    w_label: float
+
+
+class StepParams(NamedTuple):
+    """Settings of :func:`step`, from a TrackerConfig (its fields, same names and units).
+
+    Built by :func:`depthgram.dynamics.tracker.step_params`.
+    """
+
+    border_px: float
+    border_area_rate: float
+    max_area_jump: float
+    fit_border_entries: bool
+    min_speed: float
+    min_hits: int
+    max_missed: int
+    max_depth_jump_rate: float  # inf with the Kalman filter, which gates jumps itself
+    center_tau_s: float
+    area_tau_s: float
+
+
+class EstimateParams(NamedTuple):
+    """Settings of :func:`estimate`, from a TrackerConfig (its fields, same names and units).
+
+    Built by :func:`depthgram.dynamics.tracker.estimate_params`.
+    """
+
+    kalman: bool  # estimator == "kalman" (else the queue's slope)
+    depth_sigma_mm: float
+    depth_sigma_floor_mm: float
+    accel_sigma: float
+    innovation_gate: float
+    ttc_min_sigmas: float
+    min_speed: float
+    v_sigma0: float  # velocity uncertainty a (re)started filter begins with (mm/s)
+    own_accel_sigma: float
+    own_v_sigma0: float  # uncertainty of a new track's own velocity, which starts at 0 (mm/s)
+    own_min_sigmas: float  # sigmas from standing still at which an own velocity counts
 
 
 @njit(cache=True)
@@ -103,7 +160,7 @@ def cost_kernel(
     ol: NDArray[np.float64],
     diagonal_px: float,
     dt: float,
-    params: NDArray[np.float64],
+    params: CostParams,
 ) -> NDArray[np.float64]:
     """Compiled body of :func:`match_cost`; ``params`` from :func:`cost_params`.
 
@@ -116,7 +173,12 @@ def cost_kernel(
     entries, where numpy's per-call overhead of some twenty array expressions would cost
     more than the arithmetic.
     """
-    center_rate, growth, dz_rate, log_ratio, min_iou, w_c, w_z, w_a, w_iou, w_label = params
+    center_rate = params.max_center_rate
+    growth = params.gate_growth
+    dz_rate = params.max_depth_rate
+    log_ratio = params.log_max_area_ratio
+    min_iou = params.min_iou
+    w_c, w_z, w_a, w_iou, w_label = params.w_center, params.w_depth, params.w_area, params.w_iou, params.w_label
     nt = tc.shape[0]
     no = oc.shape[0]
     cost = np.empty((nt, no))
@@ -177,17 +239,6 @@ TSEEN = 19  # time of the last detection (s)
 OX, OY = 20, 21  # centre of the part last seen (px); CX, CY while the whole object was in view
 NCOL = 22
 
-# The parameter vector of `step`, built by depthgram.dynamics.tracker.step_params.
-(
-    SP_BORDER_PX, SP_BORDER_AREA_RATE, SP_MAX_AREA_JUMP, SP_FIT_BORDER_ENTRIES, SP_MIN_SPEED,
-    SP_MIN_HITS, SP_MAX_MISSED, SP_MAX_DEPTH_JUMP_RATE, SP_CENTER_TAU_S, SP_AREA_TAU_S, N_STEP_PARAMS,
-) = range(11)  # fmt: skip
-# The parameter vector of `estimate`, built by depthgram.dynamics.tracker.estimate_params.
-(
-    EP_USE_KALMAN, EP_DEPTH_SIGMA_MM, EP_DEPTH_SIGMA_FLOOR_MM, EP_ACCEL_SIGMA, EP_INNOVATION_GATE,
-    EP_TTC_MIN_SIGMAS, EP_MIN_SPEED, EP_V_SIGMA0, EP_OWN_ACCEL_SIGMA, EP_OWN_V_SIGMA0, EP_OWN_MIN_SIGMAS,
-    N_ESTIMATE_PARAMS,
-) = range(12)  # fmt: skip
 # Columns of the per-object feature array; F_READ says how its depth was read (0: mean depth,
 # 1: nearest part of a compound), see depthgram.dynamics.tracker.track_depth.
 F_CX, F_CY, F_Z, F_AREA, F_LABEL, F_X0, F_BEHIND, F_READ = 0, 1, 2, 3, 4, 5, 9, 10
@@ -227,7 +278,7 @@ def predict_cost(
     diagonal_px: float,
     t_now: float,
     dt: float,
-    p: NDArray[np.float64],
+    p: CostParams,
 ) -> NDArray[np.float64]:
     """Predict each track forward by the time since its last detection, then cost all pairs."""
     pc = np.empty((n, 2))
@@ -289,7 +340,7 @@ def step(
     height: float,
     first: bool,
     next_id: int,
-    p: NDArray[np.float64],
+    p: StepParams,
     dcore: NDArray[np.float64],
 ) -> tuple[
     NDArray[np.int64], NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_], NDArray[np.bool_], int,
@@ -299,7 +350,7 @@ def step(
 
     This is the project's own bookkeeping (queues, statuses, split/merge and border tests),
     hand-written in one compiled pass because it runs every frame on a few dozen rows.
-    ``p`` holds the ``SP_*`` parameters (:func:`depthgram.dynamics.tracker.step_params`).
+    ``p`` holds the settings (:func:`depthgram.dynamics.tracker.step_params`).
     ``dt`` is this frame's time step (s): every rate and time constant is
     scaled by it, so the tracker behaves alike at any frame rate.
 
@@ -313,16 +364,16 @@ def step(
     every row, which rows die this frame, which rows restarted their queue (new tracks too),
     the number of new tracks, and the constant each row's depths were moved by (mm).
     """
-    border = p[SP_BORDER_PX]
-    area_rate = p[SP_BORDER_AREA_RATE]
-    max_jump = p[SP_MAX_AREA_JUMP]
-    fit_border = p[SP_FIT_BORDER_ENTRIES]
-    min_speed = p[SP_MIN_SPEED]
-    min_hits = p[SP_MIN_HITS]
-    max_missed = p[SP_MAX_MISSED]
-    jump_rate = p[SP_MAX_DEPTH_JUMP_RATE]
-    c_tau = p[SP_CENTER_TAU_S]
-    a_tau = p[SP_AREA_TAU_S]
+    border = p.border_px
+    area_rate = p.border_area_rate
+    max_jump = p.max_area_jump
+    fit_border = p.fit_border_entries
+    min_speed = p.min_speed
+    min_hits = p.min_hits
+    max_missed = p.max_missed
+    jump_rate = p.max_depth_jump_rate
+    c_tau = p.center_tau_s
+    a_tau = p.area_tau_s
     # Exponential smoothing with a time constant: the same weight per second at any rate.
     c_gain = 1.0 - np.exp(-dt / c_tau)
     a_gain = 1.0 - np.exp(-dt / a_tau)
@@ -393,7 +444,7 @@ def step(
         # Partly hidden behind a nearer object while its visible area changes: the mean depth
         # of the visible part is biased, so the entry stays out of the fit (paper, case b).
         hidden = f[c, F_BEHIND] > 0 and abs(change) > thr
-        valid = z_ok and (chained or (not (jump > max_jump) and (fit_border > 0 or status == VISIBLE) and not hidden))
+        valid = z_ok and (chained or (not (jump > max_jump) and (fit_border or status == VISIBLE) and not hidden))
         # Only a track with a velocity has a path to leave: a new track's prediction is "still",
         # and an object closing fast would otherwise restart its queue on every frame and never
         # get a velocity (issue 13: 0 of 21 frames at 1.5 m/s, 30 frames/s).
@@ -502,7 +553,7 @@ def step(
             qt[i, j] = np.nan
             qz[i, j] = np.nan
         qt[i, nq - 1] = t_now
-        if z_ok and (fit_border > 0 or status == VISIBLE):
+        if z_ok and (fit_border or status == VISIBLE):
             qz[i, nq - 1] = zo
     # Range flow of every track.
     v_out = np.empty(nn)
@@ -546,7 +597,7 @@ def estimate(
     kn: NDArray[np.int64],
     krej: NDArray[np.int64],
     dt: float,
-    p: NDArray[np.float64],
+    p: EstimateParams,
     offset: NDArray[np.float64],
     core_dz: NDArray[np.float64],
     still_dz: NDArray[np.float64],
@@ -557,9 +608,8 @@ def estimate(
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
     """Radial velocity, time to collision and v_sigma of every live row (mm/s, s, mm/s).
 
-    ``p`` holds the ``EP_*`` parameters (:func:`depthgram.dynamics.tracker.estimate_params`):
-    kalman (1) or queue (0), depth_sigma_mm (at 1 m), depth_sigma_floor_mm, accel_sigma
-    (mm/s^2), innovation_gate, ttc_min_sigmas, min_speed (mm/s), v_sigma0 (mm/s).
+    ``p`` holds the settings (:func:`depthgram.dynamics.tracker.estimate_params`): the Kalman
+    filter or the queue's slope, the sensor noise, the process noise, the gates.
     Rows ``n..`` are new tracks. One compiled pass: the same steps in numpy cost some forty
     array expressions per frame, more than the arithmetic on a few dozen rows.
 
@@ -586,19 +636,18 @@ def estimate(
     The depth filter above takes that velocity over, so it coasts on it through frames
     without the camera's motion.
     """
-    use_kalman = p[EP_USE_KALMAN]
-    sig1m = p[EP_DEPTH_SIGMA_MM]
-    floor = p[EP_DEPTH_SIGMA_FLOOR_MM]
-    accel = p[EP_ACCEL_SIGMA]
-    gate_k = p[EP_INNOVATION_GATE]
-    ttc_k = p[EP_TTC_MIN_SIGMAS]
-    min_speed = p[EP_MIN_SPEED]
-    v_sigma0 = p[EP_V_SIGMA0]
-    qw = p[EP_OWN_ACCEL_SIGMA] * dt
+    sig1m = p.depth_sigma_mm
+    floor = p.depth_sigma_floor_mm
+    accel = p.accel_sigma
+    gate_k = p.innovation_gate
+    ttc_k = p.ttc_min_sigmas
+    min_speed = p.min_speed
+    v_sigma0 = p.v_sigma0
+    qw = p.own_accel_sigma * dt
     # how far the own filter's process noise may grow when its readings do not fit (variance)
-    nis_max = (accel / p[EP_OWN_ACCEL_SIGMA]) ** 2 if p[EP_OWN_ACCEL_SIGMA] > 0 else 1.0
-    w_sigma0 = p[EP_OWN_V_SIGMA0]
-    own_k = p[EP_OWN_MIN_SIGMAS]
+    nis_max = (accel / p.own_accel_sigma) ** 2 if p.own_accel_sigma > 0 else 1.0
+    w_sigma0 = p.own_v_sigma0
+    own_k = p.own_min_sigmas
     nn = kx.shape[0]
     nq = qz.shape[1]
     v_out = np.full(nn, np.nan)
@@ -611,7 +660,7 @@ def estimate(
         zr = z_new if np.isfinite(z_new) else s[i, ZFIT]
         sz = floor + sig1m * (zr / 1000.0) ** 2
         r = sz * sz
-        if use_kalman == 0:
+        if not p.kalman:
             cnt = 0
             st = 0.0
             for j in range(nq):

@@ -15,9 +15,9 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import linear_sum_assignment
 
 from depthgram.dynamics.config import TrackerConfig
-from depthgram.dynamics.kernels import FORBIDDEN, cost_kernel
+from depthgram.dynamics.kernels import FORBIDDEN, CostParams, cost_kernel
 
-__all__ = ["FORBIDDEN", "assign", "bbox_iou", "cost_kernel", "cost_params", "match_cost"]
+__all__ = ["FORBIDDEN", "CostParams", "assign", "bbox_iou", "cost_kernel", "cost_params", "match_cost"]
 
 
 def bbox_iou(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -44,12 +44,15 @@ def bbox_iou(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.float
     return np.asarray(inter / np.maximum(union, 1.0), dtype=np.float64)
 
 
-def cost_params(config: TrackerConfig) -> NDArray[np.float64]:
-    """Return the gates and weights of ``config`` in the order :func:`cost_kernel` reads them."""
+def cost_params(config: TrackerConfig) -> CostParams:
+    """Return the gates and weights of ``config`` that :func:`cost_kernel` reads."""
     c = config
-    gates = [c.max_center_rate, c.gate_growth, c.max_depth_rate, math.log(c.max_area_ratio), c.min_iou]
-    weights = [c.w_center, c.w_depth, c.w_area, c.w_iou, c.w_label]
-    return np.array(gates + weights, dtype=np.float64)
+    return CostParams(
+        max_center_rate=float(c.max_center_rate), gate_growth=float(c.gate_growth),
+        max_depth_rate=float(c.max_depth_rate), log_max_area_ratio=math.log(c.max_area_ratio),
+        min_iou=float(c.min_iou), w_center=float(c.w_center), w_depth=float(c.w_depth),
+        w_area=float(c.w_area), w_iou=float(c.w_iou), w_label=float(c.w_label),
+    )  # fmt: skip
 
 
 def match_cost(

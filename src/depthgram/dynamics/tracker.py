@@ -31,42 +31,21 @@ from depthgram.dynamics.core import (
 from depthgram.dynamics.kernels import (
     CX,
     CY,
-    EP_ACCEL_SIGMA,
-    EP_DEPTH_SIGMA_FLOOR_MM,
-    EP_DEPTH_SIGMA_MM,
-    EP_INNOVATION_GATE,
-    EP_MIN_SPEED,
-    EP_OWN_ACCEL_SIGMA,
-    EP_OWN_MIN_SIGMAS,
-    EP_OWN_V_SIGMA0,
-    EP_TTC_MIN_SIGMAS,
-    EP_USE_KALMAN,
-    EP_V_SIGMA0,
     F_READ,
     FORBIDDEN,
     HITS,
     ID,
     MISSED,
-    N_ESTIMATE_PARAMS,
-    N_STEP_PARAMS,
     NCOL,
     NFEAT,
     OCCLUDED,
-    SP_AREA_TAU_S,
-    SP_BORDER_AREA_RATE,
-    SP_BORDER_PX,
-    SP_CENTER_TAU_S,
-    SP_FIT_BORDER_ENTRIES,
-    SP_MAX_AREA_JUMP,
-    SP_MAX_DEPTH_JUMP_RATE,
-    SP_MAX_MISSED,
-    SP_MIN_HITS,
-    SP_MIN_SPEED,
     STATUS,
     VX,
     VY,
     ZFIT,
+    EstimateParams,
     Status,
+    StepParams,
     V,
     estimate,
     mark_behind,
@@ -205,52 +184,46 @@ def _scale(z_prev: float, dz: float) -> float:
     return k if 0.5 <= k <= 2.0 else 1.0
 
 
-def step_params(config: TrackerConfig) -> NDArray[np.float64]:
-    """Return the parameter vector of the compiled :func:`~depthgram.dynamics.kernels.step`.
-
-    It is indexed by the kernels' ``SP_*`` names.
-    """
+def step_params(config: TrackerConfig) -> StepParams:
+    """Return the settings of the compiled :func:`~depthgram.dynamics.kernels.step`."""
     c = config
-    p = np.zeros(N_STEP_PARAMS)
-    p[SP_BORDER_PX] = c.border_px
-    p[SP_BORDER_AREA_RATE] = c.border_area_rate
-    p[SP_MAX_AREA_JUMP] = c.max_area_jump
-    p[SP_FIT_BORDER_ENTRIES] = float(c.fit_border_entries)
-    p[SP_MIN_SPEED] = c.min_speed
-    p[SP_MIN_HITS] = c.min_hits
-    p[SP_MAX_MISSED] = c.max_missed
-    # The filter's innovation gate judges jumps against its own uncertainty (and three in a
-    # row restart it): the queue's fixed jump test would restart it on one outlier.
-    p[SP_MAX_DEPTH_JUMP_RATE] = math.inf if c.estimator == "kalman" else c.max_depth_jump_rate
-    p[SP_CENTER_TAU_S] = c.center_tau_s
-    p[SP_AREA_TAU_S] = c.area_tau_s
-    return p
+    return StepParams(
+        border_px=float(c.border_px),
+        border_area_rate=float(c.border_area_rate),
+        max_area_jump=float(c.max_area_jump),
+        fit_border_entries=bool(c.fit_border_entries),
+        min_speed=float(c.min_speed),
+        min_hits=int(c.min_hits),
+        max_missed=int(c.max_missed),
+        # The filter's innovation gate judges jumps against its own uncertainty (and three in a
+        # row restart it): the queue's fixed jump test would restart it on one outlier.
+        max_depth_jump_rate=math.inf if c.estimator == "kalman" else float(c.max_depth_jump_rate),
+        center_tau_s=float(c.center_tau_s),
+        area_tau_s=float(c.area_tau_s),
+    )
 
 
-def estimate_params(config: TrackerConfig) -> NDArray[np.float64]:
-    """Return the parameter vector of the compiled :func:`~depthgram.dynamics.kernels.estimate`.
-
-    It is indexed by the kernels' ``EP_*`` names.
-    """
+def estimate_params(config: TrackerConfig) -> EstimateParams:
+    """Return the settings of the compiled :func:`~depthgram.dynamics.kernels.estimate`."""
     c = config
-    p = np.zeros(N_ESTIMATE_PARAMS)
-    p[EP_USE_KALMAN] = float(c.estimator == "kalman")
-    p[EP_DEPTH_SIGMA_MM] = c.depth_sigma_mm
-    p[EP_DEPTH_SIGMA_FLOOR_MM] = c.depth_sigma_floor_mm
-    p[EP_ACCEL_SIGMA] = c.accel_sigma
-    p[EP_INNOVATION_GATE] = c.innovation_gate
-    p[EP_TTC_MIN_SIGMAS] = c.ttc_min_sigmas
-    p[EP_MIN_SPEED] = c.min_speed
-    # The velocity uncertainty a (re)started filter begins with (mm/s).
-    p[EP_V_SIGMA0] = 3000.0
-    p[EP_OWN_ACCEL_SIGMA] = c.own_accel_sigma
-    # The own velocity a track with the camera's motion known starts from is 0 (most of a view
-    # stands still), with this uncertainty (mm/s): a brisk walk.
-    p[EP_OWN_V_SIGMA0] = 1500.0
-    # An object's own radial velocity counts once it is this many of its sigmas from standing
-    # still (dimensionless): a significance test against the still world most of a view is.
-    p[EP_OWN_MIN_SIGMAS] = 2.0
-    return p
+    return EstimateParams(
+        kalman=c.estimator == "kalman",
+        depth_sigma_mm=float(c.depth_sigma_mm),
+        depth_sigma_floor_mm=float(c.depth_sigma_floor_mm),
+        accel_sigma=float(c.accel_sigma),
+        innovation_gate=float(c.innovation_gate),
+        ttc_min_sigmas=float(c.ttc_min_sigmas),
+        min_speed=float(c.min_speed),
+        # The velocity uncertainty a (re)started filter begins with (mm/s).
+        v_sigma0=3000.0,
+        own_accel_sigma=float(c.own_accel_sigma),
+        # The own velocity a track with the camera's motion known starts from is 0 (most of a view
+        # stands still), with this uncertainty (mm/s): a brisk walk.
+        own_v_sigma0=1500.0,
+        # An object's own radial velocity counts once it is this many of its sigmas from standing
+        # still (dimensionless): a significance test against the still world most of a view is.
+        own_min_sigmas=2.0,
+    )
 
 
 def _motion(
