@@ -338,7 +338,11 @@ def test_orientation_classes_and_kept_slopes_match_numpy() -> None:
     t = cos_t * (np.sqrt(a * a + b * b + c * c) + f32(1e-12))
     ref = np.where(np.abs(a) >= t, VERTICAL, np.where(np.abs(b) >= t, HORIZONTAL, FACING)).astype(np.int8)
     ref[jump | ~valid] = FACING
-    got = _classify(sgx, sgy, den, inv3, valid, jump, fx, fy, cx, cy, cos_t)
+    # the window counts as the box filter gives them (0 where no slope was kept): _classify
+    # takes them at least 1e-6 as np.maximum did; the row and column jumps joined
+    raw = np.where(den > 1e-3, den, f32(0.0))
+    across = jump & (rng.random((h, w)) < 0.5)
+    got = _classify(sgx, sgy, raw, inv3, valid, jump & ~across, across, fx, fy, cx, cy, cos_t)
     np.testing.assert_array_equal(got, ref)
     assert len(np.unique(got)) == 3
     steep = f32(math.tan(math.radians(80.0)))
@@ -352,6 +356,32 @@ def test_orientation_classes_and_kept_slopes_match_numpy() -> None:
     np.testing.assert_array_equal(kx, np.where(keep, gx, f32(0.0)))
     np.testing.assert_array_equal(ky, np.where(keep, gy, f32(0.0)))
     assert 0 < keep.sum() < keep.size
+
+
+def test_orientation_inverse_and_mean_match_numpy() -> None:
+    # 1000 / Z with the readings as 1 / 0, and the 3 x 3 mean from the window sums, against the
+    # float32 numpy expressions they replaced
+    import cv2
+
+    from depthgram.segmentation.orientation import _mean3
+    from depthgram.segmentation.surfaces import _inverse
+
+    rng = np.random.default_rng(16)
+    z = rng.uniform(300, 6000, (41, 57)).astype(np.float32)
+    valid = rng.random(z.shape) < 0.15  # sparse: some 3 x 3 windows without a reading
+    z[~valid] = 0
+    inv_ref = np.zeros_like(z)
+    np.divide(1000.0, z, out=inv_ref, where=valid)
+    inv, m = _inverse(z, valid)
+    np.testing.assert_array_equal(inv, inv_ref)
+    np.testing.assert_array_equal(m, valid.astype(np.float32))
+    box = {"ddepth": -1, "ksize": (3, 3), "normalize": False, "borderType": cv2.BORDER_REPLICATE}
+    s_inv, s_m = cv2.boxFilter(inv, **box), cv2.boxFilter(m, **box)
+    den3 = np.maximum(s_m, 1e-6)
+    inv3, has = _mean3(s_inv, s_m)
+    np.testing.assert_array_equal(inv3, np.asarray(s_inv / den3, np.float32))
+    np.testing.assert_array_equal(has, den3 > 0.5)
+    assert 0 < has.sum() < has.size
 
 
 @pytest.mark.parametrize("shape", [(16, 40), (40, 16), (1, 5), (2, 7), (3, 4), (5, 1), (23, 17)])
@@ -376,6 +406,17 @@ def test_upsample_classes_repeats_and_clears_holes(k: int) -> None:
     want = np.repeat(np.repeat(cls, k, axis=0), k, axis=1)[:19, :23]
     want[~valid] = 0
     np.testing.assert_array_equal(upsample_classes(cls, valid, k), want)
+
+
+@pytest.mark.parametrize("shape", [(19, 23), (20, 24), (1, 1), (2, 7)])
+def test_crease_upsampling_repeats_where_there_is_a_reading(shape: tuple[int, int]) -> None:
+    from depthgram.segmentation.surfaces import _upsample2
+
+    rng = np.random.default_rng(shape[0])
+    valid = rng.random(shape) < 0.8
+    sub = rng.random((-(-shape[0] // 2), -(-shape[1] // 2))) < 0.5
+    want = np.repeat(np.repeat(sub, 2, axis=0), 2, axis=1)[: shape[0], : shape[1]] & valid
+    np.testing.assert_array_equal(_upsample2(sub, valid), want)
 
 
 def test_front_face_folds_only_without_a_depth_jump() -> None:

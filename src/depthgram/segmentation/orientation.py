@@ -19,6 +19,7 @@ from numba import njit
 from numpy.typing import NDArray
 
 from depthgram.frame import Intrinsics
+from depthgram.segmentation.surfaces import _inverse
 
 __all__ = ["default_intrinsics", "orientation_classes"]
 
@@ -77,18 +78,16 @@ def _field(
     want_normals: bool,
 ) -> tuple[NDArray[np.int8], NDArray[np.float32] | None]:
     h, w = depth_mm.shape
-    inv = np.zeros_like(depth_mm)
-    np.divide(1000.0, depth_mm, out=inv, where=valid)  # 1/m keeps float32 well scaled
+    # 1000 / Z (1/m keeps float32 well scaled) and the readings as 1 / 0, in one pass
+    inv, m = _inverse(np.ascontiguousarray(depth_mm, np.float32), np.ascontiguousarray(valid, np.bool_))
     # a 3 x 3 valid-weighted mean, then differences over `step` px: the slope of a distant floor
     # (1/Z changes by 1 / (h fy) per row) must stand above the noise of one difference
-    m = valid.astype(np.float32)
-    den3 = np.maximum(cv2.boxFilter(m, -1, (3, 3), normalize=False, borderType=cv2.BORDER_REPLICATE), 1e-6)
-    inv3 = np.asarray(
-        cv2.boxFilter(inv, -1, (3, 3), normalize=False, borderType=cv2.BORDER_REPLICATE) / den3, np.float32
-    )
     # the mean is defined wherever a 3 x 3 neighbour has a reading, which bridges a sieve of
     # dropouts (registered structured light keeps one pixel in four)
-    has = den3 > 0.5
+    inv3, has = _mean3(
+        np.asarray(cv2.boxFilter(inv, -1, (3, 3), normalize=False, borderType=cv2.BORDER_REPLICATE), np.float32),
+        np.asarray(cv2.boxFilter(m, -1, (3, 3), normalize=False, borderType=cv2.BORDER_REPLICATE), np.float32),
+    )
     step = max(1, window_px // 2)
     gx = _one_sided(inv3, has, step)
     gy = _one_sided_cols(inv3, has, step)
@@ -99,22 +98,19 @@ def _field(
     steep = np.float32(math.tan(math.radians(80.0)))
     mk = _keep_slopes(gx, gy, has, inv3, np.float32(fx), np.float32(fy), steep)
     k = (window_px, window_px)
-    den = np.asarray(
-        np.maximum(cv2.boxFilter(mk, -1, k, normalize=False, borderType=cv2.BORDER_REPLICATE), 1e-6), np.float32
-    )
+    # the count of kept slopes per window; _classify takes it at least 1e-6 (np.maximum's float32)
+    den = np.asarray(cv2.boxFilter(mk, -1, k, normalize=False, borderType=cv2.BORDER_REPLICATE), np.float32)
     sgx = np.asarray(cv2.boxFilter(gx, -1, k, normalize=False, borderType=cv2.BORDER_REPLICATE), np.float32)
     sgy = np.asarray(cv2.boxFilter(gy, -1, k, normalize=False, borderType=cv2.BORDER_REPLICATE), np.float32)
     cos_t = math.cos(math.radians(oblique_deg))
-    jump = _jumps(depth_mm, valid, jump_rel) | _jumps_cols(
-        np.ascontiguousarray(depth_mm), np.ascontiguousarray(valid), np.float32(jump_rel)
-    )
     cls = _classify(
         sgx,
         sgy,
         den,
         inv3,
         valid,
-        jump,
+        _jumps(depth_mm, valid, jump_rel),
+        _jumps_cols(np.ascontiguousarray(depth_mm), np.ascontiguousarray(valid), np.float32(jump_rel)),
         np.float32(fx),
         np.float32(fy),
         np.float32(cx),
@@ -123,6 +119,7 @@ def _field(
     )
     if not want_normals:  # segmentation needs the classes only
         return cls, None
+    den = np.maximum(den, np.float32(1e-6))
     gx = np.asarray(sgx / den, np.float32)
     gy = np.asarray(sgy / den, np.float32)
     a = fx * gx
@@ -135,6 +132,27 @@ def _field(
     sign = np.float32(-1.0) / norm
     normals = np.stack([a * sign, b * sign, c * sign], axis=-1).astype(np.float32)
     return cls, normals
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _mean3(sum_inv: NDArray[np.float32], sum_m: NDArray[np.float32]) -> tuple[NDArray[np.float32], NDArray[np.bool_]]:
+    # the 3 x 3 mean of 1/Z where a neighbour has a reading, from the window sums: numpy's
+    # np.maximum(sum_m, 1e-6) (float32), float32 division and test against 0.5, in one pass
+    h, w = sum_inv.shape
+    inv3 = np.empty((h, w), np.float32)
+    has = np.empty((h, w), np.bool_)
+    eps = np.float32(1e-6)
+    half = np.float32(0.5)
+    for y in range(h):
+        si = sum_inv[y]
+        sm = sum_m[y]
+        ir = inv3[y]
+        hr = has[y]
+        for x in range(w):
+            d = max(sm[x], eps)
+            ir[x] = si[x] / d
+            hr[x] = d > half
+    return inv3, has
 
 
 @njit(cache=True, nogil=True)
@@ -176,7 +194,8 @@ def _classify(
     den: NDArray[np.float32],
     inv3: NDArray[np.float32],
     valid: NDArray[np.bool_],
-    jump: NDArray[np.bool_],
+    jump_r: NDArray[np.bool_],
+    jump_c: NDArray[np.bool_],
     fx: np.float32,
     fy: np.float32,
     cx: np.float32,
@@ -186,11 +205,14 @@ def _classify(
     # the class of each pixel from its window-mean slopes, in one pass instead of a dozen
     # full-frame float32 temporaries; the same float32 operations in the same order, so the
     # classes are those of the numpy expression (tests/reference.py). Branch-free over each
-    # row, with numpy's division rules (no zero test; `den` is at least 1e-6), so that the
-    # divisions and square roots vectorise: every pixel is computed, then masked.
+    # row, with numpy's division rules (no zero test; `den` is taken at least 1e-6 as
+    # np.maximum did), so that the divisions and square roots vectorise: every pixel is
+    # computed, then masked. A pixel beside an occlusion edge along its row or its column
+    # (`jump_r`, `jump_c`) is facing.
     h, w = sgx.shape
     cls = np.empty((h, w), np.int8)
     tiny = np.float32(1e-12)
+    eps = np.float32(1e-6)
     ucol = np.empty(w, np.float32)  # u of each column once: the same float32 division
     for x in range(w):
         ucol[x] = (np.float32(x) - cx) / fx
@@ -204,15 +226,17 @@ def _classify(
         dn = den[y]
         iv = inv3[y]
         ok = valid[y]
-        jp = jump[y]
+        jr = jump_r[y]
+        jc = jump_c[y]
         out = cls[y]
         for x in range(w):
-            a = fx * (gx[x] / dn[x])
-            b = fy * (gy[x] / dn[x])
+            d = max(dn[x], eps)
+            a = fx * (gx[x] / d)
+            b = fy * (gy[x] / d)
             c = iv[x] - a * ucol[x] - b * v
             t = cos_t * (np.sqrt(a * a + b * b + c * c) + tiny)
             k = vert if abs(a) >= t else (horiz if abs(b) >= t else face)
-            out[x] = k if ok[x] & ~jp[x] else face
+            out[x] = k if ok[x] & ~(jr[x] | jc[x]) else face
     return cls
 
 
@@ -394,14 +418,22 @@ def upsample_classes(cls: NDArray[np.int8], valid: NDArray[np.bool_], k: int) ->
 @njit(cache=True, nogil=True)
 def _upsample(cls: NDArray[np.int8], valid: NDArray[np.bool_], k: int) -> NDArray[np.int8]:
     # one pass for numpy's two repeats, crop, masked write and copy
-    # (a table of source columns: an integer division per pixel made it several times slower)
+    # (a table of source columns: an integer division per pixel made it several times slower;
+    # each source row expanded once for its k rows, whose loop is then a select that vectorises)
     h, w = valid.shape
     out = np.empty((h, w), np.int8)
     src = np.empty(w, np.int64)
     for x in range(w):
         src[x] = x // k
+    wide = np.empty(w, np.int8)
+    face = np.int8(FACING)
     for y in range(h):
-        crow = cls[y // k]
+        if y % k == 0:
+            crow = cls[y // k]
+            for x in range(w):
+                wide[x] = crow[src[x]]
+        vrow = valid[y]
+        orow = out[y]
         for x in range(w):
-            out[y, x] = crow[src[x]] if valid[y, x] else FACING
+            orow[x] = wide[x] if vrow[x] else face
     return out

@@ -220,11 +220,19 @@ def _creases(
 @njit(cache=True, nogil=True)
 def _upsample2(sub: NDArray[np.bool_], valid: NDArray[np.bool_]) -> NDArray[np.bool_]:
     # each pixel of the half-resolution map repeated 2 x 2, where there is a reading
+    # each half-resolution row expanded once for its two rows, whose loop then vectorises
     h, w = valid.shape
     out = np.zeros((h, w), np.bool_)
+    wide = np.empty(w, np.bool_)
     for y in range(h):
+        if y & 1 == 0:
+            srow = sub[y >> 1]
+            for x in range(w):
+                wide[x] = srow[x >> 1]
+        vrow = valid[y]
+        orow = out[y]
         for x in range(w):
-            out[y, x] = sub[y >> 1, x >> 1] and valid[y, x]
+            orow[x] = wide[x] & vrow[x]
     return out
 
 
