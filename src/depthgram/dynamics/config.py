@@ -110,10 +110,10 @@ class TrackerConfig:
         afresh each frame and only the object's own part is filtered, so it can be slower
         than ``accel_sigma``: a person starting or stopping a walk accelerates at 1-2 m/s^2.
         Where the readings stop fitting it, the filter's noise grows up to ``accel_sigma``.
-        Measured (``benchmarks/bench_tracking.py``): 7-Scenes within 25 % + 30 mm/s 0.809 at
-        1000, 0.802 at 2000, 0.792 at 3000; the simulator's ``crossing`` (a cart entering the
-        view, whose core readings decay from -1,000 mm/s to 0 over ten frames) within 5 %
-        0.897 at 1000, 0.923 at 2000 (0.923 before the camera's part was taken out).
+        The own part counts once it is two of its sigmas from standing still. Measured
+        (``benchmarks/bench_tracking.py``): 7-Scenes within 25 % + 30 mm/s 0.846, 0.849, 0.849
+        at 1000, 2000, 3000; the simulator's ``crossing`` (a still camera, but an ICP that
+        slides along the floor with the person) 1.000 at each.
     innovation_gate : float
         A depth reading further from the filter's prediction than this many standard
         deviations is an outlier and is not followed (dimensionless); three outliers in a row

@@ -215,6 +215,9 @@ def estimate_params(config: TrackerConfig) -> EstimateParams:
         # The own velocity a track with the camera's motion known starts from is 0 (most of a view
         # stands still), with this uncertainty (mm/s): a brisk walk.
         own_v_sigma0=1500.0,
+        # An object's own radial velocity counts once it is this many of its sigmas from standing
+        # still (dimensionless): a significance test against the still world most of a view is.
+        own_min_sigmas=2.0,
     )
 
 
