@@ -21,7 +21,7 @@ from numba import njit
 from numpy.typing import NDArray
 
 from depthgram.frame import Intrinsics
-from depthgram.segmentation.attributes import Stats, make_objects
+from depthgram.segmentation.attributes import _attribute_table
 from depthgram.segmentation.label import ACTIVE, BLOCK, HOLE, label_keyed_planes, relabel
 from depthgram.segmentation.label.stats import COUNT, KEY, N_SUMS, SUM_X, SUM_XZ, SUM_Y, SUM_YZ, SUM_Z, SUM_ZZ
 from depthgram.segmentation.objects import SceneObject
@@ -73,35 +73,45 @@ def slice_parts(
     n_slices = (extent + step - 1) // step
     # the kernel takes the box's last column and row (inclusive bounds)
     sums, boxes = _part_sums(labels, depth_mm, obj.id, x0, y0, x1 - 1, y1 - 1, step, horizontal, n_slices)
-    stats = Stats.from_sums(sums, boxes, metric=intrinsics is not None)
-    part_map = labels[obj.slice]  # only its size is read below
-    shifted = None
+    # the attributes as make_objects takes them in the box's coordinates (the principal point
+    # shifted by the box's corner), each part built once in frame coordinates (building the
+    # box's objects and then the frame's cost twice the objects on small frames)
+    metric = intrinsics is not None
+    cam = (1.0, 1.0, 0.0, 0.0)
     if intrinsics is not None:
-        shifted = Intrinsics(intrinsics.fx, intrinsics.fy, intrinsics.cx - x0, intrinsics.cy - y0)
-    parts = make_objects(part_map, stats, intrinsics=shifted)
-    parts.sort(key=lambda p: p.depth)
+        cam = (intrinsics.fx, intrinsics.fy, intrinsics.cx - x0, intrinsics.cy - y0)
+    sz = sums[:, SUM_Z]
+    table = _attribute_table(
+        sums[:, COUNT], sz, sums[:, SUM_ZZ], sums[:, SUM_X], sums[:, SUM_Y],
+        sums[:, SUM_XZ] if metric else sz, sums[:, SUM_YZ] if metric else sz, *cam,
+    ).tolist()  # fmt: skip
+    bx = (boxes[1:] + np.array([0, 0, 1, 1])).tolist()
+    # nearest first: a stable sort on the mean depth, as of the parts in slice order
+    rows = sorted((j for j in range(len(table)) if table[j][0] > 0), key=lambda j: table[j][1])
     fn = depth_label  # callable, typed loosely to keep this module free of Bands
     # every part's label in one call (one numpy call per part cost more on small frames); a
     # callable giving one label whatever the depth is broadcast
-    depths = np.array([p.depth for p in parts], np.float64)
+    depths = np.array([table[j][1] for j in rows], np.float64)
     part_labels = np.broadcast_to(np.asarray(fn(depths)), depths.shape).tolist()  # type: ignore[operator]
+    total = labels.size
     out = []
-    for j, p in enumerate(parts):
-        cx, cy = p.center_xy
-        bx0, by0, bx1, by1 = p.bbox_xy
+    for k, j in enumerate(rows):
+        c, mean, std, cx, cy, gx, gy, amm = table[j]
+        bx0, by0, bx1, by1 = bx[j]
+        area = int(c)
         out.append(
             SceneObject(
-                id=first_id + j,
+                id=first_id + k,
                 kind="part",
-                depth_label=int(part_labels[j]),
-                depth=p.depth,
-                depth_std=p.depth_std,
-                area=p.area,
-                area_fraction=p.area / labels.size,
+                depth_label=int(part_labels[k]),
+                depth=mean,
+                depth_std=std,
+                area=area,
+                area_fraction=area / total,
                 center_xy=(cx + x0, cy + y0),
-                bbox_xy=(bx0 + x0, by0 + y0, bx1 + x0, by1 + y0),
-                centroid_mm=p.centroid_mm,
-                area_mm2=p.area_mm2,
+                bbox_xy=(int(bx0) + x0, int(by0) + y0, int(bx1) + x0, int(by1) + y0),
+                centroid_mm=(gx, gy, mean) if metric else None,
+                area_mm2=amm if metric else None,
             )
         )
     return tuple(out)
