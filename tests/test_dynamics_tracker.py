@@ -405,3 +405,22 @@ def test_status_codes_and_names_agree() -> None:
     assert STATUSES == ("visible", "entering", "leaving", "occluded")
     assert [STATUSES[int(s)] for s in K.Status] == [s.name.lower() for s in K.Status]
     assert (K.VISIBLE, K.ENTERING, K.LEAVING, K.OCCLUDED) == tuple(int(s) for s in K.Status)
+
+
+def test_keep_tracks_moves_the_kept_records_and_their_queues_to_the_front_in_order() -> None:
+    from depthgram.dynamics.kernels import keep_tracks, new_tracks
+
+    tracks = new_tracks(8)
+    tracks["id"] = np.arange(1, 9)
+    tracks["kf_z"][:6] = 1000.0 + np.arange(6)
+    qt = np.arange(32.0).reshape(8, 4)
+    qz = -qt
+    keep = np.array([True, False, True, True, False, True])
+    want_t, want_qt, want_qz = tracks[:6][keep].copy(), qt[:6][keep].copy(), qz[:6][keep].copy()
+    assert keep_tracks(tracks, qt, qz, 6, keep) == 4
+    for name in want_t.dtype.names:  # field by field: padding bytes are not state
+        np.testing.assert_array_equal(tracks[name][:4], want_t[name])
+    assert tracks["id"][:4].tolist() == [1, 3, 4, 6]
+    np.testing.assert_array_equal(qt[:4], want_qt)
+    np.testing.assert_array_equal(qz[:4], want_qz)
+    assert tracks["id"][6:].tolist() == [7, 8]  # beyond the live tracks: untouched

@@ -27,7 +27,7 @@ FORBIDDEN = 1e9
 class Status(IntEnum):
     """A track's status this frame.
 
-    Its value is the code in the state table's ``STATUS`` column and its lower-case name the
+    Its value is the code in a track record's ``status`` field and its lower-case name the
     :class:`depthgram.scene.tree.Motion` status.
     """
 
@@ -218,119 +218,178 @@ def cost_kernel(
     return cost
 
 
-# The track state table: one row per live track, these columns. This module owns them (the
-# kernels below and depthgram.dynamics.tracker index by these names only); numba's cache
-# is per source file, so they live here rather than in a module the kernels would import.
-ID = 0  # track id, from 1
-HITS = 1  # frames with a detection
-MISSED = 2  # frames since the last detection (0: detected this frame)
-STATUS = 3  # a Status code
-CX, CY = 4, 5  # centre of the object as last detected (px)
-VX, VY = 6, 7  # smoothed image velocity of the centre (px/s)
-X0, Y0, X1, Y1 = 8, 9, 10, 11  # bbox as last detected, half-open (px)
-DEPTH = 12  # depth as last read (mm; see tracker.track_depth)
-ZFIT = 13  # fitted depth at the last detection (mm)
-AREA = 14  # area as last detected (px)
-MAREA = 15  # running depth-compensated area A z^2 (px mm^2), against which splits are judged
-LABEL = 16  # depth label as last detected
-V = 17  # radial velocity of the queue fit (mm/s; NaN: none yet)
-READ = 18  # how the depth was read: 0 mean depth, 1 nearest part of a compound (F_READ)
-TSEEN = 19  # time of the last detection (s)
-OX, OY = 20, 21  # centre of the part last seen (px); CX, CY while the whole object was in view
-NCOL = 22
+# The state of every live track: one record per track, these fields. This module owns them (the
+# kernels below and depthgram.dynamics.tracker read them by name); numba's cache is per source
+# file, so they live here rather than in a module the kernels would import.
+TRACK_FIELDS: tuple[tuple[str, type, str], ...] = (
+    ("id", np.int64, "track id, from 1"),
+    ("hits", np.int64, "frames with a detection"),
+    ("missed", np.int64, "frames since the last detection (0: detected this frame)"),
+    ("status", np.int64, "a Status code"),
+    ("cx", np.float64, "centre of the object as last detected, x (px)"),
+    ("cy", np.float64, "centre as last detected, y (px)"),
+    ("vx", np.float64, "smoothed image velocity of the centre, x (px/s)"),
+    ("vy", np.float64, "smoothed image velocity of the centre, y (px/s)"),
+    ("x0", np.float64, "bbox as last detected, half-open (px)"),
+    ("y0", np.float64, "bbox (px)"),
+    ("x1", np.float64, "bbox (px)"),
+    ("y1", np.float64, "bbox (px)"),
+    ("depth", np.float64, "depth as last read (mm; tracker.track_depth)"),
+    ("z_fit", np.float64, "fitted depth at the last detection (mm)"),
+    ("area", np.float64, "area as last detected (px)"),
+    ("area_run", np.float64, "running depth-compensated area A z^2 against which splits are judged (px mm^2)"),
+    ("label", np.int64, "depth label as last detected"),
+    ("v", np.float64, "radial velocity of the queue fit (mm/s; NaN: none yet)"),
+    ("read_nearest", np.bool_, "the depth is a compound's nearest part (else the mean depth)"),
+    ("t_seen", np.float64, "time of the last detection (s)"),
+    ("ox", np.float64, "centre of the part last seen, x (px); cx while the whole object was in view"),
+    ("oy", np.float64, "centre of the part last seen, y (px)"),
+    # the constant-velocity Kalman filter on depth and radial velocity (estimator "kalman")
+    ("kf_z", np.float64, "filtered depth (mm; NaN: not started)"),
+    ("kf_v", np.float64, "filtered radial velocity (mm/s)"),
+    ("kf_pzz", np.float64, "covariance: depth variance (mm^2)"),
+    ("kf_pzv", np.float64, "covariance: depth-velocity (mm^2/s)"),
+    ("kf_pvv", np.float64, "covariance: velocity variance (mm^2/s^2)"),
+    ("kf_n", np.int64, "readings folded in since the filter (re)started"),
+    ("kf_rej", np.int64, "outliers rejected in a row"),
+    # the object's own radial velocity where the camera's motion is known (estimate)
+    ("own_v", np.float64, "own radial velocity, the camera's part taken out (mm/s; NaN: not started)"),
+    ("own_var", np.float64, "its variance (mm^2/s^2)"),
+    ("own_rej", np.int64, "its outliers rejected in a row"),
+    ("own_nis", np.float64, "running mean of its normalised squared innovations"),
+)
+TRACK_DTYPE = np.dtype([(name, kind) for name, kind, _ in TRACK_FIELDS], align=True)
 
-# Columns of the per-object feature array; F_READ says how its depth was read (0: mean depth,
-# 1: nearest part of a compound), see depthgram.dynamics.tracker.track_depth.
-F_CX, F_CY, F_Z, F_AREA, F_LABEL, F_X0, F_BEHIND, F_READ = 0, 1, 2, 3, 4, 5, 9, 10
-NFEAT = 11
+
+def new_tracks(n: int) -> NDArray[np.void]:
+    """Return ``n`` blank track records: zeros, the filters not started."""
+    t = np.zeros(n, TRACK_DTYPE)
+    t["kf_z"] = np.nan
+    t["kf_v"] = np.nan
+    t["own_v"] = np.nan
+    t["own_nis"] = 1.0
+    return t
+
+
+# This frame's objects as the kernels read them: one record each, all float64, so that the
+# tracker fills them as one float block (depthgram.dynamics.tracker._features).
+OBJECT_FIELDS: tuple[tuple[str, str], ...] = (
+    ("cx", "centre x (px)"),
+    ("cy", "centre y (px)"),
+    ("z", "depth (mm; tracker.track_depth)"),
+    ("area", "area (px)"),
+    ("label", "depth label"),
+    ("x0", "bbox, half-open (px)"),
+    ("y0", "bbox (px)"),
+    ("x1", "bbox (px)"),
+    ("y1", "bbox (px)"),
+    ("behind", "1 where a nearer object touches or overlaps it (mark_behind), else 0"),
+    ("read_nearest", "1 where its depth is a compound's nearest part, 0 its mean depth"),
+)
+OBJECT_DTYPE = np.dtype([(name, np.float64) for name, _ in OBJECT_FIELDS])
 
 
 @njit(cache=True)
-def mark_behind(f: NDArray[np.float64]) -> None:
-    """Set column ``F_BEHIND`` of each object that a nearer object touches or overlaps.
+def mark_behind(objs: NDArray[np.void]) -> None:
+    """Set field ``behind`` of each object that a nearer object touches or overlaps.
 
     Boxes within 1 px count as touching, and nearer means by more than 5 % of depth. A loop over
     pairs: a dozen numpy expressions on 30 x 30 pairs cost more in call overhead than the whole
     comparison.
     """
-    m = f.shape[0]
+    m = objs.shape[0]
     for j in range(m):
-        f[j, F_BEHIND] = 0.0
+        o = objs[j]
+        o.behind = 0.0
         for i in range(m):
-            if i == j or not f[i, F_Z] < 0.95 * f[j, F_Z]:
+            near = objs[i]
+            if i == j or not near.z < 0.95 * o.z:
                 continue
             # half-open boxes: x0 <= other x1 means overlapping or adjacent
-            if (
-                f[j, F_X0] <= f[i, F_X0 + 2]
-                and f[i, F_X0] <= f[j, F_X0 + 2]
-                and f[j, F_X0 + 1] <= f[i, F_X0 + 3]
-                and f[i, F_X0 + 1] <= f[j, F_X0 + 3]
-            ):
-                f[j, F_BEHIND] = 1.0
+            if o.x0 <= near.x1 and near.x0 <= o.x1 and o.y0 <= near.y1 and near.y0 <= o.y1:
+                o.behind = 1.0
                 break
 
 
 @njit(cache=True)
 def predict_cost(
-    s: NDArray[np.float64],
+    tracks: NDArray[np.void],
     n: int,
-    f: NDArray[np.float64],
+    objs: NDArray[np.void],
     diagonal_px: float,
     t_now: float,
     dt: float,
     p: CostParams,
 ) -> NDArray[np.float64]:
-    """Predict each track forward by the time since its last detection, then cost all pairs."""
+    """Predict each of the first ``n`` tracks forward by the time since its last detection, then cost all pairs."""
     pc = np.empty((n, 2))
     po = np.empty((n, 2))
     pb = np.empty((n, 4))
     pz = np.empty(n)
     te = np.empty(n)
+    ta = np.empty(n)
+    tl = np.empty(n)
     for i in range(n):
-        el = t_now - s[i, TSEEN]
+        t = tracks[i]
+        el = t_now - t.t_seen
         te[i] = el
-        dx = s[i, VX] * el
-        dy = s[i, VY] * el
-        pc[i, 0] = s[i, CX] + dx
-        pc[i, 1] = s[i, CY] + dy
-        po[i, 0] = s[i, OX] + dx
-        po[i, 1] = s[i, OY] + dy
-        pb[i, 0] = s[i, X0] + dx
-        pb[i, 1] = s[i, Y0] + dy
-        pb[i, 2] = s[i, X1] + dx
-        pb[i, 3] = s[i, Y1] + dy
-        if s[i, STATUS] == ENTERING or s[i, STATUS] == LEAVING:
+        dx = t.vx * el
+        dy = t.vy * el
+        pc[i, 0] = t.cx + dx
+        pc[i, 1] = t.cy + dy
+        po[i, 0] = t.ox + dx
+        po[i, 1] = t.oy + dy
+        pb[i, 0] = t.x0 + dx
+        pb[i, 1] = t.y0 + dy
+        pb[i, 2] = t.x1 + dx
+        pb[i, 3] = t.y1 + dy
+        if t.status == ENTERING or t.status == LEAVING:
             # The fit skips border frames, so it is stale there, while the mean depth of the
             # visible part drifts as the object crosses the border (a cylinder's flank is
             # deeper than its middle): the last observed depth is the better guess.
-            pz[i] = s[i, DEPTH]
+            pz[i] = t.depth
         else:
-            v = s[i, V] if np.isfinite(s[i, V]) else 0.0
-            pz[i] = s[i, ZFIT] + v * el
-    return cost_kernel(
-        pc, po, pz, s[:n, AREA], pb, s[:n, LABEL], te,
-        f[:, 0:2], f[:, F_Z], f[:, F_AREA], f[:, F_X0 : F_X0 + 4], f[:, F_LABEL], diagonal_px, dt, p,
-    )  # fmt: skip
+            v = t.v if np.isfinite(t.v) else 0.0
+            pz[i] = t.z_fit + v * el
+        ta[i] = t.area
+        tl[i] = t.label
+    m = objs.shape[0]
+    oc = np.empty((m, 2))
+    ob = np.empty((m, 4))
+    oz = np.empty(m)
+    oa = np.empty(m)
+    ol = np.empty(m)
+    for j in range(m):
+        o = objs[j]
+        oc[j, 0] = o.cx
+        oc[j, 1] = o.cy
+        oz[j] = o.z
+        oa[j] = o.area
+        ol[j] = o.label
+        ob[j, 0] = o.x0
+        ob[j, 1] = o.y0
+        ob[j, 2] = o.x1
+        ob[j, 3] = o.y1
+    return cost_kernel(pc, po, pz, ta, pb, tl, te, oc, oz, oa, ob, ol, diagonal_px, dt, p)
 
 
 @njit(cache=True)
-def _crossing_axes(f: NDArray[np.float64], j: int, b: float, width: float, height: float) -> tuple[bool, bool]:
-    """Whether object ``j`` can be crossing the left/right and the top/bottom border.
+def _crossing_axes(o: np.record, b: float, width: float, height: float) -> tuple[bool, bool]:
+    """Whether object ``o`` can be crossing the left/right and the top/bottom border.
 
     An object touching exactly one of two opposite borders can be entering or leaving
     through it; one touching both (a wall, a floor) spans the view on that axis and cannot.
     """
-    x0, y0, x1, y1 = f[j, F_X0], f[j, F_X0 + 1], f[j, F_X0 + 2], f[j, F_X0 + 3]
-    return (x0 <= b) != (x1 >= width - b), (y0 <= b) != (y1 >= height - b)
+    return (o.x0 <= b) != (o.x1 >= width - b), (o.y0 <= b) != (o.y1 >= height - b)
 
 
 @njit(cache=True)
 def step(
-    s: NDArray[np.float64],
+    tracks: NDArray[np.void],
     qt: NDArray[np.float64],
     qz: NDArray[np.float64],
     n: int,
-    f: NDArray[np.float64],
+    objs: NDArray[np.void],
     rows: NDArray[np.intp],
     cols: NDArray[np.intp],
     cost: NDArray[np.float64],
@@ -346,11 +405,14 @@ def step(
     NDArray[np.int64], NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_], NDArray[np.bool_], int,
     NDArray[np.float64],
 ]:  # fmt: skip
-    """Advance every track by one frame, in place; new tracks go to rows ``n..``.
+    """Advance every track by one frame, in place; new tracks go to records ``n..``.
 
     This is the project's own bookkeeping (queues, statuses, split/merge and border tests),
-    hand-written in one compiled pass because it runs every frame on a few dozen rows.
-    ``p`` holds the settings (:func:`depthgram.dynamics.tracker.step_params`).
+    hand-written in one compiled pass because it runs every frame on a few dozen tracks.
+    ``tracks`` are :data:`TRACK_DTYPE` records (the first ``n`` live), ``qt`` and ``qz`` their
+    queues' times (s) and depths (mm, NaN: no valid entry), oldest first; ``objs`` this frame's
+    objects (:data:`OBJECT_DTYPE`), ``rows`` and ``cols`` the assignment's pairs, ``cost`` its
+    matrix. ``p`` holds the settings (:func:`depthgram.dynamics.tracker.step_params`).
     ``dt`` is this frame's time step (s): every rate and time constant is
     scaled by it, so the tracker behaves alike at any frame rate.
 
@@ -360,9 +422,9 @@ def step(
     moved by a constant so that its newest entry is this frame's depth: the slope follows the
     core, the depth stays the object's.
 
-    Returns the track row of each object, the reported velocity and time to collision of
-    every row, which rows die this frame, which rows restarted their queue (new tracks too),
-    the number of new tracks, and the constant each row's depths were moved by (mm).
+    Returns the track of each object, the reported velocity and time to collision of
+    every track, which tracks die this frame, which restarted their queue (new tracks too),
+    the number of new tracks, and the constant each track's depths were moved by (mm).
     """
     border = p.border_px
     area_rate = p.border_area_rate
@@ -377,7 +439,7 @@ def step(
     # Exponential smoothing with a time constant: the same weight per second at any rate.
     c_gain = 1.0 - np.exp(-dt / c_tau)
     a_gain = 1.0 - np.exp(-dt / a_tau)
-    m = f.shape[0]
+    m = objs.shape[0]
     nq = qt.shape[1]
     # Every queue advances one slot; detections fill the newest one below.
     for i in range(n):
@@ -386,7 +448,8 @@ def step(
             qz[i, j] = qz[i, j + 1]
         qt[i, nq - 1] = t_now
         qz[i, nq - 1] = np.nan
-        s[i, MISSED] += 1.0
+        t = tracks[i]
+        t.missed += 1
     obj_row = np.full(m, -1, np.int64)
     restarted = np.zeros(n + m, np.bool_)
     offset = np.zeros(n + m)
@@ -397,18 +460,20 @@ def step(
         if cost[i, c] >= FORBIDDEN:  # the assignment had to pair it; the gates say no
             continue
         obj_row[c] = i
-        el = t_now - s[i, TSEEN]  # time since the last detection (s)
+        t = tracks[i]
+        o = objs[c]
+        el = t_now - t.t_seen  # time since the last detection (s)
         thr = area_rate * el
-        has_v = np.isfinite(s[i, V])
-        v_old = s[i, V] if has_v else 0.0
-        p_depth = s[i, ZFIT] + v_old * el
-        zo = f[c, F_Z]
+        has_v = np.isfinite(t.v)
+        v_old = t.v if has_v else 0.0
+        p_depth = t.z_fit + v_old * el
+        zo = o.z
         z_ok = np.isfinite(zo) and zo > 0
-        z_new = zo if z_ok else s[i, DEPTH]
+        z_new = zo if z_ok else t.depth
         # The core's depth change, chained on the previous depth: in the previous frame's
         # frame of reference, where the track's queue and prediction are.
-        chained = z_ok and np.isfinite(dcore[c]) and np.isfinite(s[i, DEPTH]) and s[i, MISSED] == 1
-        zq = s[i, DEPTH] + dcore[c] if chained else zo
+        chained = z_ok and np.isfinite(dcore[c]) and np.isfinite(t.depth) and t.missed == 1
+        zq = t.depth + dcore[c] if chained else zo
         # Areas compared at the track's fitted depth, not this frame's mean depth: the area
         # change of an approaching object is then not read as entering, and the biased mean
         # depth of a partly visible object does not hide its area change either.
@@ -416,23 +481,23 @@ def step(
         # area is then compared at this frame's depth.
         z_ref = p_depth if (has_v and np.isfinite(p_depth)) else z_new
         z_ref_of[i] = z_ref
-        area = f[c, F_AREA]
+        area = o.area
         ma_new = area * z_ref * z_ref
-        ma_old = s[i, AREA] * s[i, ZFIT] * s[i, ZFIT]
+        ma_old = t.area * t.z_fit * t.z_fit
         change = ma_new / ma_old - 1.0 if ma_old > 0 else np.nan
-        ma_run = s[i, MAREA]
+        ma_run = t.area_run
         jump = max(ma_new / ma_run, ma_run / ma_new) if ma_run > 0 and ma_new > 0 else np.nan
-        prev = s[i, STATUS]
+        prev = t.status
         status = VISIBLE
-        horiz, vert = _crossing_axes(f, c, border, width, height)
+        horiz, vert = _crossing_axes(o, border, width, height)
         if horiz or vert:
             # Entering or leaving needs the area AND the extent across the touched border to
             # change: a wall at the border whose area changes because something passes in
             # front of it keeps its extent and stays visible. Sizes compared at the fitted
             # depth, so that approaching is not read as entering.
-            scale = z_ref / s[i, ZFIT]
-            ew = (f[c, F_X0 + 2] - f[c, F_X0]) / (s[i, X1] - s[i, X0]) * scale - 1.0
-            eh = (f[c, F_X0 + 3] - f[c, F_X0 + 1]) / (s[i, Y1] - s[i, Y0]) * scale - 1.0
+            scale = z_ref / t.z_fit
+            ew = (o.x1 - o.x0) / (t.x1 - t.x0) * scale - 1.0
+            eh = (o.y1 - o.y0) / (t.y1 - t.y0) * scale - 1.0
             ext = max(ew if horiz else -np.inf, eh if vert else -np.inf)
             ext_min = min(ew if horiz else np.inf, eh if vert else np.inf)
             # Hysteresis: an object keeps entering (leaving) while its size does not reverse,
@@ -443,7 +508,7 @@ def step(
                 status = LEAVING
         # Partly hidden behind a nearer object while its visible area changes: the mean depth
         # of the visible part is biased, so the entry stays out of the fit (paper, case b).
-        hidden = f[c, F_BEHIND] > 0 and abs(change) > thr
+        hidden = o.behind > 0 and abs(change) > thr
         valid = z_ok and (chained or (not (jump > max_jump) and (fit_border or status == VISIBLE) and not hidden))
         # Only a track with a velocity has a path to leave: a new track's prediction is "still",
         # and an object closing fast would otherwise restart its queue on every frame and never
@@ -454,7 +519,8 @@ def step(
         # mean), so earlier entries measure another surface. Measured on `crossing`: the cart
         # read 500 mm/s on such a frame while standing still in depth.
         # A core reading does not depend on how the depth is read.
-        restart = restart or (valid and not chained and s[i, READ] != f[c, F_READ])
+        read_nearest = o.read_nearest > 0
+        restart = restart or (valid and not chained and t.read_nearest != read_nearest)
         restarted[i] = restart
         if restart:
             # The mean depth left the predicted path by more than any motion explains: the
@@ -462,59 +528,61 @@ def step(
             # longer describe the same thing, so the queue restarts from this one.
             for j in range(nq - 1):
                 qz[i, j] = np.nan
-            s[i, V] = np.nan
+            t.v = np.nan
         if valid:
             qz[i, nq - 1] = zq
-            s[i, READ] = f[c, F_READ]
+            t.read_nearest = read_nearest
         if chained:
             off = zo - zq
             offset[i] = off
             for j in range(nq):
                 qz[i, j] += off
-            s[i, ZFIT] += off
-        dcx = (f[c, F_CX] - s[i, CX]) / el
-        dcy = (f[c, F_CY] - s[i, CY]) / el
+            t.z_fit += off
+        dcx = (o.cx - t.cx) / el
+        dcy = (o.cy - t.cy) / el
         # While the visible area changes (partial occlusion, entering, leaving, a split) the
         # center of the visible part moves for reasons other than motion: keep the earlier
         # image velocity then, so that an object passing behind another is looked for where
         # it really goes.
         if abs(change) <= thr:
-            if s[i, HITS] >= 2:
-                s[i, VX] += c_gain * (dcx - s[i, VX])
-                s[i, VY] += c_gain * (dcy - s[i, VY])
+            if t.hits >= 2:
+                t.vx += c_gain * (dcx - t.vx)
+                t.vy += c_gain * (dcy - t.vy)
             else:
-                s[i, VX] = dcx
-                s[i, VY] = dcy
+                t.vx = dcx
+                t.vy = dcy
         if hidden:
             # The visible part of an object going behind (or coming out from behind) a nearer
             # one is off its centre, on the side that is still in view: it moves the other way
             # than the object, or not at all. The centre keeps its predicted path instead, so
             # that the object is looked for where it comes out (measured on `crossing`: the
             # cart's sliver came out 46 px from the sliver it went in as, 2 px beyond the gate).
-            s[i, CX] += s[i, VX] * el
-            s[i, CY] += s[i, VY] * el
+            t.cx += t.vx * el
+            t.cy += t.vy * el
         else:
-            s[i, CX] = f[c, F_CX]
-            s[i, CY] = f[c, F_CY]
-        s[i, OX] = f[c, F_CX]
-        s[i, OY] = f[c, F_CY]
-        for q in range(4):
-            s[i, X0 + q] = f[c, F_X0 + q]
-        s[i, DEPTH] = z_new
-        s[i, AREA] = area
+            t.cx = o.cx
+            t.cy = o.cy
+        t.ox = o.cx
+        t.oy = o.cy
+        t.x0 = o.x0
+        t.y0 = o.y0
+        t.x1 = o.x1
+        t.y1 = o.y1
+        t.depth = z_new
+        t.area = area
         # The running area follows entering/leaving objects at once (their area change is
         # real), others slowly so that a one-frame split or merge stands out.
         if status != VISIBLE or not ma_run > 0:
-            s[i, MAREA] = ma_new
+            t.area_run = ma_new
         else:
-            s[i, MAREA] = ma_run + a_gain * (ma_new - ma_run)
+            t.area_run = ma_run + a_gain * (ma_new - ma_run)
         if restart:  # sizes are compared at the new depth from now on
-            s[i, MAREA] = area * zo * zo
-        s[i, LABEL] = f[c, F_LABEL]
-        s[i, STATUS] = status
-        s[i, HITS] += 1.0
-        s[i, MISSED] = 0.0
-        s[i, TSEEN] = t_now
+            t.area_run = area * zo * zo
+        t.label = int(o.label)
+        t.status = status
+        t.hits += 1
+        t.missed = 0
+        t.t_seen = t_now
     # Unmatched objects start tracks.
     nn = n
     for c in range(m):
@@ -523,32 +591,36 @@ def step(
         i = nn
         nn += 1
         obj_row[c] = i
-        zo = f[c, F_Z]
+        t = tracks[i]
+        o = objs[c]
+        zo = o.z
         z_ok = np.isfinite(zo) and zo > 0
-        horiz, vert = _crossing_axes(f, c, border, width, height)
+        horiz, vert = _crossing_axes(o, border, width, height)
         status = ENTERING if (not first and (horiz or vert)) else VISIBLE
-        s[i, ID] = next_id + (i - n)
+        t.id = next_id + (i - n)
         restarted[i] = True
-        s[i, HITS] = 1.0
-        s[i, MISSED] = 0.0
-        s[i, STATUS] = status
-        s[i, CX] = f[c, F_CX]
-        s[i, CY] = f[c, F_CY]
-        s[i, OX] = f[c, F_CX]
-        s[i, OY] = f[c, F_CY]
-        s[i, VX] = 0.0
-        s[i, VY] = 0.0
-        for q in range(4):
-            s[i, X0 + q] = f[c, F_X0 + q]
+        t.hits = 1
+        t.missed = 0
+        t.status = status
+        t.cx = o.cx
+        t.cy = o.cy
+        t.ox = o.cx
+        t.oy = o.cy
+        t.vx = 0.0
+        t.vy = 0.0
+        t.x0 = o.x0
+        t.y0 = o.y0
+        t.x1 = o.x1
+        t.y1 = o.y1
         z0 = zo if z_ok else np.nan
-        s[i, DEPTH] = z0
-        s[i, ZFIT] = z0
-        s[i, AREA] = f[c, F_AREA]
-        s[i, MAREA] = f[c, F_AREA] * z0 * z0
-        s[i, LABEL] = f[c, F_LABEL]
-        s[i, V] = np.nan
-        s[i, READ] = f[c, F_READ]
-        s[i, TSEEN] = t_now
+        t.depth = z0
+        t.z_fit = z0
+        t.area = o.area
+        t.area_run = o.area * z0 * z0
+        t.label = int(o.label)
+        t.v = np.nan
+        t.read_nearest = o.read_nearest > 0
+        t.t_seen = t_now
         for j in range(nq):
             qt[i, j] = np.nan
             qz[i, j] = np.nan
@@ -560,24 +632,25 @@ def step(
     ttc = np.empty(nn)
     dead = np.zeros(nn, np.bool_)
     for i in range(nn):
+        t = tracks[i]
         v, z_now = fit_row(qt[i], qz[i], t_now)
         if np.isfinite(v):
-            s[i, V] = v
-        if s[i, MISSED] == 0:
+            t.v = v
+        if t.missed == 0:
             if np.isfinite(z_now):
-                s[i, ZFIT] = z_now
+                t.z_fit = z_now
             elif np.isfinite(z_ref_of[i]):
-                s[i, ZFIT] = z_ref_of[i]
-            z_pred = s[i, ZFIT]
+                t.z_fit = z_ref_of[i]
+            z_pred = t.z_fit
             # Back from an occlusion with one fresh entry: the velocity held through the gap
             # (a restart clears it, so a jump never carries an old velocity over).
-            vo = v if np.isfinite(v) else s[i, V]
+            vo = v if np.isfinite(v) else t.v
         else:
             # Occluded tracks coast on their held velocity.
-            vo = s[i, V]
-            z_pred = s[i, ZFIT] + (vo if np.isfinite(vo) else 0.0) * (t_now - s[i, TSEEN])
-            s[i, STATUS] = OCCLUDED
-            dead[i] = s[i, HITS] < min_hits or s[i, MISSED] > max_missed
+            vo = t.v
+            z_pred = t.z_fit + (vo if np.isfinite(vo) else 0.0) * (t_now - t.t_seen)
+            t.status = OCCLUDED
+            dead[i] = t.hits < min_hits or t.missed > max_missed
         v_out[i] = vo
         ttc[i] = z_pred / -vo if (vo < -min_speed and z_pred > 0) else np.nan
     return obj_row, v_out, ttc, dead, restarted[:nn], nn - n, offset[:nn]
@@ -585,50 +658,44 @@ def step(
 
 @njit(cache=True)
 def estimate(
-    s: NDArray[np.float64],
+    tracks: NDArray[np.void],
     qt: NDArray[np.float64],
     qz: NDArray[np.float64],
     n: int,
     restarted: NDArray[np.bool_],
     v_queue: NDArray[np.float64],
     ttc_queue: NDArray[np.float64],
-    kx: NDArray[np.float64],
-    kp: NDArray[np.float64],
-    kn: NDArray[np.int64],
-    krej: NDArray[np.int64],
     dt: float,
     p: EstimateParams,
     offset: NDArray[np.float64],
     core_dz: NDArray[np.float64],
     still_dz: NDArray[np.float64],
-    kw: NDArray[np.float64],
-    kwp: NDArray[np.float64],
-    kwrej: NDArray[np.int64],
-    kwnis: NDArray[np.float64],
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
-    """Radial velocity, time to collision and v_sigma of every live row (mm/s, s, mm/s).
+    """Radial velocity, time to collision and v_sigma of every live track (mm/s, s, mm/s).
 
+    ``tracks`` are the live :data:`TRACK_DTYPE` records after :func:`step` (their ``kf_*`` and
+    ``own_*`` fields are updated here), ``qt`` and ``qz`` their queues.
     ``p`` holds the settings (:func:`depthgram.dynamics.tracker.estimate_params`): the Kalman
     filter or the queue's slope, the sensor noise, the process noise, the gates.
-    Rows ``n..`` are new tracks. One compiled pass: the same steps in numpy cost some forty
-    array expressions per frame, more than the arithmetic on a few dozen rows.
+    Tracks ``n..`` are new. One compiled pass: the same steps in numpy cost some forty
+    array expressions per frame, more than the arithmetic on a few dozen tracks.
 
     ``queue``: the kernel's slope, with the standard error that slope has under the sensor
     noise model. ``kalman``: a constant-velocity filter on depth and radial velocity, predicted
     over ``dt`` for every track (occluded ones coast) and updated with each valid depth reading
     within ``innovation_gate`` standard deviations of its prediction; three outliers in a row
     restart it there. Either way a time to collision needs a closing speed of at least
-    ``ttc_min_sigmas`` v_sigma. ``offset`` moves each row's filter depth along with its queue
+    ``ttc_min_sigmas`` v_sigma. ``offset`` moves each track's filter depth along with its queue
     (see :func:`step`).
 
     With the camera's own motion known (``kalman`` only): ``still_dz`` is the depth change
-    (mm) each detected row would show since the previous frame if it stood still, ``core_dz``
+    (mm) each detected track would show since the previous frame if it stood still, ``core_dz``
     the change its core shows (mm; NaN where unknown). The radial velocity is then
-    ``still_dz / dt`` plus the object's own velocity ``kw`` (mm/s, variance ``kwp``), filtered
-    from ``(core_dz - still_dz) / dt`` as a random walk with the same innovation gate
-    (``kwrej`` outliers in a row; NaN ``kw``: not started). Its process noise is
+    ``still_dz / dt`` plus the object's own velocity ``own_v`` (mm/s, variance ``own_var``),
+    filtered from ``(core_dz - still_dz) / dt`` as a random walk with the same innovation gate
+    (``own_rej`` outliers in a row; NaN ``own_v``: not started). Its process noise is
     ``own_accel_sigma`` while the readings fit it, and grows up to ``accel_sigma`` with the
-    running mean ``kwnis`` of the normalised squared innovations where they do not (an
+    running mean ``own_nis`` of the normalised squared innovations where they do not (an
     object that does change speed: the simulator's cart entering the view). The camera's part
     needs no filter: it is read afresh each frame from the whole view, so it follows a
     hand-held camera's shake without lag, and the filter only smooths what the object does
@@ -648,16 +715,17 @@ def estimate(
     nis_max = (accel / p.own_accel_sigma) ** 2 if p.own_accel_sigma > 0 else 1.0
     w_sigma0 = p.own_v_sigma0
     own_k = p.own_min_sigmas
-    nn = kx.shape[0]
+    nn = tracks.shape[0]
     nq = qz.shape[1]
     v_out = np.full(nn, np.nan)
     ttc = np.full(nn, np.nan)
     sig = np.full(nn, np.nan)
     q = accel * accel
     for i in range(nn):
+        t = tracks[i]
         z_new = qz[i, nq - 1]
-        meas = s[i, MISSED] == 0 and np.isfinite(z_new)
-        zr = z_new if np.isfinite(z_new) else s[i, ZFIT]
+        meas = t.missed == 0 and np.isfinite(z_new)
+        zr = z_new if np.isfinite(z_new) else t.z_fit
         sz = floor + sig1m * (zr / 1000.0) ** 2
         r = sz * sz
         if not p.kalman:
@@ -678,95 +746,111 @@ def estimate(
             ttc[i] = ttc_queue[i]
         else:
             if i >= n:
-                kn[i] = 0
-                krej[i] = 0
-                kx[i, 0] = np.nan
-                kx[i, 1] = np.nan
+                t.kf_n = 0
+                t.kf_rej = 0
+                t.kf_z = np.nan
+                t.kf_v = np.nan
             else:
-                kx[i, 0] += dt * kx[i, 1] + offset[i]
-                p00, p01, p11 = kp[i, 0, 0], kp[i, 0, 1], kp[i, 1, 1]
-                kp[i, 0, 0] = p00 + 2 * dt * p01 + dt * dt * p11 + q * dt**4 / 4
-                kp[i, 0, 1] = p01 + dt * p11 + q * dt**3 / 2
-                kp[i, 1, 0] = kp[i, 0, 1]
-                kp[i, 1, 1] = p11 + q * dt * dt
+                t.kf_z += dt * t.kf_v + offset[i]
+                p00, p01, p11 = t.kf_pzz, t.kf_pzv, t.kf_pvv
+                t.kf_pzz = p00 + 2 * dt * p01 + dt * dt * p11 + q * dt**4 / 4
+                t.kf_pzv = p01 + dt * p11 + q * dt**3 / 2
+                t.kf_pvv = p11 + q * dt * dt
             if meas:
-                start = restarted[i] or kn[i] == 0
+                start = restarted[i] or t.kf_n == 0
                 if not start:
-                    sv = kp[i, 0, 0] + r
-                    y = z_new - kx[i, 0]
+                    sv = t.kf_pzz + r
+                    y = z_new - t.kf_z
                     if y * y > gate_k * gate_k * sv:
-                        krej[i] += 1
-                        start = krej[i] >= 3  # three outliers in a row: the object did change
+                        t.kf_rej += 1
+                        start = t.kf_rej >= 3  # three outliers in a row: the object did change
                     else:
-                        krej[i] = 0
-                        k0 = kp[i, 0, 0] / sv
-                        k1 = kp[i, 1, 0] / sv
-                        kx[i, 0] += k0 * y
-                        kx[i, 1] += k1 * y
-                        p00, p01, p11 = kp[i, 0, 0], kp[i, 0, 1], kp[i, 1, 1]
-                        kp[i, 0, 0] = (1 - k0) * p00
-                        kp[i, 0, 1] = (1 - k0) * p01
-                        kp[i, 1, 0] = kp[i, 0, 1]
-                        kp[i, 1, 1] = p11 - k1 * p01
-                        kn[i] += 1
+                        t.kf_rej = 0
+                        k0 = t.kf_pzz / sv
+                        k1 = t.kf_pzv / sv
+                        t.kf_z += k0 * y
+                        t.kf_v += k1 * y
+                        p00, p01, p11 = t.kf_pzz, t.kf_pzv, t.kf_pvv
+                        t.kf_pzz = (1 - k0) * p00
+                        t.kf_pzv = (1 - k0) * p01
+                        t.kf_pvv = p11 - k1 * p01
+                        t.kf_n += 1
                 if start:
-                    kx[i, 0] = z_new
-                    kx[i, 1] = 0.0
-                    kp[i, 0, 0] = r
-                    kp[i, 0, 1] = 0.0
-                    kp[i, 1, 0] = 0.0
-                    kp[i, 1, 1] = v_sigma0 * v_sigma0
-                    kn[i] = 1
-                    krej[i] = 0
+                    t.kf_z = z_new
+                    t.kf_v = 0.0
+                    t.kf_pzz = r
+                    t.kf_pzv = 0.0
+                    t.kf_pvv = v_sigma0 * v_sigma0
+                    t.kf_n = 1
+                    t.kf_rej = 0
             if i >= n:
-                kw[i] = np.nan
-                kwp[i] = 0.0
-                kwrej[i] = 0
-            elif np.isfinite(kw[i]):
-                if s[i, STATUS] == ENTERING or s[i, STATUS] == LEAVING:
+                t.own_v = np.nan
+                t.own_var = 0.0
+                t.own_rej = 0
+            elif np.isfinite(t.own_v):
+                if t.status == ENTERING or t.status == LEAVING:
                     # the visible part changes at the image's edge: its readings change for
                     # reasons the own motion does not model (the simulator's cart entering)
-                    kwnis[i] = nis_max
-                kwp[i] += qw * qw * min(max(kwnis[i], 1.0), nis_max)
-            if s[i, MISSED] == 0 and np.isfinite(still_dz[i]):
-                if not np.isfinite(kw[i]):
+                    t.own_nis = nis_max
+                t.own_var += qw * qw * min(max(t.own_nis, 1.0), nis_max)
+            if t.missed == 0 and np.isfinite(still_dz[i]):
+                if not np.isfinite(t.own_v):
                     # most of what a camera sees stands still: no own motion until read
-                    kw[i] = 0.0
-                    kwp[i] = w_sigma0 * w_sigma0
-                    kwrej[i] = 0
+                    t.own_v = 0.0
+                    t.own_var = w_sigma0 * w_sigma0
+                    t.own_rej = 0
                     # a new track's own motion is not known yet: it starts fast and settles
                     # as its readings agree (about six readings)
-                    kwnis[i] = nis_max
+                    t.own_nis = nis_max
                 if np.isfinite(core_dz[i]):
                     y0 = (core_dz[i] - still_dz[i]) / dt
                     rw = r / (dt * dt)
-                    y = y0 - kw[i]
-                    sw = kwp[i] + rw
+                    y = y0 - t.own_v
+                    sw = t.own_var + rw
                     # a running mean over about three readings; one outlier counts as 25 at most
-                    kwnis[i] += 0.3 * (min(y * y / sw, 25.0) - kwnis[i])
+                    t.own_nis += 0.3 * (min(y * y / sw, 25.0) - t.own_nis)
                     if y * y <= gate_k * gate_k * sw:
-                        gain = kwp[i] / sw
-                        kw[i] += gain * y
-                        kwp[i] *= 1.0 - gain
-                        kwrej[i] = 0
+                        gain = t.own_var / sw
+                        t.own_v += gain * y
+                        t.own_var *= 1.0 - gain
+                        t.own_rej = 0
                     else:
-                        kwrej[i] += 1
-                        if kwrej[i] >= 3:
-                            kw[i] = y0
-                            kwp[i] = rw
-                            kwrej[i] = 0
+                        t.own_rej += 1
+                        if t.own_rej >= 3:
+                            t.own_v = y0
+                            t.own_var = rw
+                            t.own_rej = 0
                 # Most of what a camera sees stands still: the own part counts once it is
                 # significant (on 7-Scenes within 25 % + 30 mm/s: 0.80 always, 0.85 so).
-                own = kw[i] if abs(kw[i]) > own_k * np.sqrt(kwp[i]) else 0.0
-                kx[i, 1] = still_dz[i] / dt + own
-                kp[i, 0, 1] = 0.0
-                kp[i, 1, 0] = 0.0
-                kp[i, 1, 1] = kwp[i]
-            if kn[i] >= 2:
-                v_out[i] = kx[i, 1]
-                sig[i] = np.sqrt(kp[i, 1, 1])
-                if v_out[i] < -min_speed and kx[i, 0] > 0:
-                    ttc[i] = kx[i, 0] / -v_out[i]
+                own = t.own_v if abs(t.own_v) > own_k * np.sqrt(t.own_var) else 0.0
+                t.kf_v = still_dz[i] / dt + own
+                t.kf_pzv = 0.0
+                t.kf_pvv = t.own_var
+            if t.kf_n >= 2:
+                v_out[i] = t.kf_v
+                sig[i] = np.sqrt(t.kf_pvv)
+                if v_out[i] < -min_speed and t.kf_z > 0:
+                    ttc[i] = t.kf_z / -v_out[i]
         if not -v_out[i] >= ttc_k * sig[i]:
             ttc[i] = np.nan
     return v_out, ttc, sig
+
+
+@njit(cache=True)
+def keep_tracks(
+    tracks: NDArray[np.void], qt: NDArray[np.float64], qz: NDArray[np.float64], n: int, keep: NDArray[np.bool_]
+) -> int:
+    """Move the first ``n`` tracks where ``keep`` is True, with their queues, to the front in order.
+
+    Returns how many were kept. Compiled because numpy copies records field by field: 27 µs for
+    a hundred tracks, more than the whole step.
+    """
+    k = 0
+    for i in range(n):
+        if keep[i]:
+            if k != i:
+                tracks[k] = tracks[i]
+                qt[k, :] = qt[i, :]
+                qz[k, :] = qz[i, :]
+            k += 1
+    return k

@@ -1,9 +1,9 @@
 """Objects followed across frames: stable identities, radial velocity, time to collision.
 
-The tracker keeps the state of all live tracks in one float array (one row per track, one
-column per attribute) plus two queue arrays, updated in place by a compiled kernel, so that
-an update costs a few calls whatever the number of objects; Python objects are only built
-for what is returned.
+The tracker keeps the state of all live tracks in one record array (one record per track with
+named fields, :data:`~depthgram.dynamics.kernels.TRACK_DTYPE`) plus two queue arrays, updated
+in place by compiled kernels, so that an update costs a few calls whatever the number of
+objects; Python objects are only built for what is returned.
 """
 
 from __future__ import annotations
@@ -29,26 +29,17 @@ from depthgram.dynamics.core import (
     still_depth_change,
 )
 from depthgram.dynamics.kernels import (
-    CX,
-    CY,
-    F_READ,
     FORBIDDEN,
-    HITS,
-    ID,
-    MISSED,
-    NCOL,
-    NFEAT,
+    OBJECT_DTYPE,
+    OBJECT_FIELDS,
     OCCLUDED,
-    STATUS,
-    VX,
-    VY,
-    ZFIT,
     EstimateParams,
     Status,
     StepParams,
-    V,
     estimate,
+    keep_tracks,
     mark_behind,
+    new_tracks,
     predict_cost,
     step,
 )
@@ -148,20 +139,24 @@ def _reads_nearest_part(o: SceneObject) -> bool:
     return o.kind == "compound" and bool(o.parts)
 
 
-def _features(objects: Sequence[SceneObject]) -> NDArray[np.float64]:
-    """(M, 11) array: cx, cy, depth, area, label, x0, y0, x1, y1, behind, read.
+def _features(objects: Sequence[SceneObject]) -> NDArray[np.void]:
+    """Return the objects as the kernels read them: :data:`~depthgram.dynamics.kernels.OBJECT_DTYPE` records.
 
     ``behind`` is 1 where a nearer object (by more than 5 % of depth) touches or overlaps the
     object's box: the paper's partial occlusion (case b), whose area change is not motion and
     whose visible mean depth is biased, so the tracker leaves such frames out of the fit while
-    the visible area changes. ``read`` is 1 where :func:`track_depth` read the nearest part of
-    a compound, 0 where it read the mean depth.
+    the visible area changes. ``read_nearest`` is 1 where :func:`track_depth` read the nearest
+    part of a compound, 0 where it read the mean depth.
     """
+    m = len(objects)
     rows = [(*o.center_xy, track_depth(o), o.area, o.depth_label, *o.bbox_xy) for o in objects]
-    flat = np.fromiter(itertools.chain.from_iterable(rows), np.float64, count=9 * len(rows))
-    f = np.zeros((len(rows), NFEAT))
-    f[:, :9] = flat.reshape(len(rows), 9)
-    f[:, F_READ] = [_reads_nearest_part(o) for o in objects]
+    flat = np.fromiter(itertools.chain.from_iterable(rows), np.float64, count=9 * m)
+    # The record's fields are all float64 and its first nine those of `rows`, in their order:
+    # filled as one block of floats, then seen as records.
+    block = np.zeros((m, len(OBJECT_FIELDS)))
+    block[:, :9] = flat.reshape(m, 9)
+    f = block.view(OBJECT_DTYPE)[:, 0]
+    f["read_nearest"] = [_reads_nearest_part(o) for o in objects]
     mark_behind(f)
     return f
 
@@ -281,17 +276,11 @@ class Tracker:
         self._fps_assumed: float | None = None
         self._fps_warned = False
         self._n = 0
-        self._s = np.zeros((16, NCOL))
-        self._qt = np.zeros((16, n))
-        self._qz = np.zeros((16, n))
-        self._kx = np.full((16, 2), np.nan)  # filter state: depth (mm), radial velocity (mm/s)
-        self._kp = np.zeros((16, 2, 2))  # its covariance
-        self._kn = np.zeros(16, np.int64)  # readings folded in since the filter (re)started
-        self._krej = np.zeros(16, np.int64)  # outliers rejected in a row
-        self._kw = np.full(16, np.nan)  # own radial velocity, the camera's part taken out (mm/s)
-        self._kwp = np.zeros(16)  # its variance
-        self._kwrej = np.zeros(16, np.int64)  # its outliers rejected in a row
-        self._kwnis = np.ones(16)  # running mean of its normalised squared innovations
+        # The first self._n records are the live tracks (kernels.TRACK_FIELDS says what each
+        # field holds), in id order; the rest is room to grow into.
+        self._tracks = new_tracks(16)
+        self._qt = np.zeros((16, n))  # each track's queue: times (s), oldest first
+        self._qz = np.zeros((16, n))  # and depths (mm; NaN: no valid entry)
         self._last: list[SceneObject] = []
         self._motion: list[Motion] = []
         self._pixels: FramePixels | None = None  # the previous frame's, when given
@@ -303,23 +292,31 @@ class Tracker:
     @property
     def tracks(self) -> tuple[Track, ...]:
         """Snapshots of all live tracks (tentative ones included), in id order."""
-        return tuple(self._snapshot(i) for i in range(self._n))
+        return self._snapshots(list(range(self._n)))
 
-    def _snapshot(self, i: int) -> Track:
-        queue = tuple(
-            (float(t), None if not math.isfinite(z) else float(z))
-            for t, z in zip(self._qt[i].tolist(), self._qz[i].tolist(), strict=True)
-        )
-        row = self._s[i]
-        return Track(
-            id=int(row[ID]),
-            hits=int(row[HITS]),
-            missed=int(row[MISSED]),
-            confirmed=bool(row[HITS] >= self.config.min_hits),
-            status=STATUSES[int(row[STATUS])],
-            last=self._last[i],
-            motion=self._motion[i],
-            queue=queue,
+    def _snapshots(self, rows: list[int]) -> tuple[Track, ...]:
+        """Return snapshots of the live tracks at ``rows``."""
+        if not rows:
+            return ()
+        # One list per field: reading a record's fields one by one costs several times more.
+        live = self._tracks[: self._n]
+        ids, hits, missed, status = (live[name].tolist() for name in ("id", "hits", "missed", "status"))
+        min_hits = self.config.min_hits
+        return tuple(
+            Track(
+                id=ids[i],
+                hits=hits[i],
+                missed=missed[i],
+                confirmed=hits[i] >= min_hits,
+                status=STATUSES[status[i]],
+                last=self._last[i],
+                motion=self._motion[i],
+                queue=tuple(
+                    (float(t), None if not math.isfinite(z) else float(z))
+                    for t, z in zip(self._qt[i].tolist(), self._qz[i].tolist(), strict=True)
+                ),
+            )
+            for i in rows
         )
 
     # ------------------------------------------------------------------ update
@@ -446,22 +443,13 @@ class Tracker:
         fps_assumed = self._fps_assumed
         f = _features(objects)
         n, m = self._n, len(objects)
-        if n + m > len(self._s):
-            grow = max(2 * len(self._s), n + m)
-            self._s = np.concatenate([self._s, np.zeros((grow - len(self._s), NCOL))])
-            self._qt = np.concatenate([self._qt, np.zeros((grow - len(self._qt), self._qt.shape[1]))])
-            self._qz = np.concatenate([self._qz, np.zeros((grow - len(self._qz), self._qz.shape[1]))])
-            more = grow - len(self._kx)
-            self._kx = np.concatenate([self._kx, np.full((more, 2), np.nan)])
-            self._kp = np.concatenate([self._kp, np.zeros((more, 2, 2))])
-            self._kn = np.concatenate([self._kn, np.zeros(more, np.int64)])
-            self._krej = np.concatenate([self._krej, np.zeros(more, np.int64)])
-            self._kw = np.concatenate([self._kw, np.full(more, np.nan)])
-            self._kwp = np.concatenate([self._kwp, np.zeros(more)])
-            self._kwrej = np.concatenate([self._kwrej, np.zeros(more, np.int64)])
-            self._kwnis = np.concatenate([self._kwnis, np.ones(more)])
-        s = self._s
-        cost = predict_cost(s, n, f, math.hypot(width, height), t_now, self._dt, self._cost_params)
+        if n + m > len(self._tracks):
+            more = max(2 * len(self._tracks), n + m) - len(self._tracks)
+            self._tracks = np.concatenate([self._tracks, new_tracks(more)])
+            self._qt = np.concatenate([self._qt, np.zeros((more, self._qt.shape[1]))])
+            self._qz = np.concatenate([self._qz, np.zeros((more, self._qz.shape[1]))])
+        tracks = self._tracks
+        cost = predict_cost(tracks, n, f, math.hypot(width, height), t_now, self._dt, self._cost_params)
         if n and m:
             rows, cols = linear_sum_assignment(cost)
         else:
@@ -469,7 +457,7 @@ class Tracker:
         dcore, dstill = self._core_changes(objects, pixels, rows, cols, cost, (width, height))
         params = self._step_params
         obj_row, v_out, ttc, dead, restarted, k, offset = step(
-            s, self._qt, self._qz, n, f, rows, cols, cost, t_now, self._dt,
+            tracks, self._qt, self._qz, n, f, rows, cols, cost, t_now, self._dt,
             float(width), float(height), self._frame == 0, self._next_id, params, dcore,
         )  # fmt: skip
         self._n = n + k
@@ -484,8 +472,9 @@ class Tracker:
         v_out, ttc, v_sig = self._estimate(n, restarted, v_out, ttc, offset, core_row, still_row)
 
         # Python objects only for what is returned.
-        ids_l = s[: self._n, ID].astype(np.int64).tolist()
-        st_l = s[: self._n, STATUS].astype(np.int64).tolist()
+        live = tracks[: self._n]
+        ids_l = live["id"].tolist()
+        st_l = live["status"].tolist()
         v_l = v_out.tolist()
         ttc_l = ttc.tolist()
         sig_l = v_sig.tolist()
@@ -499,9 +488,10 @@ class Tracker:
         for i in missed:
             self._motion[i] = _motion(ids_l[i], v_l[i], ttc_l[i], STATUSES[OCCLUDED], fps_assumed, sig_l[i])
         min_hits = cfg.min_hits
-        hits = s[: self._n, HITS]
-        ended = tuple(self._snapshot(i) for i in missed if dead[i] and hits[i] >= min_hits)
-        occluded = tuple(self._snapshot(i) for i in missed if not dead[i])
+        hits = live["hits"]
+        ended_rows = [i for i in missed if dead[i] and hits[i] >= min_hits]
+        snaps = self._snapshots(ended_rows + [i for i in missed if not dead[i]])
+        ended, occluded = snaps[: len(ended_rows)], snaps[len(ended_rows) :]
         if missed and dead[:n].any():
             self._drop(~dead)
         return TrackUpdate(motions=motions, occluded=occluded, ended=ended)
@@ -542,26 +532,27 @@ class Tracker:
             moved = still_depth_change(pixels, {o.id: o.bbox_xy for o in objects}, camera)
             for c, o in enumerate(objects):
                 still[c] = moved.get(o.id, math.nan)
-        s = self._s
         # Pairs with a track seen in the previous frame: its last object is that frame's segment.
         # The track's own image motion: its centre's move, and its smoothed image velocity,
         # which holds while the outline changes (entering, leaving, partly hidden) (px).
         dt = self._dt
         cfg_border = self.config.border_px
-        pairs = {
-            objects[c].id: (
+        pairs = {}
+        for i, c in zip(rows.tolist(), cols.tolist(), strict=True):
+            t = self._tracks[i]
+            if not (cost[i, c] < FORBIDDEN and t["missed"] == 0):
+                continue
+            o = objects[c]
+            pairs[o.id] = (
                 self._last[i].id,
-                objects[c].bbox_xy,
+                o.bbox_xy,
                 (
-                    (s[i, CX] - objects[c].center_xy[0], s[i, CY] - objects[c].center_xy[1]),
-                    (-s[i, VX] * dt, -s[i, VY] * dt),
-                    *_some(inner_edge_shift(self._last[i].bbox_xy, objects[c].bbox_xy, frame_size, cfg_border)),
+                    (t["cx"] - o.center_xy[0], t["cy"] - o.center_xy[1]),
+                    (-t["vx"] * dt, -t["vy"] * dt),
+                    *_some(inner_edge_shift(self._last[i].bbox_xy, o.bbox_xy, frame_size, cfg_border)),
                 ),
-                _scale(s[i, ZFIT], s[i, V] * dt),
+                _scale(t["z_fit"], t["v"] * dt),
             )
-            for i, c in zip(rows.tolist(), cols.tolist(), strict=True)
-            if cost[i, c] < FORBIDDEN and s[i, MISSED] == 0
-        }
         if not pairs:
             return out, still
         if shift is None:
@@ -601,26 +592,13 @@ class Tracker:
         """
         nn = self._n
         return estimate(
-            self._s[:nn], self._qt[:nn], self._qz[:nn], n, restarted, v_queue, ttc_queue,
-            self._kx[:nn], self._kp[:nn], self._kn[:nn], self._krej[:nn], self._dt, self._estimate_params, offset,
-            core_dz, still_dz, self._kw[:nn], self._kwp[:nn], self._kwrej[:nn], self._kwnis[:nn],
+            self._tracks[:nn], self._qt[:nn], self._qz[:nn], n, restarted, v_queue, ttc_queue,
+            self._dt, self._estimate_params, offset, core_dz, still_dz,
         )  # fmt: skip
 
     def _drop(self, keep: NDArray[np.bool_]) -> None:
-        """Keep only the live rows where ``keep`` is True."""
-        n = self._n
-        k = int(keep.sum())
-        self._kx[:k] = self._kx[:n][keep]
-        self._kp[:k] = self._kp[:n][keep]
-        self._kn[:k] = self._kn[:n][keep]
-        self._krej[:k] = self._krej[:n][keep]
-        self._kw[:k] = self._kw[:n][keep]
-        self._kwp[:k] = self._kwp[:n][keep]
-        self._kwrej[:k] = self._kwrej[:n][keep]
-        self._kwnis[:k] = self._kwnis[:n][keep]
-        self._s[:k] = self._s[:n][keep]
-        self._qt[:k] = self._qt[:n][keep]
-        self._qz[:k] = self._qz[:n][keep]
+        """Keep only the live tracks where ``keep`` is True."""
+        k = keep_tracks(self._tracks, self._qt, self._qz, self._n, keep)
         idx = np.flatnonzero(keep).tolist()
         self._last = [self._last[i] for i in idx]
         self._motion = [self._motion[i] for i in idx]
