@@ -144,30 +144,58 @@ def fit_rows(
     return v, zn
 
 
+# This frame's objects as the kernels read them: one record each, all float64, so that the
+# tracker fills them as one float block (depthgram.dynamics.tracker._features).
+OBJECT_FIELDS: tuple[tuple[str, str], ...] = (
+    ("cx", "centre x (px)"),
+    ("cy", "centre y (px)"),
+    ("z", "depth (mm; tracker.track_depth)"),
+    ("area", "area (px)"),
+    ("label", "depth label"),
+    ("x0", "bbox, half-open (px)"),
+    ("y0", "bbox (px)"),
+    ("x1", "bbox (px)"),
+    ("y1", "bbox (px)"),
+    ("behind", "1 where a nearer object touches or overlaps it (mark_behind), else 0"),
+    ("read_nearest", "1 where its depth is a compound's nearest part, 0 its mean depth"),
+)
+OBJECT_DTYPE = np.dtype([(name, np.float64) for name, _ in OBJECT_FIELDS])
+
+
+# Each track's prediction for this frame, as the matching cost reads it (:func:`cost_kernel`).
+PREDICTION_FIELDS: tuple[tuple[str, str], ...] = (
+    ("cx", "predicted centre x (px)"),
+    ("cy", "predicted centre y (px)"),
+    ("sx", "predicted centre of the part last seen, x (px); cx while the whole object was in view"),
+    ("sy", "predicted centre of the part last seen, y (px)"),
+    ("z", "predicted depth (mm)"),
+    ("area", "area as last seen (px)"),
+    ("x0", "predicted bbox, half-open (px)"),
+    ("y0", "predicted bbox (px)"),
+    ("x1", "predicted bbox (px)"),
+    ("y1", "predicted bbox (px)"),
+    ("label", "depth label as last seen"),
+    ("elapsed", "time since the last detection (s)"),
+)
+PREDICTION_DTYPE = np.dtype([(name, np.float64) for name, _ in PREDICTION_FIELDS])
+
+
 @njit(cache=True)
 def cost_kernel(
-    tc: NDArray[np.float64],
-    tc_seen: NDArray[np.float64],
-    tz: NDArray[np.float64],
-    ta: NDArray[np.float64],
-    tb: NDArray[np.float64],
-    tl: NDArray[np.float64],
-    te: NDArray[np.float64],
-    oc: NDArray[np.float64],
-    oz: NDArray[np.float64],
-    oa: NDArray[np.float64],
-    ob: NDArray[np.float64],
-    ol: NDArray[np.float64],
+    pred: NDArray[np.void],
+    objs: NDArray[np.void],
     diagonal_px: float,
     dt: float,
     params: CostParams,
 ) -> NDArray[np.float64]:
-    """Compiled body of :func:`match_cost`; ``params`` from :func:`cost_params`.
+    """Compiled body of :func:`match_cost`: the cost of each track's prediction against each object.
 
-    ``te`` is each track's time since its last detection and ``dt`` this frame's step (s):
-    the gates are rates, so they admit the same physical motion at any frame rate. ``tc_seen``
-    is the predicted centre of the part last seen, which differs from ``tc`` while an object
-    is partly hidden; the nearer of the two counts.
+    ``pred`` are :data:`PREDICTION_DTYPE` records, ``objs`` :data:`OBJECT_DTYPE` records (of
+    which ``behind`` and ``read_nearest`` are not read), ``params`` from :func:`cost_params`.
+    ``elapsed`` is each track's time since its last detection and ``dt`` this frame's step
+    (s): the gates are rates, so they admit the same physical motion at any frame rate. The
+    predicted centre of the part last seen (``sx``, ``sy``) differs from the centre while an
+    object is partly hidden; the nearer of the two counts.
 
     Hand-written loops because the tracker calls it every frame on matrices of a few dozen
     entries, where numpy's per-call overhead of some twenty array expressions would cost
@@ -179,40 +207,42 @@ def cost_kernel(
     log_ratio = params.log_max_area_ratio
     min_iou = params.min_iou
     w_c, w_z, w_a, w_iou, w_label = params.w_center, params.w_depth, params.w_area, params.w_iou, params.w_label
-    nt = tc.shape[0]
-    no = oc.shape[0]
+    nt = pred.shape[0]
+    no = objs.shape[0]
     cost = np.empty((nt, no))
     for i in range(nt):
-        r = center_rate * dt * diagonal_px * (1.0 + growth * max(te[i] - dt, 0.0))
-        zg = tz[i] * dz_rate * max(te[i], dt)
-        area_t = max(ta[i], 1.0)
-        bt_area = (tb[i, 2] - tb[i, 0]) * (tb[i, 3] - tb[i, 1])
+        t = pred[i]
+        r = center_rate * dt * diagonal_px * (1.0 + growth * max(t.elapsed - dt, 0.0))
+        zg = t.z * dz_rate * max(t.elapsed, dt)
+        area_t = max(t.area, 1.0)
+        bt_area = (t.x1 - t.x0) * (t.y1 - t.y0)
         for j in range(no):
+            o = objs[j]
             cost[i, j] = FORBIDDEN
             # Cheapest gates first: most pairs are far apart and need no log or sqrt.
-            dx = tc[i, 0] - oc[j, 0]
-            dy = tc[i, 1] - oc[j, 1]
-            sx = tc_seen[i, 0] - oc[j, 0]
-            sy = tc_seen[i, 1] - oc[j, 1]
+            dx = t.cx - o.cx
+            dy = t.cy - o.cy
+            sx = t.sx - o.cx
+            sy = t.sy - o.cy
             d2 = min(dx * dx + dy * dy, sx * sx + sy * sy)
             if not d2 <= r * r:
                 continue
-            dz = abs(oz[j] - tz[i]) / zg
+            dz = abs(o.z - t.z) / zg
             # NaN depth (no valid pixel) fails the depth gate: comparisons with NaN are False.
             if not dz <= 1.0:
                 continue
-            da = abs(np.log(max(oa[j], 1.0) / area_t)) / log_ratio
+            da = abs(np.log(max(o.area, 1.0) / area_t)) / log_ratio
             if not da <= 1.0:
                 continue
-            ix = min(tb[i, 2], ob[j, 2]) - max(tb[i, 0], ob[j, 0])
-            iy = min(tb[i, 3], ob[j, 3]) - max(tb[i, 1], ob[j, 1])
+            ix = min(t.x1, o.x1) - max(t.x0, o.x0)
+            iy = min(t.y1, o.y1) - max(t.y0, o.y0)
             inter = max(ix, 0.0) * max(iy, 0.0)
-            bo_area = (ob[j, 2] - ob[j, 0]) * (ob[j, 3] - ob[j, 1])
+            bo_area = (o.x1 - o.x0) * (o.y1 - o.y0)
             iou = inter / max(bt_area + bo_area - inter, 1.0)
             if iou < min_iou:
                 continue
             c = w_c * np.sqrt(d2) / r + w_z * dz + w_a * da + w_iou * (1.0 - iou)
-            if tl[i] != ol[j]:
+            if t.label != o.label:
                 c += w_label
             cost[i, j] = c
     return cost
@@ -271,24 +301,6 @@ def new_tracks(n: int) -> NDArray[np.void]:
     return t
 
 
-# This frame's objects as the kernels read them: one record each, all float64, so that the
-# tracker fills them as one float block (depthgram.dynamics.tracker._features).
-OBJECT_FIELDS: tuple[tuple[str, str], ...] = (
-    ("cx", "centre x (px)"),
-    ("cy", "centre y (px)"),
-    ("z", "depth (mm; tracker.track_depth)"),
-    ("area", "area (px)"),
-    ("label", "depth label"),
-    ("x0", "bbox, half-open (px)"),
-    ("y0", "bbox (px)"),
-    ("x1", "bbox (px)"),
-    ("y1", "bbox (px)"),
-    ("behind", "1 where a nearer object touches or overlaps it (mark_behind), else 0"),
-    ("read_nearest", "1 where its depth is a compound's nearest part, 0 its mean depth"),
-)
-OBJECT_DTYPE = np.dtype([(name, np.float64) for name, _ in OBJECT_FIELDS])
-
-
 @njit(cache=True)
 def mark_behind(objs: NDArray[np.void]) -> None:
     """Set field ``behind`` of each object that a nearer object touches or overlaps.
@@ -322,55 +334,33 @@ def predict_cost(
     p: CostParams,
 ) -> NDArray[np.float64]:
     """Predict each of the first ``n`` tracks forward by the time since its last detection, then cost all pairs."""
-    pc = np.empty((n, 2))
-    po = np.empty((n, 2))
-    pb = np.empty((n, 4))
-    pz = np.empty(n)
-    te = np.empty(n)
-    ta = np.empty(n)
-    tl = np.empty(n)
+    pred = np.empty(n, PREDICTION_DTYPE)
     for i in range(n):
         t = tracks[i]
+        q = pred[i]
         el = t_now - t.t_seen
-        te[i] = el
+        q.elapsed = el
         dx = t.vx * el
         dy = t.vy * el
-        pc[i, 0] = t.cx + dx
-        pc[i, 1] = t.cy + dy
-        po[i, 0] = t.ox + dx
-        po[i, 1] = t.oy + dy
-        pb[i, 0] = t.x0 + dx
-        pb[i, 1] = t.y0 + dy
-        pb[i, 2] = t.x1 + dx
-        pb[i, 3] = t.y1 + dy
+        q.cx = t.cx + dx
+        q.cy = t.cy + dy
+        q.sx = t.ox + dx
+        q.sy = t.oy + dy
+        q.x0 = t.x0 + dx
+        q.y0 = t.y0 + dy
+        q.x1 = t.x1 + dx
+        q.y1 = t.y1 + dy
         if t.status == ENTERING or t.status == LEAVING:
             # The fit skips border frames, so it is stale there, while the mean depth of the
             # visible part drifts as the object crosses the border (a cylinder's flank is
             # deeper than its middle): the last observed depth is the better guess.
-            pz[i] = t.depth
+            q.z = t.depth
         else:
             v = t.v if np.isfinite(t.v) else 0.0
-            pz[i] = t.z_fit + v * el
-        ta[i] = t.area
-        tl[i] = t.label
-    m = objs.shape[0]
-    oc = np.empty((m, 2))
-    ob = np.empty((m, 4))
-    oz = np.empty(m)
-    oa = np.empty(m)
-    ol = np.empty(m)
-    for j in range(m):
-        o = objs[j]
-        oc[j, 0] = o.cx
-        oc[j, 1] = o.cy
-        oz[j] = o.z
-        oa[j] = o.area
-        ol[j] = o.label
-        ob[j, 0] = o.x0
-        ob[j, 1] = o.y0
-        ob[j, 2] = o.x1
-        ob[j, 3] = o.y1
-    return cost_kernel(pc, po, pz, ta, pb, tl, te, oc, oz, oa, ob, ol, diagonal_px, dt, p)
+            q.z = t.z_fit + v * el
+        q.area = t.area
+        q.label = t.label
+    return cost_kernel(pred, objs, diagonal_px, dt, p)
 
 
 @njit(cache=True)

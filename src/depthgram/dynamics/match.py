@@ -15,7 +15,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import linear_sum_assignment
 
 from depthgram.dynamics.config import TrackerConfig
-from depthgram.dynamics.kernels import FORBIDDEN, CostParams, cost_kernel
+from depthgram.dynamics.kernels import FORBIDDEN, OBJECT_DTYPE, PREDICTION_DTYPE, CostParams, cost_kernel
 
 __all__ = ["FORBIDDEN", "CostParams", "assign", "bbox_iou", "cost_kernel", "cost_params", "match_cost"]
 
@@ -111,17 +111,23 @@ def match_cost(
     """
 
     def f(a: ArrayLike, shape: tuple[int, ...]) -> NDArray[np.float64]:
-        return np.ascontiguousarray(np.asarray(a, dtype=np.float64).reshape(shape))
+        return np.asarray(a, dtype=np.float64).reshape(shape)
 
     nt = np.asarray(track_depth).size
     no = np.asarray(obj_depth).size
+    pred = np.zeros(nt, PREDICTION_DTYPE)
     center = f(track_center, (nt, 2))
-    return cost_kernel(
-        center, center, f(track_depth, (nt,)), f(track_area, (nt,)), f(track_bbox, (nt, 4)),
-        f(track_label, (nt,)), f(track_elapsed_s, (nt,)),
-        f(obj_center, (no, 2)), f(obj_depth, (no,)), f(obj_area, (no,)), f(obj_bbox, (no, 4)),
-        f(obj_label, (no,)), float(diagonal_px), float(dt_s), cost_params(config),
-    )  # fmt: skip
+    pred["cx"], pred["cy"] = center[:, 0], center[:, 1]
+    pred["sx"], pred["sy"] = center[:, 0], center[:, 1]
+    pred["x0"], pred["y0"], pred["x1"], pred["y1"] = f(track_bbox, (nt, 4)).T
+    pred["z"], pred["area"] = f(track_depth, (nt,)), f(track_area, (nt,))
+    pred["label"], pred["elapsed"] = f(track_label, (nt,)), f(track_elapsed_s, (nt,))
+    objs = np.zeros(no, OBJECT_DTYPE)
+    center = f(obj_center, (no, 2))
+    objs["cx"], objs["cy"] = center[:, 0], center[:, 1]
+    objs["x0"], objs["y0"], objs["x1"], objs["y1"] = f(obj_bbox, (no, 4)).T
+    objs["z"], objs["area"], objs["label"] = f(obj_depth, (no,)), f(obj_area, (no,)), f(obj_label, (no,))
+    return cost_kernel(pred, objs, float(diagonal_px), float(dt_s), cost_params(config))
 
 
 def assign(cost: NDArray[np.float64]) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
