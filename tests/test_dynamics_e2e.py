@@ -7,8 +7,10 @@ import pytest
 
 from depthgram.dynamics import evaluate_tracking
 from depthgram.dynamics.evaluate import objects_from_labels, primary_segments
-
-pytest.importorskip("depthgram.sensor")
+from depthgram.sensor import scenes
+from depthgram.sensor.geometry import Body, Camera, Ellipsoid, Linear, Plane
+from depthgram.sensor.scenes import FLOOR, SceneSpec
+from depthgram.sensor.tof import ToFConfig
 
 
 def test_approach_velocity_within_target_and_no_switch() -> None:
@@ -82,3 +84,32 @@ def test_cart_keeps_one_id_from_entering_to_leaving_with_segmentation() -> None:
     assert len(cart.track_ids) == 1, cart.track_ids
     assert score.id_switches == 0
     assert score.within(0.05, 60.0) >= 0.9
+
+
+def _passing_balls(w: int, h: int) -> SceneSpec:
+    """A near ball closing at 300 mm/s while a far ball passes behind it at 700 mm/s, sideways."""
+    cam = Camera(w, h, position=(0.0, 1000.0, 0.0), pitch_deg=0.0)
+    near = Ellipsoid((0.0, 1000.0, 1600.0), (120.0,) * 3)
+    far = Ellipsoid((-700.0, 1000.0, 1900.0), (120.0,) * 3)  # its front 180 mm behind the near one's at t = 0
+    bodies = (
+        Body(1, "floor", "floor", (FLOOR,), 0.5),
+        Body(2, "back_wall", "wall", (Plane((0.0, 0.0, 3000.0), (0.0, 0.0, -1.0)),), 0.7),
+        Body(3, "near", "object", (near,), 0.7, Linear(v=(0.0, 0.0, -300.0)), parent=1),
+        Body(4, "far", "object", (far,), 0.6, Linear(v=(700.0, 0.0, 0.0)), parent=1),
+    )
+    return SceneSpec("passing_balls", cam, bodies, ToFConfig())
+
+
+def test_two_balls_touching_in_the_image_come_apart_with_their_ids(monkeypatch: pytest.MonkeyPatch) -> None:
+    # Issue 13, item 4: the far ball slides behind the near one (they touch and overlap in the
+    # image for about a second) and comes out on the other side. Both keep one id throughout;
+    # the near ball's closing speed stays right while its neighbour drags on its outline.
+    monkeypatch.setitem(scenes._BUILDERS, "passing_balls", _passing_balls)
+    score = evaluate_tracking("passing_balls", 60, seed=1)
+    balls = {b.name: b for b in score.bodies}
+    near, far = balls["near"], balls["far"]
+    assert near.tracked_frames == near.visible_frames == 60 and len(near.track_ids) == 1
+    assert far.tracked_frames == far.visible_frames and len(far.track_ids) == 1
+    assert score.id_switches == 0
+    err, truth = np.abs(np.array(near.v_errors)), np.abs(np.array(near.v_truth))
+    assert len(err) >= 50 and np.mean(err <= np.maximum(0.05 * truth, 60.0)) >= 0.95  # measured 1.00
