@@ -179,7 +179,8 @@ def _camera_to_world(pos: Vec, pitch_deg: float) -> NDArray[np.float64]:
     return m
 
 
-def test_a_swaying_camera_reads_still_and_moving_objects_without_lag() -> None:
+@pytest.mark.parametrize("fps", [15.0, 30.0, 60.0])
+def test_a_swaying_camera_reads_still_and_moving_objects_without_lag(fps: float) -> None:
     # The table scene and a ball flying at the camera at 800 mm/s, seen from a camera swaying
     # back and forth: every static object's radial velocity swings by +-470 mm/s with the
     # camera, the ball's is the sum of both. Truth over the same interval as the reading (the
@@ -191,7 +192,7 @@ def test_a_swaying_camera_reads_still_and_moving_objects_without_lag() -> None:
     from depthgram.dynamics.evaluate import objects_from_labels, radial_velocity_from_poses
     from depthgram.sensor.geometry import Body, Ellipsoid, Linear
 
-    fps, n = 30.0, 32
+    n = round(32 * fps / 30)  # about a second
     ball = Body(
         8, "ball", "object", (Ellipsoid((250.0, 900.0, 1900.0), (90.0, 90.0, 90.0)),), 0.6, Linear(v=(0.0, 0.0, -800.0))
     )
@@ -223,6 +224,8 @@ def test_a_swaying_camera_reads_still_and_moving_objects_without_lag() -> None:
                 ball_err.append(v - truth[8])
             else:
                 still_ok.append(abs(v - truth[oid]) <= 0.1 * abs(truth[oid]) + 30.0)
-    assert len(still_ok) >= 150 and len(ball_err) == n - 3
-    assert np.mean(still_ok) >= 0.9  # measured 0.93
-    assert np.median(np.abs(ball_err)) < 30.0  # mm/s of about 850; measured 19
+    assert len(still_ok) >= 5 * (n - 3) and len(ball_err) == n - 3
+    # measured 0.93, 0.95, 0.89 at 15, 30, 60 frames/s (at 60 the depth noise is read twice as
+    # often, at 15 the ICP sees 31 mm steps)
+    assert np.mean(still_ok) >= 0.85
+    assert np.median(np.abs(ball_err)) < 30.0  # mm/s of about 850; measured 22, 19, 14

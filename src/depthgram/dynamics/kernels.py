@@ -97,6 +97,10 @@ class EstimateParams(NamedTuple):
     own_min_sigmas: float  # sigmas from standing still at which an own velocity counts
 
 
+#: Time constant of the running mean of the own-motion filter's normalised squared innovations (s).
+OWN_NIS_TAU_S = 0.1
+
+
 @njit(cache=True)
 def fit_row(t: NDArray[np.float64], z: NDArray[np.float64], t_now: float) -> tuple[float, float]:
     """Least-squares slope and fitted depth at ``t_now`` of one queue (see :func:`fit_radial_velocity`).
@@ -705,6 +709,9 @@ def estimate(
     nis_max = (accel / p.own_accel_sigma) ** 2 if p.own_accel_sigma > 0 else 1.0
     w_sigma0 = p.own_v_sigma0
     own_k = p.own_min_sigmas
+    # the running mean's weight of a new reading: a time constant, so that it spans the same
+    # time at any frame rate (0.28 at 30 frames/s, about three readings)
+    nis_w = 1.0 - np.exp(-dt / OWN_NIS_TAU_S)
     nn = tracks.shape[0]
     nq = qz.shape[1]
     v_out = np.full(nn, np.nan)
@@ -797,8 +804,8 @@ def estimate(
                     rw = r / (dt * dt)
                     y = y0 - t.own_v
                     sw = t.own_var + rw
-                    # a running mean over about three readings; one outlier counts as 25 at most
-                    t.own_nis += 0.3 * (min(y * y / sw, 25.0) - t.own_nis)
+                    # one outlier counts as 25 at most
+                    t.own_nis += nis_w * (min(y * y / sw, 25.0) - t.own_nis)
                     if y * y <= gate_k * gate_k * sw:
                         gain = t.own_var / sw
                         t.own_v += gain * y
