@@ -424,3 +424,30 @@ def test_keep_tracks_moves_the_kept_records_and_their_queues_to_the_front_in_ord
     np.testing.assert_array_equal(qt[:4], want_qt)
     np.testing.assert_array_equal(qz[:4], want_qz)
     assert tracks["id"][6:].tolist() == [7, 8]  # beyond the live tracks: untouched
+
+
+@pytest.mark.parametrize("estimator", ["queue", "kalman"])
+def test_track_records_hold_what_their_fields_say(estimator: str) -> None:
+    from depthgram.dynamics.kernels import TRACK_DTYPE, TRACK_FIELDS, Status
+
+    assert TRACK_DTYPE.names == tuple(name for name, _, _ in TRACK_FIELDS)
+    # a box sliding right at 3 px per frame (90 px/s) and closing at 300 mm/s, noise-free
+    tr = Tracker(TrackerConfig(estimator=estimator))
+    frames = 10
+    objs = [box(7, 200 + 3 * k, 240, 60, 60, 2000.0 - 300.0 * k / FPS, depth_label=2) for k in range(frames)]
+    for k, o in enumerate(objs):
+        tr.update([o], k / FPS, (W, H))
+    last = objs[-1]
+    t = tr._tracks[0]
+    assert (t["id"], t["hits"], t["missed"], t["status"], t["label"]) == (1, frames, 0, Status.VISIBLE, 2)
+    assert (t["cx"], t["cy"]) == last.center_xy == (t["ox"], t["oy"])
+    assert (t["x0"], t["y0"], t["x1"], t["y1"]) == last.bbox_xy
+    assert t["vx"] == pytest.approx(90.0, rel=1e-6) and t["vy"] == 0.0
+    assert t["depth"] == last.depth and t["area"] == last.area and t["t_seen"] == (frames - 1) / FPS
+    assert t["z_fit"] == pytest.approx(last.depth, abs=1e-6) and t["v"] == pytest.approx(-300.0, rel=1e-6)
+    assert not t["read_nearest"]
+    if estimator == "kalman":
+        assert t["kf_v"] == pytest.approx(-300.0, rel=0.02) and t["kf_z"] == pytest.approx(last.depth, abs=1.0)
+        assert t["kf_n"] == frames and t["kf_rej"] == 0 and t["kf_pvv"] > 0
+    np.testing.assert_allclose(tr._qt[0], [k / FPS for k in range(frames - 4, frames)])
+    np.testing.assert_allclose(tr._qz[0], [o.depth for o in objs[-4:]])

@@ -36,7 +36,7 @@ from depthgram.segmentation.planes import (
     sample_points,
 )
 from depthgram.segmentation.region import region_grow
-from depthgram.segmentation.sensor import SensorModel, estimate_sensor, sensor_model
+from depthgram.segmentation.sensor import SensorModel, _median, estimate_sensor, sensor_model
 from depthgram.segmentation.slices import (
     _merge_rows,
     add_through,
@@ -255,7 +255,8 @@ def _surface_objects(
         max_px=4 * r + 1,
     )
     mean = sums[:, SUM_Z] / np.maximum(sums[:, COUNT], 1.0)
-    step = t0 + t2 * float(np.median(mean[1:])) ** 2 if n else t0
+    # np.median's value, compiled (the numpy call cost more than the selection here)
+    step = t0 + t2 * _median(mean[1:].copy()) ** 2 if n else t0
     joined = merge_openings(labels, depth, boxes, mean, focal_px=cam.fx, ring_px=2 * r, jump_mm=4.0 * step)
     if joined is not None:
         labels = relabel(labels, joined)

@@ -14,7 +14,6 @@ touches it at the same depth.
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import Any
 
 import numpy as np
 from numba import njit
@@ -213,7 +212,10 @@ def add_through(
     they cover more than the frame.
     """
     _add_through(
-        labels, np.ascontiguousarray(more, np.int32), np.ascontiguousarray(lut, np.int32), _cover(boxes, labels)
+        labels,
+        np.ascontiguousarray(more, np.int32),
+        np.ascontiguousarray(lut, np.int32),
+        np.ascontiguousarray(boxes, np.int64).reshape(-1, 4),
     )
 
 
@@ -222,6 +224,7 @@ def _add_through(
     labels: NDArray[np.int32], more: NDArray[np.int32], lut: NDArray[np.int32], boxes: NDArray[np.int64]
 ) -> None:
     # boxes may overlap: a pixel read twice is written the same value twice
+    boxes = _cover(boxes, labels.shape[0], labels.shape[1])
     for k in range(boxes.shape[0]):
         for y in range(boxes[k, 1], boxes[k, 3] + 1):
             src = more[y]
@@ -232,12 +235,21 @@ def _add_through(
                 dst[ux] = v if v else dst[ux]
 
 
-def _cover(boxes: NDArray[np.int64], image: NDArray[Any]) -> NDArray[np.int64]:
-    """``boxes`` (k, 4, inclusive), or the whole frame as one box when they cover more than it."""
-    h, w = image.shape
-    b = np.ascontiguousarray(boxes, np.int64).reshape(-1, 4)
-    area = int(((b[:, 2] - b[:, 0] + 1).clip(0) * (b[:, 3] - b[:, 1] + 1).clip(0)).sum())
-    return np.array([[0, 0, w - 1, h - 1]], np.int64) if area >= h * w else b
+@njit(cache=True, inline="always")
+def _cover(boxes: NDArray[np.int64], h: int, w: int) -> NDArray[np.int64]:
+    # the boxes (k, 4, inclusive), or the whole frame as one box when they cover more than it
+    # (taken inside the kernels: numpy's few calls on a few boxes cost more on small frames)
+    area = 0
+    for k in range(boxes.shape[0]):
+        area += max(boxes[k, 2] - boxes[k, 0] + 1, 0) * max(boxes[k, 3] - boxes[k, 1] + 1, 0)
+    if area < h * w:
+        return boxes
+    whole = np.empty((1, 4), np.int64)
+    whole[0, 0] = 0
+    whole[0, 1] = 0
+    whole[0, 2] = w - 1
+    whole[0, 3] = h - 1
+    return whole
 
 
 def drop_classes(
@@ -256,7 +268,12 @@ def drop_classes(
     supports' boxes): only they are read, unless they cover more than the frame.
     """
     _drop_classes(
-        labels, np.ascontiguousarray(through, np.int32), int(base), classes, np.int8(to_class), _cover(boxes, labels)
+        labels,
+        np.ascontiguousarray(through, np.int32),
+        int(base),
+        classes,
+        np.int8(to_class),
+        np.ascontiguousarray(boxes, np.int64).reshape(-1, 4),
     )
 
 
@@ -270,6 +287,7 @@ def _drop_classes(
     boxes: NDArray[np.int64],
 ) -> None:
     n = through.size - 1
+    boxes = _cover(boxes, labels.shape[0], labels.shape[1])
     for k in range(boxes.shape[0]):
         for y in range(boxes[k, 1], boxes[k, 3] + 1):
             for x in range(boxes[k, 0], boxes[k, 2] + 1):
