@@ -102,3 +102,24 @@ def test_core_depth_change_follows_the_posed_truth_better_than_the_mean(shared_d
     kinds, kinds_shift = camera["by_kind"], shift["by_kind"]
     assert isinstance(kinds, dict) and isinstance(kinds_shift, dict)
     assert kinds["wall"][0] >= kinds_shift["wall"][0] + 0.1 and kinds["floor"][0] >= kinds_shift["floor"][0] + 0.05
+
+
+def test_seven_scenes_meets_the_range_flow_target_and_raises_no_false_alarm(shared_data: Path) -> None:
+    # Issue 13's target on the whole recording: 300 frames of a still kitchen seen by a hand-held
+    # Kinect, objects of at least 1 % of the frame from the third frame of each track, within
+    # 25 % + 30 mm/s of the poses' truth in at least 80 % of readings (measured 0.848; 0.723
+    # before the camera's part of each velocity was read afresh each frame). The camera moves
+    # at 0.5 m/s at most: one core read across two surfaces once gave -5.2 m/s and a collision
+    # 0.4 s away; the largest reading is now 652 mm/s.
+    from benchmarks.bench_tracking import real_rows, truth_rows
+
+    if not (shared_data / "7scenes_redkitchen_seq" / "pose").is_dir():
+        pytest.skip("7scenes_redkitchen_seq with poses not found")
+    rows = truth_rows(300, image_motions=("camera",))
+    speeds = real_rows(300)
+    assert rows is not None and speeds is not None
+    camera = rows["core/camera"]
+    assert camera["within"] >= 0.8
+    assert camera["err_p95"] < 120.0  # mm/s; measured 83
+    assert camera["z_within_2sigma"] >= 0.95  # v_sigma holds the error; measured 0.987
+    assert speeds["max"] < 1000.0 and speeds["over_1m_s"] == 0.0
