@@ -867,11 +867,19 @@ def test_load_rare_kernels_loads_the_kernels_of_the_rare_branches() -> None:
     from depthgram.segmentation.core import load_rare_kernels
     from depthgram.segmentation.label import keyed, stats
     from depthgram.segmentation.label.unionfind import resolve_tables
-    from depthgram.segmentation.slices import _class_state, _merge_rows
+    from depthgram.segmentation.slices import _class_state, _drop_classes, _merge_rows
     from depthgram.sensor import simulate
 
     load_rare_kernels()
-    kernels = (keyed._label_runs, keyed._relabel_planes, resolve_tables, _class_state, _merge_rows, stats._stats)
+    kernels = (
+        keyed._label_runs,
+        keyed._relabel_planes,
+        resolve_tables,
+        _class_state,
+        _merge_rows,
+        _drop_classes,
+        stats._stats,
+    )
     before = [len(k.signatures) for k in kernels]
     assert all(before)
     for scene in ("table", "corridor"):

@@ -142,7 +142,7 @@ def load_rare_kernels() -> None:
 
     The first frame of a stream loads the kernels its own branches take; one taking a branch
     the first frames did not (a support labelled again after pixels near its plane joined it,
-    coplanar pieces joined, the statistics after merged openings) loaded or compiled its
+    coplanar pieces joined, small pieces dropped, the statistics after merged openings) loaded or compiled its
     kernels in the middle of the stream (470 ms on a fresh install). A real-time caller runs
     this before the stream, after a first frame (``Pipeline.warm_up``).
     """
@@ -152,6 +152,10 @@ def load_rare_kernels() -> None:
     cam = default_intrinsics(z.shape)
     # a class labelled alone (its near pixels joined): labeller state, labeller, tables, planes
     support_pieces_lazy(z, ok, classes, HORIZONTAL, cam, jump_rel=0.05, bridge=2, min_fit_px=1)
+    # small or flat pieces dropped back to the facing class
+    drop_classes(
+        np.zeros((2, 2), np.int32), np.zeros(1, np.int32), 0, classes.copy(), FACING, np.zeros((0, 4), np.int64)
+    )
     # coplanar pieces joined: their rows added
     rows = np.zeros((3, N_COLUMNS), np.float64)
     _merge_rows(np.array([0, 1, 1], np.int32), 1, rows, np.zeros((3, 9), np.float64), np.zeros((3, 4), np.int64))
