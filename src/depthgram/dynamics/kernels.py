@@ -791,17 +791,29 @@ def estimate(
                     # reasons the own motion does not model (the simulator's cart entering)
                     t.own_nis = nis_max
                 t.own_var += qw * qw * min(max(t.own_nis, 1.0), nis_max)
+            extra = 0.0  # variance v_sigma adds for an own velocity not yet counted
             if t.missed == 0 and np.isfinite(still_dz[i]):
+                # Entering or leaving, the visible part changes at the image's edge and its
+                # readings with it, for reasons no motion models (the simulator's cart read
+                # -2.7 m/s entering the view sideways): they are left out of the own motion.
+                edge = t.status == ENTERING or t.status == LEAVING
                 if not np.isfinite(t.own_v):
-                    # most of what a camera sees stands still: no own motion until read
-                    t.own_v = 0.0
-                    t.own_var = w_sigma0 * w_sigma0
                     t.own_rej = 0
-                    t.own_n = 0
+                    if t.kf_n >= 2 and np.isfinite(t.kf_v) and not edge:
+                        # the velocity the depth filter knew so far, less the camera's part
+                        # now (a camera found moving after standing still)
+                        t.own_v = t.kf_v - still_dz[i] / dt
+                        t.own_var = t.kf_pvv
+                        t.own_n = 2
+                    else:
+                        # most of what a camera sees stands still: no own motion until read
+                        t.own_v = 0.0
+                        t.own_var = w_sigma0 * w_sigma0
+                        t.own_n = 0
                     # a new track's own motion is not known yet: it starts fast and settles
                     # as its readings agree (about six readings)
                     t.own_nis = nis_max
-                if np.isfinite(core_dz[i]):
+                if np.isfinite(core_dz[i]) and not edge:
                     y0 = (core_dz[i] - still_dz[i]) / dt
                     rw = r / (dt * dt)
                     y = y0 - t.own_v
@@ -829,10 +841,12 @@ def estimate(
                 counts = t.own_n >= 2 and abs(t.own_v) > own_k * np.sqrt(t.own_var)
                 t.kf_v = still_dz[i] / dt + (t.own_v if counts else 0.0)
                 t.kf_pzv = 0.0
-                t.kf_pvv = t.own_var if counts else t.own_var + t.own_v * t.own_v
+                t.kf_pvv = t.own_var
+                if not counts:
+                    extra = t.own_v * t.own_v
             if t.kf_n >= 2:
                 v_out[i] = t.kf_v
-                sig[i] = np.sqrt(t.kf_pvv)
+                sig[i] = np.sqrt(t.kf_pvv + extra)
                 if v_out[i] < -min_speed and t.kf_z > 0:
                     ttc[i] = t.kf_z / -v_out[i]
         if not -v_out[i] >= ttc_k * sig[i]:
