@@ -30,7 +30,8 @@ from depthgram.frame import Frame, Intrinsics
 from depthgram.scene import TreeConfig, build_tree, to_sentence, tree_to_dict
 from depthgram.scene.tree import Motion, SceneTree
 from depthgram.segmentation import SegmentConfig, segment
-from depthgram.segmentation.label import label_stats_fused, relabel
+from depthgram.segmentation.core import load_rare_kernels
+from depthgram.segmentation.label import relabel
 from depthgram.segmentation.objects import SceneObject, Segmentation
 from depthgram.segmentation.sensor import SensorModel, estimate_sensor
 from depthgram.sound import SoundMapping
@@ -391,11 +392,9 @@ class Pipeline:
             for k in range(throwaway._tracker.config.max_missed + 2):
                 t = None if later is None else later + (k + 1) / 30.0
                 throwaway._tracker.update((), t, frame.size)
-        # A kernel that only a rare branch reaches (the statistics after merged openings) was
-        # compiled, on a fresh install, at the first frame taking that branch: 470 ms in the
-        # middle of a 7-Scenes stream and 13 frames dropped. Called once here on a 2 x 2 frame.
-        z = np.zeros((2, 2), np.float32)
-        label_stats_fused(np.zeros((2, 2), np.int32), 0, z, z)
+        # Kernels that only rare branches of the segmentation reach compiled, on a fresh install,
+        # at the first frame taking them: 470 ms in the middle of a 7-Scenes stream.
+        load_rare_kernels()
         return time.perf_counter() - t0
 
     def process(self, frame: Frame) -> SceneResult:

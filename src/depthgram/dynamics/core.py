@@ -280,6 +280,44 @@ _ICP_PASSES = ((4, 6), (2, 3), (1, 2))
 _ICP_PRIOR = 1e-3
 
 
+@njit(cache=True, nogil=True)
+def _normal_equations(
+    qx: NDArray[np.float32],
+    qy: NDArray[np.float32],
+    qz: NDArray[np.float32],
+    nx: NDArray[np.float32],
+    ny: NDArray[np.float32],
+    nz: NDArray[np.float32],
+    r: NDArray[np.float32],
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """``J^T J`` and ``J^T r`` of the point-to-plane ICP, J's rows ``(q x n, n)``.
+
+    Summed in one sequential pass: BLAS's ``jac.T @ jac`` sums in an order that depends on its
+    buffers' alignment, which changed the ICP's motion in its seventh digit from run to run.
+    """
+    ata = np.zeros((6, 6))
+    atr = np.zeros(6)
+    row = np.empty(6)
+    for k in range(qx.shape[0]):
+        x, y, z = float(qx[k]), float(qy[k]), float(qz[k])
+        a, b, c = float(nx[k]), float(ny[k]), float(nz[k])
+        row[0] = y * c - z * b
+        row[1] = z * a - x * c
+        row[2] = x * b - y * a
+        row[3] = a
+        row[4] = b
+        row[5] = c
+        rk = float(r[k])
+        for i in range(6):
+            atr[i] += row[i] * rk
+            for j in range(i, 6):
+                ata[i, j] += row[i] * row[j]
+    for i in range(6):
+        for j in range(i):
+            ata[i, j] = ata[j, i]
+    return ata, atr
+
+
 def _icp(now: _Surface, before: _Surface, cam: tuple[float, float, float, float]) -> NDArray[np.float64] | None:
     """Point-to-plane ICP with projective matching: the 4x4 motion from ``now``'s camera to ``before``'s (m).
 
@@ -321,17 +359,11 @@ def _icp(now: _Surface, before: _Surface, cam: tuple[float, float, float, float]
             if n < 100:
                 return None
             qx, qy, qz, nx, ny, nz, r = (a[keep] for a in (qx, qy, qz, nx, ny, nz, r))
-            jac = np.empty((n, 6))
-            jac[:, 0] = qy * nz - qz * ny
-            jac[:, 1] = qz * nx - qx * nz
-            jac[:, 2] = qx * ny - qy * nx
-            jac[:, 3] = nx
-            jac[:, 4] = ny
-            jac[:, 5] = nz
+            ata, atr = _normal_equations(qx, qy, qz, nx, ny, nz, r)
             mu = _ICP_PRIOR * n
             w_rot = 0.5 * np.array([rot[2, 1] - rot[1, 2], rot[0, 2] - rot[2, 0], rot[1, 0] - rot[0, 1]])
             total = np.concatenate([w_rot, t])
-            delta = -np.linalg.solve(jac.T @ jac + mu * np.eye(6), jac.T @ r.astype(np.float64) + mu * total)
+            delta = -np.asarray(np.linalg.solve(ata + mu * np.eye(6), atr + mu * total), dtype=np.float64)
             d_rot = _rotation(delta[:3])
             rot = d_rot @ rot
             t = d_rot @ t + delta[3:]
