@@ -229,3 +229,29 @@ def test_a_swaying_camera_reads_still_and_moving_objects_without_lag(fps: float)
     # often, at 15 the ICP sees 31 mm steps)
     assert np.mean(still_ok) >= 0.85
     assert np.median(np.abs(ball_err)) < 30.0  # mm/s of about 850; measured 22, 19, 14
+
+
+def test_still_depth_change_hand_computed() -> None:
+    from depthgram.dynamics.core import still_depth_change
+
+    h, w = 60, 80
+    k = Intrinsics(100.0, 100.0, 40.0, 30.0)
+    depth = np.full((h, w), 1000.0, np.float32)
+    labels = np.zeros((h, w), np.int32)
+    labels[10:20, 50:70] = 1  # a patch right of centre: x = (50..69 - 40) / 100 * 1000 mm
+    labels[40:50, 10:30] = 2  # a patch left of centre and below it
+    now = FramePixels(depth, labels, k)
+    boxes = {1: (50, 10, 70, 20), 2: (10, 40, 30, 50)}
+    # a step 10 mm forward: every still point was 10 mm further away a frame ago
+    forward = CameraMotion(np.eye(3), np.array([0.0, 0.0, 10.0]), k)
+    assert still_depth_change(now, boxes, forward) == pytest.approx({1: -10.0, 2: -10.0})
+    # a turn by 0.01 rad about the vertical axis: a point at (x, z) was at z' = z cos a - x sin a
+    a = 0.01
+    turn = CameraMotion(
+        np.array([[np.cos(a), 0.0, np.sin(a)], [0.0, 1.0, 0.0], [-np.sin(a), 0.0, np.cos(a)]]), np.zeros(3), k
+    )
+    x1 = (np.arange(50, 70) - 40.0).mean() / 100.0 * 1000.0  # mean x of patch 1 (mm): 195
+    x2 = (np.arange(10, 30) - 40.0).mean() / 100.0 * 1000.0  # -205
+    expected = {oid: 1000.0 - (1000.0 * np.cos(a) - x * np.sin(a)) for oid, x in ((1, x1), (2, x2))}
+    assert still_depth_change(now, boxes, turn) == pytest.approx(expected)
+    assert expected[1] > 0 > expected[2]  # the turn brings one side nearer, the other further
