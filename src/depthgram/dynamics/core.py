@@ -226,23 +226,72 @@ class _Surface:
 
     def __init__(self, z: NDArray[np.float32], cam: tuple[float, float, float, float]) -> None:
         self.z = z
-        self.points = _backproject(_smooth(z, 3), cam)
-        p = _backproject(_smooth(z, 5), cam)
-        du = np.zeros_like(p)
-        dv = np.zeros_like(p)
-        du[:, 1:-1] = p[:, 2:] - p[:, :-2]
-        dv[1:-1] = p[2:] - p[:-2]
-        n = np.cross(du, dv)
-        norm = np.linalg.norm(n, axis=-1)
-        ok = np.zeros(z.shape, bool)
-        zc = z[1:-1, 1:-1]
-        good = zc > 0
-        for q in (z[1:-1, 2:], z[1:-1, :-2], z[2:, 1:-1], z[:-2, 1:-1]):
-            good &= (q > 0) & (np.abs(q - zc) < 0.05 * zc)
-        ok[1:-1, 1:-1] = good
-        ok &= norm > 0
-        self.normals = np.where(ok[..., None], n / np.where(norm > 0, norm, 1.0)[..., None], 0.0).astype(np.float32)
-        self.ok = ok
+        fx, fy, cx, cy = (np.float32(c) for c in cam)
+        # points and normals as (3, H, W): the ICP reads each coordinate as one flat array
+        self.points, self.normals, self.ok = _surface_arrays(z, _smooth(z, 3), _smooth(z, 5), fx, fy, cx, cy)
+
+
+@njit(cache=True, nogil=True)
+def _surface_arrays(
+    z: NDArray[np.float32],
+    z3: NDArray[np.float32],
+    z5: NDArray[np.float32],
+    fx: np.float32,
+    fy: np.float32,
+    cx: np.float32,
+    cy: np.float32,
+) -> tuple[NDArray[np.float32], NDArray[np.float32], NDArray[np.bool_]]:
+    """Points of ``z3``, unit normals of ``z5`` and where a normal holds, each (3, H, W) or (H, W).
+
+    A normal is the cross product of the central differences of ``z5``'s points along the row
+    and the column, where the pixel and its four neighbours have a depth within 5 % of its own.
+    One pass in float32, as the numpy steps it replaced (some twenty frame-sized temporaries,
+    1.3 ms of the ICP's frame).
+    """
+    h, w = z.shape
+    pts = np.empty((3, h, w), np.float32)
+    nrm = np.zeros((3, h, w), np.float32)
+    ok = np.zeros((h, w), np.bool_)
+    for y in range(h):
+        ry = (np.float32(y) - cy) / fy
+        for x in range(w):
+            d = z3[y, x]
+            pts[0, y, x] = (np.float32(x) - cx) / fx * d
+            pts[1, y, x] = ry * d
+            pts[2, y, x] = d
+    for y in range(1, h - 1):
+        for x in range(1, w - 1):
+            zc = z[y, x]
+            if not zc > 0:
+                continue
+            lim = np.float32(0.05) * zc
+            good = True
+            for yy, xx in ((y, x + 1), (y, x - 1), (y + 1, x), (y - 1, x)):
+                q = z[yy, xx]
+                if not (q > 0 and abs(q - zc) < lim):
+                    good = False
+            if not good:
+                continue
+            # central differences of the 5 x 5-smoothed points along the row (u) and column (v)
+            dr, dl, dd, dup = z5[y, x + 1], z5[y, x - 1], z5[y + 1, x], z5[y - 1, x]
+            ry = (np.float32(y) - cy) / fy
+            rx = (np.float32(x) - cx) / fx
+            rxr = (np.float32(x + 1) - cx) / fx
+            rxl = (np.float32(x - 1) - cx) / fx
+            ryd = (np.float32(y + 1) - cy) / fy
+            ryu = (np.float32(y - 1) - cy) / fy
+            ux, uy, uz = rxr * dr - rxl * dl, ry * dr - ry * dl, dr - dl
+            vx, vy, vz = rx * dd - rx * dup, ryd * dd - ryu * dup, dd - dup
+            nx = uy * vz - uz * vy
+            ny = uz * vx - ux * vz
+            nz = ux * vy - uy * vx
+            norm = np.sqrt(nx * nx + ny * ny + nz * nz)
+            if norm > 0:
+                ok[y, x] = True
+                nrm[0, y, x] = nx / norm
+                nrm[1, y, x] = ny / norm
+                nrm[2, y, x] = nz / norm
+    return pts, nrm, ok
 
 
 def _smooth(z: NDArray[np.float32], k: int) -> NDArray[np.float32]:
@@ -251,14 +300,6 @@ def _smooth(z: NDArray[np.float32], k: int) -> NDArray[np.float32]:
     total = cv2.blur(z * valid, (k, k))
     count = cv2.blur(valid, (k, k))
     return np.where((z > 0) & (count > 0), total / np.maximum(count, 1e-6), 0.0).astype(np.float32)
-
-
-def _backproject(z: NDArray[np.float32], cam: tuple[float, float, float, float]) -> NDArray[np.float32]:
-    """Camera-frame points (same unit as ``z``) of a depth grid, shape (H, W, 3)."""
-    h, w = z.shape
-    fx, fy, cx, cy = cam
-    ys, xs = np.mgrid[0:h, 0:w].astype(np.float32)
-    return np.stack([(xs - cx) / fx * z, (ys - cy) / fy * z, z], axis=-1)
 
 
 def _rotation(w: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -361,17 +402,17 @@ def _icp(now: _Surface, before: _Surface, cam: tuple[float, float, float, float]
     """
     h, w = before.z.shape
     # one flat array per coordinate: picking rows of an (N, 3) array is several times slower
-    px0, py0, pz0 = (np.ascontiguousarray(before.points[..., i].ravel()) for i in range(3))
-    nx0, ny0, nz0 = (np.ascontiguousarray(before.normals[..., i].ravel()) for i in range(3))
+    px0, py0, pz0 = (before.points[i].ravel() for i in range(3))
+    nx0, ny0, nz0 = (before.normals[i].ravel() for i in range(3))
     target_ok = before.ok.ravel()
     rot = np.eye(3)
     t = np.zeros(3)
     gate = _EGO_MAX_DEPTH_DIFF_M
     cam32 = np.array(cam, dtype=np.float32)
     for step, iterations in _ICP_PASSES:
-        grid = now.points[::step, ::step]
-        mine = grid[..., 2] > 0
-        sx, sy, sz = (np.ascontiguousarray(grid[..., i][mine]) for i in range(3))
+        grid = now.points[:, ::step, ::step]
+        mine = grid[2] > 0
+        sx, sy, sz = (grid[i][mine] for i in range(3))
         for _ in range(iterations):
             r32 = rot.astype(np.float32)
             t32 = t.astype(np.float32)
