@@ -25,6 +25,7 @@ from numpy.typing import NDArray
 from depthgram.act import ActConfig, Plan
 from depthgram.act import plan as plan_scene
 from depthgram.dynamics import FramePixels, Tracker, TrackerConfig
+from depthgram.dynamics.core import load_rare_kernels as load_rare_dynamics_kernels
 from depthgram.errors import InputError
 from depthgram.frame import Frame, Intrinsics
 from depthgram.scene import TreeConfig, build_tree, to_sentence, tree_to_dict
@@ -395,6 +396,7 @@ class Pipeline:
         # Kernels that only rare branches of the segmentation reach compiled, on a fresh install,
         # at the first frame taking them: 470 ms in the middle of a 7-Scenes stream.
         load_rare_kernels()
+        load_rare_dynamics_kernels()
         return time.perf_counter() - t0
 
     def process(self, frame: Frame) -> SceneResult:
