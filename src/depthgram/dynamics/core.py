@@ -10,7 +10,7 @@ radial velocity of a surface means (and what the ground truth of
 :func:`depthgram.dynamics.evaluate.radial_velocity_from_poses` carries each pixel through).
 
 The image motion comes from the camera's own motion where the frame has intrinsics: a rigid
-motion per frame by ICP on the two frames' depth (OpenCV's odometry, :class:`EgoMotion`), which
+motion per frame by a point-to-plane ICP on the two frames' depth (:class:`EgoMotion`), which
 moves each pixel by the image motion of its still point (a turn moves the image alike, a step
 by parallax: walls and floors seen at a slant move by different amounts across the image).
 Without intrinsics, where the ICP fails or finds the camera still, it is one shift per frame,
@@ -583,6 +583,13 @@ def _motion_checks(
 #: at 3000, 2.0 at 1500).
 _CORE_SAMPLE_PX = 1500
 
+
+def _sample_step(box: tuple[int, int, int, int]) -> int:
+    """Every how many rows and columns an object's box is read: about :data:`_CORE_SAMPLE_PX` pixels."""
+    x0, y0, x1, y1 = box
+    return max(1, math.isqrt(max((x1 - x0) * (y1 - y0), 1) // _CORE_SAMPLE_PX))
+
+
 #: How much larger (fraction) the core under the frame's shift must be than under the
 #: camera's motion to take the shift: on the simulator's ``ball_wall`` (a still camera, a
 #: floor, a wall and a ball) the ICP slides sideways by 5 px a frame, and the ball's readings
@@ -690,7 +697,7 @@ class _Core:
         scale: float,
     ) -> None:
         x0, y0, x1, y1 = box
-        step = max(1, math.isqrt(max((x1 - x0) * (y1 - y0), 1) // _CORE_SAMPLE_PX))
+        step = _sample_step(box)
         z1 = np.asarray(now.depth_mm[y0:y1:step, x0:x1:step], dtype=np.float32)
         self.own = (np.asarray(now.labels[y0:y1:step, x0:x1:step]) == oid) & (z1 > 0)
         self.z1 = z1
@@ -787,9 +794,11 @@ def core_depth_change(
         object's bbox (x0, y0, x1, y1) px half-open, the track's own image motions to try,
         each (dx, dy) px as in :func:`image_shift`, and the object's image scale from the
         previous frame to this one, the ratio of its depths then and now).
-    shift : tuple of float or CameraMotion
-        The frame's image motion: the camera's (:class:`EgoMotion`), or (dx, dy) px from
-        :func:`image_shift`.
+    shift : tuple of float
+        The frame's shift (dx, dy) px, from :func:`image_shift`.
+    camera : CameraMotion, optional
+        The camera's motion (:class:`EgoMotion`): tried first, and the shift only where it
+        keeps clearly more of the object inside its previous segment.
     min_px : int
         Fewest core pixels for a reading (px).
     min_share : float
@@ -873,8 +882,10 @@ def still_depth_change(
     r, t = camera.rotation, camera.translation_mm
     ids = np.fromiter(boxes, np.int64, count=len(boxes))
     box = np.array(list(boxes.values()), np.int64).reshape(-1, 4)
+    # the same sampling grid as the core's (its mean needs no more pixels)
+    steps = np.array([_sample_step(b) for b in boxes.values()], np.int64)
     # one compiled pass over the objects: per object, the numpy steps cost some 40 µs
-    sums = _mean_points(now.depth_mm, now.labels, ids, box, _CORE_SAMPLE_PX)
+    sums = _mean_points(now.depth_mm, now.labels, ids, box, steps)
     out: dict[int, float] = {}
     for oid, (cnt, sx, sy, sz) in zip(ids.tolist(), sums.tolist(), strict=True):
         if cnt == 0:
@@ -890,18 +901,16 @@ def _mean_points(
     labels: NDArray[np.integer],
     ids: NDArray[np.int64],
     boxes: NDArray[np.int64],
-    sample_px: int,
+    steps: NDArray[np.int64],
 ) -> NDArray[np.float64]:
     """Per object: its sampled valid pixels' count, and the sums of ``x z``, ``y z`` and ``z`` (px mm, mm).
 
-    Each object is read on the same grid as its core (every k-th row and column of its box, k
-    from its area over ``sample_px``).
+    Object ``j`` is read on every ``steps[j]``-th row and column of its box.
     """
     out = np.zeros((ids.shape[0], 4))
     for j in range(ids.shape[0]):
         x0, y0, x1, y1 = boxes[j, 0], boxes[j, 1], boxes[j, 2], boxes[j, 3]
-        # floor of the square root, as math.isqrt in the core (exact below 2**52)
-        step = max(1, int(math.sqrt(max((x1 - x0) * (y1 - y0), 1) // sample_px)))
+        step = steps[j]
         oid = ids[j]
         n = 0
         sx = 0.0
@@ -930,4 +939,5 @@ def load_rare_kernels() -> None:
     of a stream (249 ms on a fresh install). Called by ``Pipeline.warm_up``.
     """
     z = np.ones((2, 2), np.float32)
-    _mean_points(z, np.ones((2, 2), np.int32), np.ones(1, np.int64), np.array([[0, 0, 2, 2]], np.int64), 1)
+    one = np.ones(1, np.int64)
+    _mean_points(z, np.ones((2, 2), np.int32), one, np.array([[0, 0, 2, 2]], np.int64), one)

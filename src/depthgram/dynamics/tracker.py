@@ -533,8 +533,9 @@ class Tracker:
             for c, o in enumerate(objects):
                 still[c] = moved.get(o.id, math.nan)
         # Pairs with a track seen in the previous frame: its last object is that frame's segment.
-        # The track's own image motion: its centre's move, and its smoothed image velocity,
-        # which holds while the outline changes (entering, leaving, partly hidden) (px).
+        # The track's own image motion: its centre's move, its smoothed image velocity, which
+        # holds while the outline changes (entering, leaving, partly hidden), and for an object
+        # cut by the image's edge the move of its edge inside the image (px).
         dt = self._dt
         cfg_border = self.config.border_px
         pairs = {}
