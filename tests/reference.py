@@ -18,7 +18,6 @@ from depthgram.segmentation.label import ACTIVE, BLOCK, HOLE, label_keyed, relab
 from depthgram.segmentation.planes import (
     Plane,
     _assign,
-    _fit,
     _large_pieces,
     coplanar_groups,
     near_planes,
@@ -33,6 +32,7 @@ __all__ = [
     "on_support_planes",
     "plane_fits",
     "plane_search_numpy",
+    "planes_from_sums_numpy",
     "relabel_small",
     "support_components",
 ]
@@ -147,6 +147,12 @@ def relabel_small(labels: NDArray[np.int32], count: NDArray[np.float64], min_px:
     return out
 
 
+def _fit(u: NDArray[np.float64], v: NDArray[np.float64], inv: NDArray[np.float64]) -> tuple[float, float, float]:
+    a = np.stack([u, v, np.ones_like(u)], axis=1)
+    coef = np.linalg.lstsq(a, inv, rcond=None)[0]
+    return float(coef[0]), float(coef[1]), float(coef[2])
+
+
 def plane_search_numpy(
     depth_mm: NDArray[np.float32],
     valid: NDArray[np.bool_],
@@ -220,3 +226,21 @@ def plane_search_numpy(
     which = _assign(depth_mm, valid, coefs, allowed, s, float(tol_mm), float(tol_rel))
     masks = [(c, which == k, sp) for k, (c, _, sp) in enumerate(found, start=1)]
     return [Plane(c, m, int(m.sum()), sp) for c, m, sp in masks if m.sum() >= min_px]
+
+
+def planes_from_sums_numpy(
+    sums: NDArray[np.float64],
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """:func:`depthgram.segmentation.planes.planes_from_sums` by numpy's batched solve and norm."""
+    m = sums.shape[0]
+    ata = np.empty((m, 3, 3))
+    ata[:, 0, 0], ata[:, 0, 1], ata[:, 0, 2] = sums[:, 0], sums[:, 1], sums[:, 2]
+    ata[:, 1, 0], ata[:, 1, 1], ata[:, 1, 2] = sums[:, 1], sums[:, 3], sums[:, 4]
+    ata[:, 2, 0], ata[:, 2, 1], ata[:, 2, 2] = sums[:, 2], sums[:, 4], sums[:, 5]
+    atb = sums[:, 6:9].copy()
+    ata[0] = np.eye(3)
+    atb[0] = (0.0, 0.0, 1.0)
+    ata += np.eye(3) * 1e-12
+    coef = np.linalg.solve(ata, atb[..., None])[..., 0]
+    norm = np.maximum(np.linalg.norm(coef, axis=1), 1e-15)
+    return -coef / norm[:, None], 1.0 / norm, sums[:, 5]

@@ -867,6 +867,7 @@ def test_load_rare_kernels_loads_the_kernels_of_the_rare_branches() -> None:
     from depthgram.segmentation.core import load_rare_kernels
     from depthgram.segmentation.label import keyed, stats
     from depthgram.segmentation.label.unionfind import resolve_tables
+    from depthgram.segmentation.planes import _piece_percentiles, _planes_from_sums, _search_plane
     from depthgram.segmentation.slices import _class_state, _drop_classes, _merge_rows
     from depthgram.sensor import simulate
 
@@ -879,6 +880,9 @@ def test_load_rare_kernels_loads_the_kernels_of_the_rare_branches() -> None:
         _merge_rows,
         _drop_classes,
         stats._stats,
+        _search_plane,
+        _piece_percentiles,
+        _planes_from_sums,
     )
     before = [len(k.signatures) for k in kernels]
     assert all(before)
@@ -938,3 +942,56 @@ def test_bin_counts_equal_bin_index_counts() -> None:
         _, want_edges, want_counts = bin_index(depth, valid, cfg)
         np.testing.assert_array_equal(edges, want_edges)
         np.testing.assert_array_equal(counts, want_counts)
+
+
+def test_compiled_3x3_solve_is_numpys_to_the_last_bit() -> None:
+    # the RANSAC's three-point systems [u v 1] on the pixel grid and the normal equations of
+    # plane fits, solved by the compiled LU as numpy's LAPACK solves them: every bit the same,
+    # row swaps of every kind included (pivots in each position)
+    from numba import njit
+
+    from depthgram.segmentation.planes import _lu_solve3
+
+    @njit(cache=False)
+    def solve_all(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        out = b.copy()
+        for k in range(a.shape[0]):
+            _lu_solve3(a[k].copy(), out[k])
+        return out
+
+    rng = np.random.default_rng(11)
+    u = rng.integers(0, 640, (20_000, 3)).astype(np.float64)
+    v = rng.integers(0, 480, (20_000, 3)).astype(np.float64)
+    grid = np.stack([u, v, np.ones_like(u)], axis=2)
+    grid = grid[np.abs(np.linalg.det(grid)) > 0.5]
+    rhs = 1000.0 / rng.uniform(300.0, 5000.0, (grid.shape[0], 3))
+    normal_eq = np.empty((3000, 3, 3))
+    rhs_eq = np.empty((3000, 3))
+    for k in range(3000):
+        n = int(rng.integers(10, 2000))
+        pts = np.stack([rng.normal(0, 0.3, n), rng.normal(0.1, 0.2, n), np.ones(n)], axis=1)
+        q = (0.5 + pts @ rng.normal(0, 0.3, 3) + rng.normal(0, 1e-3, n)) / 1000.0
+        normal_eq[k] = pts.T @ pts + np.eye(3) * 1e-12
+        rhs_eq[k] = pts.T @ q
+    for a, b in ((grid, rhs), (normal_eq, rhs_eq), (rng.normal(size=(5000, 3, 3)), rng.normal(size=(5000, 3)))):
+        want = np.linalg.solve(a, b[..., None])[..., 0]
+        np.testing.assert_array_equal(solve_all(a, b), want)
+
+
+def test_planes_from_sums_is_the_numpy_route_to_the_last_bit() -> None:
+    # the compiled normals, offsets and counts of every piece's plane are those of numpy's
+    # batched solve and norm, on the plane sums of labelled floors with and without noise
+    from reference import planes_from_sums_numpy
+
+    rng = np.random.default_rng(12)
+    n_rows = 0
+    for t in range(20):
+        depth, ok, cam = _floor_scene()
+        if t % 2:
+            depth = depth + rng.normal(0, 8, depth.shape).astype(np.float32) * ok
+        classes = rng.choice(np.array([0, 1, 2], np.int8), depth.shape, p=[0.3, 0.6, 0.1])
+        _, _, _, _, planes = support_pieces(depth, ok, classes, 1, cam, jump_rel=0.25, bridge=2, min_fit_px=5)
+        for got, want in zip(planes_from_sums(planes), planes_from_sums_numpy(planes), strict=True):
+            np.testing.assert_array_equal(got, want)
+        n_rows += planes.shape[0]
+    assert n_rows > 100

@@ -162,6 +162,9 @@ def load_rare_kernels() -> None:
     _merge_rows(np.array([0, 1, 1], np.int32), 1, rows, np.zeros((3, 9), np.float64), np.zeros((3, 4), np.int64))
     # merged openings: the statistics of the joined surfaces
     label_stats_fused(np.zeros((2, 2), np.int32), 0, z, np.zeros((2, 2), np.float32))
+    # a plane search that finds a plane (its pieces' percentiles), and planes from their sums
+    find_planes(z, ok, min_area=0.0)
+    planes_from_sums(np.zeros((1, 9), np.float64))
 
 
 def _segment(

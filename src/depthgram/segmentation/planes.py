@@ -22,11 +22,15 @@ support's plane near it are found (:func:`near_planes`).
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
+from typing import cast
 
 import cv2
 import numpy as np
-from numba import njit
+from llvmlite import ir
+from numba import njit, types
+from numba.extending import intrinsic
 from numpy.typing import NDArray
 
 from depthgram.frame import Intrinsics
@@ -115,12 +119,6 @@ def plane_residual_mask(
     return out
 
 
-def _fit(u: NDArray[np.float64], v: NDArray[np.float64], inv: NDArray[np.float64]) -> tuple[float, float, float]:
-    a = np.stack([u, v, np.ones_like(u)], axis=1)
-    coef = np.linalg.lstsq(a, inv, rcond=None)[0]
-    return float(coef[0]), float(coef[1]), float(coef[2])
-
-
 def find_planes(
     depth_mm: NDArray[np.float32],
     valid: NDArray[np.bool_],
@@ -179,30 +177,31 @@ def find_planes(
     min_sub = min_px / (s * s)
     t_mm, t_rel = np.float32(tol_mm), np.float32(tol_rel)
     found: list[tuple[tuple[float, float, float], NDArray[np.bool_], float]] = []
-    # each search's steps are compiled (numpy's calls on a few thousand points cost more than
-    # their arithmetic); the random draws, the solves and the refit stay numpy's, so the planes
-    # are those of the numpy route (docs/design-notes.md, "RANSAC")
+    # each search is two compiled calls around numpy's random draws (numpy's calls on a few
+    # thousand points cost more than their arithmetic); the draws are numpy's and the solves
+    # and the refit LAPACK's numbers, so the planes are those of the numpy route
+    # (docs/design-notes.md, "RANSAC")
+    rcond = float(np.finfo(np.float64).eps)
     for _ in range(max_planes * 2):
         if len(found) >= max_planes:
             break
         u, v, z, tz = _grid_points(z_sub, left, s, t_mm, t_rel)
-        if u.size < max(min_sub, 3):
+        n = u.size
+        if n < max(min_sub, 3):
             break
-        coef = _ransac(u, v, 1000.0 / z, z, tz, hypotheses, rng)
-        if coef is None:
+        pick = rng.integers(0, n, size=(hypotheses, 3))
+        # the scoring points are drawn after the samples, as the numpy route draws them (it
+        # draws none when no sample is solvable, and then stops searching: no later draw differs)
+        m = min(n, 2000)
+        ev = rng.integers(0, n, size=m) if n > m else np.arange(n)
+        status, a, b, c, on_img = _search_plane(u, v, z, tz, pick, ev, min_sub, rcond, z_sub, left, t_mm, t_rel, s)
+        if status < _FOUND:
             break
-        uo, vo, qo = _inliers(u, v, z, tz, coef[0], coef[1], coef[2])
-        if uo.size < min_sub:
-            break
-        coef = _fit(uo, vo, qo)
-        on_img = _take_residual(z_sub, left, coef[0], coef[1], coef[2], t_mm, t_rel, np.float32(s))
+        coef = (a, b, c)
         pieces = _large_pieces(on_img, max(int(min_sub) // 4, 1))
-        n_on = int(np.count_nonzero(pieces))
+        n_on, p5, p50, p95 = _piece_percentiles(z_sub, pieces, min_sub)
         if n_on < min_sub:
             continue
-        # np.percentile(z_sub[pieces], (5, 50, 95)), compiled: the same values
-        on_z = z_sub[pieces]
-        p5, p50, p95 = (percentile32(on_z, q, False) for q in (5.0, 50.0, 95.0))
         spread = float((p95 - p5) / max(p50, 1e-6))
         if spread < min_spread:
             continue  # a fronto-parallel plane (a back wall) is a facing object, not a support
@@ -260,26 +259,97 @@ def _assign(
     return out
 
 
-def _ransac(
+#: :func:`_search_plane`'s outcome: no solvable sample, too few inliers, a plane found.
+_NO_SAMPLE, _FEW, _FOUND = 0, 1, 2
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _search_plane(
     u: NDArray[np.float64],
     v: NDArray[np.float64],
-    inv: NDArray[np.float64],
     z: NDArray[np.float64],
     tol: NDArray[np.float64],
-    hypotheses: int,
-    rng: np.random.Generator,
-) -> tuple[float, float, float] | None:
-    """Best three-point hypothesis of ``1/Z = a u + b v + c``, scored on at most 2000 points."""
-    n = u.size
-    pick = rng.integers(0, n, size=(hypotheses, 3))
+    pick: NDArray[np.int64],
+    ev: NDArray[np.int64],
+    min_inliers: float,
+    eps: float,
+    z_sub: NDArray[np.float32],
+    left: NDArray[np.bool_],
+    tol_mm: np.float32,
+    tol_rel: np.float32,
+    step: int,
+) -> tuple[int, float, float, float, NDArray[np.bool_]]:
+    """One RANSAC search of ``1000 / Z = a u + b v + c`` on the grid points, compiled end to end.
+
+    The three-point samples ``pick`` are solved (:func:`_lu_solve3`, numpy's numbers), scored
+    on the points ``ev`` (:func:`_best_hypothesis`), the best one's inliers refitted by least
+    squares (LAPACK's ``dgelsd`` through numba, with numpy's default ``rcond``: the same
+    numbers as ``np.linalg.lstsq``) and the refitted plane's grid pixels taken out of ``left``
+    (:func:`_take_residual`, in place). Compiled because the dozen numpy calls of a search
+    (the batched solve, the least squares, the masks) cost more than their arithmetic.
+
+    Returns the outcome (``_NO_SAMPLE``, ``_FEW`` inliers, ``_FOUND``), the refitted
+    coefficients and the plane's grid pixels (all False unless found).
+    """
+    on_img = np.zeros(z_sub.shape, np.bool_)
     a, good = _hypotheses(u, v, pick)
-    if not good.any():
-        return None
-    coef = np.asarray(np.linalg.solve(a[good], inv[pick[good]][..., None])[..., 0], np.float64)
-    m = min(n, 2000)
-    ev = rng.integers(0, n, size=m) if n > m else np.arange(n)
-    best = coef[_best_hypothesis(coef, u, v, z, tol, ev)]
-    return float(best[0]), float(best[1]), float(best[2])
+    k = 0
+    for i in range(good.size):
+        k += good[i]
+    if k == 0:
+        return _NO_SAMPLE, 0.0, 0.0, 0.0, on_img
+    coef = np.empty((k, 3), np.float64)
+    x = np.empty(3, np.float64)
+    j = 0
+    for i in range(good.size):
+        if good[i]:
+            for r in range(3):
+                x[r] = 1000.0 / z[pick[i, r]]
+            _lu_solve3(a[i], x)
+            coef[j] = x
+            j += 1
+    best = _best_hypothesis(coef, u, v, z, tol, ev)
+    uo, vo, qo = _inliers(u, v, z, tol, coef[best, 0], coef[best, 1], coef[best, 2])
+    if uo.size < min_inliers:
+        return _FEW, 0.0, 0.0, 0.0, on_img
+    sys = np.empty((uo.size, 3), np.float64)
+    sys[:, 0] = uo
+    sys[:, 1] = vo
+    sys[:, 2] = 1.0
+    # np.linalg.lstsq's rcond=None is eps times the larger dimension
+    fit = np.linalg.lstsq(sys, qo, eps * max(uo.size, 3))[0]
+    on_img = _take_residual(z_sub, left, fit[0], fit[1], fit[2], tol_mm, tol_rel, np.float32(step))
+    return _FOUND, fit[0], fit[1], fit[2], on_img
+
+
+@njit(cache=True, nogil=True)
+def _piece_percentiles(
+    z_sub: NDArray[np.float32], pieces: NDArray[np.bool_], min_px: float
+) -> tuple[int, float, float, float]:
+    """Pixel count of ``pieces`` and the 5th, 50th and 95th percentiles of their depth.
+
+    ``np.percentile(z_sub[pieces], (5, 50, 95))`` (:func:`percentile32`: the same values) in one
+    compiled call; the percentiles are left at 0 below ``min_px`` pixels, where the search
+    drops the plane anyway.
+    """
+    h, w = z_sub.shape
+    n = 0
+    for y in range(h):
+        for x in range(w):
+            n += pieces[y, x]
+    if n < min_px or n == 0:
+        return n, 0.0, 0.0, 0.0
+    on_z = np.empty(n, np.float32)
+    k = 0
+    for y in range(h):
+        for x in range(w):
+            if pieces[y, x]:
+                on_z[k] = z_sub[y, x]
+                k += 1
+    p5 = percentile32(on_z, 5.0, False)
+    p50 = percentile32(on_z, 50.0, False)
+    p95 = percentile32(on_z, 95.0, False)
+    return n, p5, p50, p95
 
 
 @njit(cache=True, nogil=True)
@@ -676,20 +746,138 @@ def planes_from_sums(sums: NDArray[np.float64]) -> tuple[NDArray[np.float64], ND
     """Return unit normals, offsets (mm) and pixel counts from the sums of :func:`plane_sums` (row 0 unused).
 
     The sums are additive, so the plane of a union of pieces comes from the sum of their rows
-    without another pass over the image.
+    without another pass over the image. Each row's normal equations (plus 1e-12 on the
+    diagonal) are solved as ``np.linalg.solve`` solves them (:func:`_lu_solve3`).
     """
+    return _planes_from_sums(np.ascontiguousarray(sums, np.float64))
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _planes_from_sums(
+    sums: NDArray[np.float64],
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    # compiled because numpy's batched solve, norm and the table building cost about 60 us of
+    # calls per use on a few rows, four uses per frame. The numbers are numpy's: the solve is
+    # LAPACK's (_lu_solve3), the norm adds the squares in order as np.linalg.norm(axis=1) does
     m = sums.shape[0]
-    ata = np.empty((m, 3, 3))
-    ata[:, 0, 0], ata[:, 0, 1], ata[:, 0, 2] = sums[:, 0], sums[:, 1], sums[:, 2]
-    ata[:, 1, 0], ata[:, 1, 1], ata[:, 1, 2] = sums[:, 1], sums[:, 3], sums[:, 4]
-    ata[:, 2, 0], ata[:, 2, 1], ata[:, 2, 2] = sums[:, 2], sums[:, 4], sums[:, 5]
-    atb = sums[:, 6:9].copy()
-    ata[0] = np.eye(3)
-    atb[0] = (0.0, 0.0, 1.0)
-    ata += np.eye(3) * 1e-12
-    coef = np.linalg.solve(ata, atb[..., None])[..., 0]
-    norm = np.maximum(np.linalg.norm(coef, axis=1), 1e-15)
-    return -coef / norm[:, None], 1.0 / norm, sums[:, 5]
+    normal = np.empty((m, 3), np.float64)
+    off = np.empty(m, np.float64)
+    count = np.empty(m, np.float64)
+    a = np.empty((3, 3), np.float64)
+    x = np.empty(3, np.float64)
+    eps = 1e-12
+    for i in range(m):
+        if i == 0:
+            a[:] = 0.0
+            a[0, 0] = a[1, 1] = a[2, 2] = 1.0 + eps
+            x[0], x[1], x[2] = 0.0, 0.0, 1.0
+        else:
+            s = sums[i]
+            # numpy adds 1e-12 times the identity: + 0.0 off the diagonal (a -0.0 turns +0.0)
+            a[0, 0], a[0, 1], a[0, 2] = s[0] + eps, s[1] + 0.0, s[2] + 0.0
+            a[1, 0], a[1, 1], a[1, 2] = s[1] + 0.0, s[3] + eps, s[4] + 0.0
+            a[2, 0], a[2, 1], a[2, 2] = s[2] + 0.0, s[4] + 0.0, s[5] + eps
+            x[0], x[1], x[2] = s[6], s[7], s[8]
+        _lu_solve3(a, x)
+        norm = max(math.sqrt((x[0] * x[0] + x[1] * x[1]) + x[2] * x[2]), 1e-15)
+        normal[i, 0] = -x[0] / norm
+        normal[i, 1] = -x[1] / norm
+        normal[i, 2] = -x[2] / norm
+        off[i] = 1.0 / norm
+        count[i] = sums[i, 5]
+    return normal, off, count
+
+
+def _fma_typing(typingctx: object, a: types.Type, b: types.Type, c: types.Type) -> tuple[object, object]:
+    # the typing and code of _fma: three float64 in, LLVM's fused multiply-add out
+    sig = types.float64(types.float64, types.float64, types.float64)
+
+    def codegen(context: object, builder: ir.IRBuilder, signature: object, args: list[ir.Value]) -> ir.Value:
+        d = ir.DoubleType()
+        fn = builder.module.declare_intrinsic("llvm.fma", [d], ir.FunctionType(d, [d, d, d]))
+        return builder.call(fn, args)
+
+    return sig, codegen
+
+
+#: ``_fma(a, b, c)``: ``a * b + c`` rounded once (LLVM's ``llvm.fma.f64``), in compiled code only.
+_fma = cast(Callable[[float, float, float], float], intrinsic(_fma_typing))
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _lu_solve3(a: NDArray[np.float64], x: NDArray[np.float64]) -> None:
+    """Solve one 3 x 3 system ``a y = x`` in place, to the last bit as ``np.linalg.solve`` does.
+
+    ``a`` is overwritten by its LU factors and ``x`` by the solution. Compiled so that a
+    handful of small systems is not a batched numpy call each (about 30 us of calls around
+    nanoseconds of arithmetic). numpy's LAPACK (OpenBLAS ``dgesv``) factors column by
+    column (left-looking ``getf2``: each column's update a dot product taken with fused
+    multiply-adds, then subtracted; the pivot the first largest magnitude; the column below
+    it scaled by the pivot's reciprocal), then solves the two triangles by columns
+    (``trsv``: fused multiply-adds, a division by each diagonal). The same operations in the
+    same order give the same numbers (a test compares them on many systems); a zero pivot,
+    where numpy raises, gives inf or nan here.
+    """
+    piv0 = 0
+    piv1 = 1
+    for j in range(3):
+        # the earlier row swaps, on this column
+        if j > 0 and piv0 != 0:
+            t = a[0, j]
+            a[0, j] = a[piv0, j]
+            a[piv0, j] = t
+        if j > 1 and piv1 != 1:
+            t = a[1, j]
+            a[1, j] = a[piv1, j]
+            a[piv1, j] = t
+        # the column's U part above the diagonal, then the rest minus L times it (gemv)
+        if j == 2:
+            a[1, 2] = a[1, 2] - _fma(a[1, 0], a[0, 2], 0.0)
+        for r in range(j, 3):
+            acc = 0.0
+            for k in range(j):
+                acc = _fma(a[r, k], a[k, j], acc)
+            a[r, j] = a[r, j] - acc
+        jp = j
+        big = abs(a[j, j])
+        for r in range(j + 1, 3):
+            if abs(a[r, j]) > big:
+                big = abs(a[r, j])
+                jp = r
+        if j == 0:
+            piv0 = jp
+        elif j == 1:
+            piv1 = jp
+        p = a[jp, j]
+        if p != 0.0:
+            if jp != j:
+                for c in range(j + 1):
+                    t = a[j, c]
+                    a[j, c] = a[jp, c]
+                    a[jp, c] = t
+            if abs(p) >= 2.2250738585072014e-308:
+                rp = 1.0 / p
+                for r in range(j + 1, 3):
+                    a[r, j] *= rp
+            else:
+                for r in range(j + 1, 3):
+                    a[r, j] /= p
+    # the right-hand side through the swaps, L (unit diagonal) and U, by columns
+    if piv0 != 0:
+        t = x[0]
+        x[0] = x[piv0]
+        x[piv0] = t
+    if piv1 != 1:
+        t = x[1]
+        x[1] = x[piv1]
+        x[piv1] = t
+    for i in range(3):
+        for r in range(i + 1, 3):
+            x[r] = _fma(-x[i], a[r, i], x[r])
+    for i in range(2, -1, -1):
+        x[i] /= a[i, i]
+        for r in range(i):
+            x[r] = _fma(-x[i], a[r, i], x[r])
 
 
 def coplanar_groups(
