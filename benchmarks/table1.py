@@ -36,6 +36,7 @@ METHODS: tuple[tuple[str, dict[str, Any]], ...] = (
     ("thresholding", {"method": "threshold"}),
     ("thresholding + slicing", {"method": "slices"}),
     ("surfaces (default)", {"method": "surfaces"}),
+    ("surfaces, every pixel", {"method": "surfaces", "work_width_px": 0}),
     ("region growing", {"method": "region", "region_tol_mm": 10.0}),
     ("paper slicing (3%, both)", {"method": "paper"}),
 )

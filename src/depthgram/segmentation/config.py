@@ -180,6 +180,11 @@ class SegmentConfig:
         or a cart seen at an angle), and the two become one ``compound``; larger vertical
         supports stay walls. 0 turns this off. On ``crossing`` the cart's side face was its own
         ``wall`` track as it entered and left (2 identity switches, 0 with the fold).
+    work_width_px : int
+        ``surfaces``: a frame wider than this is segmented on every ``step``-th pixel and row
+        (``step = ceil(width / work_width_px)``: 2 at 640 px, 4 at 1280 px) and each pixel then
+        takes the label of the grid sample next to it on its own surface
+        (:mod:`depthgram.segmentation.coarse`). 0 segments every pixel.
     far_mm : float
         Far limit (mm): readings at or beyond it are left out as invalid and counted
         (:attr:`Segmentation.beyond_far_px`), which bounds the histogram. 20 m is past every
@@ -226,6 +231,7 @@ class SegmentConfig:
     join_resolutions: float = 2.5
     max_slope_deg: float = 70.0
     crease_deg: float = 40.0
+    work_width_px: int = 320
     far_mm: float = 20_000.0
 
     def __post_init__(self) -> None:
@@ -292,6 +298,8 @@ class SegmentConfig:
 
         if self.far_mm / self.bin_mm > _MAX_BINS:
             raise bad("far_mm", self.far_mm, f"at most {_MAX_BINS:.0e} histogram bins of bin_mm = {self.bin_mm}")
+        if not (isinstance(self.work_width_px, int) and 0 <= self.work_width_px <= 100_000):
+            raise bad("work_width_px", self.work_width_px, "an integer number of pixels >= 0 (0: every pixel)")
         if not (isinstance(self.max_planes, int) and 0 <= self.max_planes <= 20):
             raise bad("max_planes", self.max_planes, "an integer number of planes in [0, 20]")
 

@@ -11,6 +11,7 @@ from numpy.typing import NDArray
 
 from depthgram.frame import Frame, Intrinsics, check_array_units
 from depthgram.segmentation.attributes import Stats, make_objects
+from depthgram.segmentation.coarse import grid_frame, grid_step, to_full_resolution
 from depthgram.segmentation.config import SegmentConfig
 from depthgram.segmentation.contacts import front_faces, side_faces
 from depthgram.segmentation.histogram import Bands, bin_counts, bin_index, depth_bands
@@ -186,7 +187,18 @@ def _segment(
         return _threshold(depth, ok, intrinsics, cfg)
     if cfg.method == "paper":
         return paper_slices(depth, ok, intrinsics, cfg)
-    return _slices(depth, ok, intrinsics, cfg, sensor)
+    step = grid_step(depth.shape[1], cfg.work_width_px) if cfg.method == "surfaces" else 1
+    if step == 1:
+        return _slices(depth, ok, intrinsics, cfg, sensor)
+    # one sensor model for the grid and the refinement, estimated on every pixel
+    sensor = sensor or frame_sensor(depth, ok, cfg)
+    cam = intrinsics or default_intrinsics(depth.shape)
+    gd, gok, gcam = grid_frame(depth, ok, cam, step)
+    gcfg = cfg.with_overrides(min_area_px=max(1, cfg.min_area_px // (step * step)))
+    grid = _slices(gd, gok, gcam if intrinsics is not None else None, gcfg, sensor)
+    t0, t2 = sensor.tolerance(cfg.join_resolutions)
+    slope = math.tan(math.radians(cfg.max_slope_deg)) / cam.fx
+    return to_full_resolution(grid, gd, depth, ok, intrinsics, step, tol_0=t0, tol_2=t2, slope_per_px=slope)
 
 
 def frame_sensor(depth: NDArray[np.float32], ok: NDArray[np.bool_], cfg: SegmentConfig) -> SensorModel:
