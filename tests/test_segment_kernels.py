@@ -867,7 +867,7 @@ def test_load_rare_kernels_loads_the_kernels_of_the_rare_branches() -> None:
     from depthgram.segmentation.core import load_rare_kernels
     from depthgram.segmentation.label import keyed, stats
     from depthgram.segmentation.label.unionfind import resolve_tables
-    from depthgram.segmentation.planes import _piece_percentiles, _planes_from_sums, _search_plane
+    from depthgram.segmentation.planes import _coplanar_join, _piece_percentiles, _planes_from_sums, _search_plane
     from depthgram.segmentation.slices import _class_state, _drop_classes, _merge_rows
     from depthgram.sensor import simulate
 
@@ -883,6 +883,7 @@ def test_load_rare_kernels_loads_the_kernels_of_the_rare_branches() -> None:
         _search_plane,
         _piece_percentiles,
         _planes_from_sums,
+        _coplanar_join,
     )
     before = [len(k.signatures) for k in kernels]
     assert all(before)
@@ -995,3 +996,46 @@ def test_planes_from_sums_is_the_numpy_route_to_the_last_bit() -> None:
             np.testing.assert_array_equal(got, want)
         n_rows += planes.shape[0]
     assert n_rows > 100
+
+
+def test_sensor_fit_least_squares_is_numpys_to_the_last_bit() -> None:
+    # the fits of step and noise against depth squared over 2-12 depth ranges: the compiled
+    # least squares (LAPACK's dgelsd through numba, numpy's rcond) gives numpy's numbers
+    from depthgram.segmentation.sensor import _lstsq_a_bz2
+
+    rng = np.random.default_rng(13)
+    for _ in range(2000):
+        m = int(rng.integers(2, 13))
+        z = np.sort(rng.uniform(300.0, 6000.0, m))
+        x = z * z
+        y = rng.uniform(0.0, 3.0) + rng.uniform(0.0, 3e-6) * x + rng.normal(0.0, 0.2, m)
+        want = np.linalg.lstsq(np.stack([np.ones_like(x), x], axis=1), y, rcond=None)[0]
+        assert _lstsq_a_bz2(x, y) == (want[0], want[1])
+
+
+def test_small_supports_are_numpys_test() -> None:
+    # too few pixels or too flat for their depth: numpy's test on the statistics table, rows
+    # of every kind (empty, flat, spread, exactly at the limits)
+    from depthgram.segmentation.label.stats import COUNT, N_COLUMNS, SUM_Z, SUM_ZZ
+    from depthgram.segmentation.slices import small_supports
+
+    rng = np.random.default_rng(14)
+    for _ in range(200):
+        n = int(rng.integers(1, 40))
+        sums = np.zeros((n + 1, N_COLUMNS))
+        count = rng.integers(0, 300, n + 1).astype(np.float64)
+        mean = rng.uniform(500.0, 4000.0, n + 1)
+        std = mean * rng.choice([0.0, 0.01, 0.05, 0.2], n + 1)
+        sums[:, COUNT] = count
+        sums[:, SUM_Z] = count * mean
+        sums[:, SUM_ZZ] = count * (std * std + mean * mean)
+        min_px = int(rng.integers(1, 200))
+        spread = float(rng.choice([0.0, 0.01, 0.05]))
+        c = sums[:, COUNT]
+        m = sums[:, SUM_Z] / np.maximum(c, 1)
+        s = np.sqrt(np.maximum(sums[:, SUM_ZZ] / np.maximum(c, 1) - m * m, 0))
+        want = (c < min_px) | (s < spread * m)
+        want[0] = False
+        got, k = small_supports(sums, min_px, spread)
+        np.testing.assert_array_equal(got, want)
+        assert k == want.sum()

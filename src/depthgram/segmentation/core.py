@@ -16,7 +16,7 @@ from depthgram.segmentation.config import SegmentConfig
 from depthgram.segmentation.contacts import front_faces, side_faces
 from depthgram.segmentation.histogram import Bands, bin_counts, bin_index, depth_bands
 from depthgram.segmentation.label import label_bands_stats, label_stats_fused, label_two_classes, relabel
-from depthgram.segmentation.label.stats import COUNT, KEY, N_COLUMNS, N_SUMS, SUM_Z, SUM_ZZ
+from depthgram.segmentation.label.stats import COUNT, KEY, N_COLUMNS, N_SUMS, SUM_Z
 from depthgram.segmentation.objects import Histogram, SceneObject, Segmentation
 from depthgram.segmentation.order_stats import percentile32
 from depthgram.segmentation.orientation import (
@@ -30,6 +30,7 @@ from depthgram.segmentation.orientation import (
 from depthgram.segmentation.paper_slices import paper_slices
 from depthgram.segmentation.planes import _assign as assign_planes
 from depthgram.segmentation.planes import (
+    coplanar_groups,
     find_planes,
     join_near,
     plane_normal,
@@ -45,6 +46,7 @@ from depthgram.segmentation.slices import (
     drop_classes,
     join_pieces,
     slice_parts,
+    small_supports,
     support_kind,
     support_pieces_lazy,
 )
@@ -163,9 +165,11 @@ def load_rare_kernels() -> None:
     _merge_rows(np.array([0, 1, 1], np.int32), 1, rows, np.zeros((3, 9), np.float64), np.zeros((3, 4), np.int64))
     # merged openings: the statistics of the joined surfaces
     label_stats_fused(np.zeros((2, 2), np.int32), 0, z, np.zeros((2, 2), np.float32))
-    # a plane search that finds a plane (its pieces' percentiles), and planes from their sums
+    # a plane search that finds a plane (its pieces' percentiles), planes from their sums, and
+    # large pieces compared for one plane
     find_planes(z, ok, min_area=0.0)
     planes_from_sums(np.zeros((1, 9), np.float64))
+    coplanar_groups(np.eye(3), np.ones(3), np.ones(3))
     # the pixels of the planes found (a 2 x 2 frame finds none; 7-Scenes on the grid of a
     # 640 px frame first found one at frame 5: 367 ms on a fresh install)
     assign_planes(z, ok, np.zeros((1, 3), np.float64), np.ones((1, 1, 1), np.uint8), 2, 8.0, 0.01)
@@ -404,7 +408,9 @@ def _stack_supports(
         add_through(labels, lab, lut, np.concatenate(in_boxes))
     total = np.concatenate(all_sums)
     total_boxes = np.concatenate(all_boxes)
-    sup_stats = _stats_rows(total, total_boxes, np.r_[0, first_support:next_id])
+    rows = np.arange(first_support - 1, next_id)
+    rows[0] = 0
+    sup_stats = _stats_rows(total, total_boxes, rows)
     compounds = [(cls_of[o.id], o) for o in make_objects(labels, sup_stats, intrinsics=cam, first_id=first_support)]
     return _Stack(total, total_boxes, first_support, next_id, compounds)
 
@@ -490,7 +496,8 @@ def _compound_objects(
     renum = np.zeros(stack.next_id, np.int32)
     renum[old] = np.arange(1, len(old) + 1, dtype=np.int32)
     labels = relabel(labels, renum[fold] if fronts else renum)
-    objects = [replace(o, id=remap[o.id]) for o in objects]
+    # ids change only after a folded face (a replace costs more than the comparison)
+    objects = [o if remap[o.id] == o.id else replace(o, id=remap[o.id]) for o in objects]
     # the floor is the lowest horizontal support with nothing seen beneath it: a table top
     # with the room's floor past its edge is a support of its own kind on every camera
     floor_ids = {
@@ -572,7 +579,7 @@ def _below_camera(
     ids = np.array([o.id for o in horizontal], np.intp)
     # each support's own box (inclusive) holds all its pixels: the frame outside is not read
     sums = plane_sums_in_boxes(labels, n, ids, _inclusive(horizontal), depth, cam.fx, cam.fy, cam.cx, cam.cy)
-    normal, off, _ = planes_from_sums(sums[np.r_[0, ids]])
+    normal, off, _ = planes_from_sums(sums[np.concatenate(([0], ids))])
     for j, i in enumerate(ids, start=1):
         out[int(i)] = float(off[j]) if normal[j, 1] < 0 else -float(off[j])
     # every 4th pixel in 3-D: enough to tell whether anything lies beneath a plane
@@ -580,7 +587,8 @@ def _below_camera(
     for j, i in enumerate(ids, start=1):
         # n . P + d is the signed distance from the plane, positive on the camera's side
         dist = normal[j] @ pts + off[j]
-        beneath[int(i)] = float(np.mean(dist < -_BENEATH_MM)) if pts.shape[1] else 0.0
+        # np.mean of the test: the count over the points, the same division
+        beneath[int(i)] = np.count_nonzero(dist < -_BENEATH_MM) / pts.shape[1] if pts.shape[1] else 0.0
     return out, beneath
 
 
@@ -660,7 +668,8 @@ def _supports(
             depth, ok, classes, wanted[0], wanted[1], cam.fx, cam.fy, cam.cx, cam.cy,
             rel=cfg.jump_rel, bridge=cfg.fill_holes_px,
         )  # fmt: skip
-        rows = np.r_[0, na + 1 : na + nb + 1]
+        rows = np.arange(na, na + nb + 1)
+        rows[0] = 0
         size = na + nb + 1
         first[wanted[0]] = (lab, 0, size, na, sums[: na + 1], boxes[: na + 1], planes[: na + 1])
         first[wanted[1]] = (lab, na, size, nb, sums[rows], boxes[rows], planes[rows])
@@ -706,12 +715,8 @@ def _support_class(
             )
             n_pieces = merge.size - 1 if merge is not None else n
             base, size = 0, n_pieces + 1
-    counts = sums[:, COUNT]
-    mean = sums[:, SUM_Z] / np.maximum(counts, 1)
-    std = np.sqrt(np.maximum(sums[:, SUM_ZZ] / np.maximum(counts, 1) - mean * mean, 0))
-    small = (counts < min_px) | (std < cfg.min_spread * mean)
-    small[0] = False
-    if not small.any():
+    small, n_small = small_supports(sums, min_px, cfg.min_spread)
+    if not n_small:
         through = merge if merge is not None else np.arange(n_pieces + 1, dtype=np.int32)
         return _SupportMap(cls, lab, base, size, through, n, sums, boxes)
     keep = ~small

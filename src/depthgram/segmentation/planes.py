@@ -905,21 +905,37 @@ def coplanar_groups(
         Number of groups.
     """
     n = normal.shape[0] - 1
-    ident = np.arange(n + 1, dtype=np.int32)
     # only pieces big enough for a reliable plane can join: compare those alone (a few),
     # not all pairs of pieces (hundreds of noise specks)
-    big = np.flatnonzero(count >= min_fit_px)
-    big = big[big > 0]
+    big = np.flatnonzero(count[1:] >= min_fit_px) + 1
     if big.size < 2:
-        return ident, n
-    nb, ob = normal[big], off[big]
-    same_dir = nb @ nb.T > math.cos(math.radians(max_angle_deg))
-    close = np.abs(ob[:, None] - ob[None, :]) <= max_offset_rel * np.maximum(ob[:, None], ob[None, :])
-    join = np.triu(same_dir & close, 1)
-    if not join.any():
-        return ident, n
-    lut, m = _join_groups(join, big.astype(np.intp), n)
+        return np.arange(n + 1, dtype=np.int32), n
+    nb = normal[big]
+    # the cosines are numpy's matrix product (its BLAS kernels' rounding, which compiled dot
+    # products do not repeat for every size); the tests and the joins after it are compiled
+    lut, m = _coplanar_join(nb @ nb.T, off, big, math.cos(math.radians(max_angle_deg)), float(max_offset_rel), n)
     return lut, int(m)
+
+
+@njit(cache=True, nogil=True)
+def _coplanar_join(
+    cosines: NDArray[np.float64], off: NDArray[np.float64], big: NDArray[np.intp], min_cos: float, rel: float, n: int
+) -> tuple[NDArray[np.int32], int]:
+    """Return the groups of the large pieces ``big`` whose planes agree (:func:`coplanar_groups`).
+
+    Pair ``i < j`` joins when ``cosines[i, j] > min_cos`` and ``|off_i - off_j| <= rel
+    max(off_i, off_j)``, numpy's tests on the same float64 numbers; compiled because the
+    half-dozen numpy calls on a few pieces' matrices cost more than the tests (three uses per
+    frame). Returns :func:`_join_groups`' table and group count.
+    """
+    k = big.size
+    join = np.zeros((k, k), np.bool_)
+    for i in range(k):
+        oi = off[big[i]]
+        for j in range(i + 1, k):
+            oj = off[big[j]]
+            join[i, j] = cosines[i, j] > min_cos and abs(oi - oj) <= rel * max(oi, oj)
+    return _join_groups(join, big, n)
 
 
 @njit(cache=True, nogil=True)

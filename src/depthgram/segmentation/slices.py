@@ -13,6 +13,7 @@ touches it at the same depth.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 
 import numpy as np
@@ -32,6 +33,7 @@ __all__ = [
     "drop_classes",
     "join_pieces",
     "slice_parts",
+    "small_supports",
     "support_kind",
     "support_pieces",
     "support_pieces_lazy",
@@ -70,8 +72,6 @@ def slice_parts(
     extent = (y1 - y0) if horizontal else (x1 - x0)
     step = step_of(extent)
     n_slices = (extent + step - 1) // step
-    # the kernel takes the box's last column and row (inclusive bounds)
-    sums, boxes = _part_sums(labels, depth_mm, obj.id, x0, y0, x1 - 1, y1 - 1, step, horizontal, n_slices)
     # the attributes as make_objects takes them in the box's coordinates (the principal point
     # shifted by the box's corner), each part built once in frame coordinates (building the
     # box's objects and then the frame's cost twice the objects on small frames)
@@ -79,24 +79,16 @@ def slice_parts(
     cam = (1.0, 1.0, 0.0, 0.0)
     if intrinsics is not None:
         cam = (intrinsics.fx, intrinsics.fy, intrinsics.cx - x0, intrinsics.cy - y0)
-    sz = sums[:, SUM_Z]
-    table = _attribute_table(
-        sums[:, COUNT], sz, sums[:, SUM_ZZ], sums[:, SUM_X], sums[:, SUM_Y],
-        sums[:, SUM_XZ] if metric else sz, sums[:, SUM_YZ] if metric else sz, *cam,
-    ).tolist()  # fmt: skip
-    bx = (boxes[1:] + np.array([0, 0, 1, 1])).tolist()
-    # nearest first: a stable sort on the mean depth, as of the parts in slice order
-    rows = sorted((j for j in range(len(table)) if table[j][0] > 0), key=lambda j: table[j][1])
+    # the kernel takes the box's last column and row (inclusive bounds)
+    table = _part_table(labels, depth_mm, obj.id, x0, y0, x1 - 1, y1 - 1, step, horizontal, n_slices, *cam, metric)
     fn = depth_label  # callable, typed loosely to keep this module free of Bands
     # every part's label in one call (one numpy call per part cost more on small frames); a
     # callable giving one label whatever the depth is broadcast
-    depths = np.array([table[j][1] for j in rows], np.float64)
+    depths = table[:, 1]
     part_labels = np.broadcast_to(np.asarray(fn(depths)), depths.shape).tolist()  # type: ignore[operator]
     total = labels.size
     out = []
-    for k, j in enumerate(rows):
-        c, mean, std, cx, cy, gx, gy, amm = table[j]
-        bx0, by0, bx1, by1 = bx[j]
+    for k, (c, mean, std, cx, cy, gx, gy, amm, bx0, by0, bx1, by1) in enumerate(table.tolist()):
         area = int(c)
         out.append(
             SceneObject(
@@ -107,13 +99,62 @@ def slice_parts(
                 depth_std=std,
                 area=area,
                 area_fraction=area / total,
-                center_xy=(cx + x0, cy + y0),
-                bbox_xy=(int(bx0) + x0, int(by0) + y0, int(bx1) + x0, int(by1) + y0),
+                center_xy=(cx, cy),
+                bbox_xy=(int(bx0), int(by0), int(bx1), int(by1)),
                 centroid_mm=(gx, gy, mean) if metric else None,
                 area_mm2=amm if metric else None,
             )
         )
     return tuple(out)
+
+
+@njit(cache=True, nogil=True)
+def _part_table(
+    labels: NDArray[np.int32],
+    depth: NDArray[np.float32],
+    oid: int,
+    x0: int,
+    y0: int,
+    x1: int,
+    y1: int,
+    step: int,
+    horizontal: bool,
+    n: int,
+    fx: float,
+    fy: float,
+    cx: float,
+    cy: float,
+    metric: bool,
+) -> NDArray[np.float64]:
+    """Return the attributes of every slice of one object, nearest first, in frame coordinates.
+
+    Per part with pixels: count, mean depth, depth std, center x and y (px), centroid X and Y
+    (mm), area (mm²) as :func:`depthgram.segmentation.attributes.make_objects` takes them from
+    the slices' sums (:func:`_part_sums`, box coordinates, the principal point ``cx, cy``
+    shifted by the box's corner), then the half-open box x0, y0, x1, y1 (px); rows in a stable
+    order of mean depth. One compiled call for what took a dozen numpy calls and a Python
+    sort per compound object.
+    """
+    sums, boxes = _part_sums(labels, depth, oid, x0, y0, x1, y1, step, horizontal, n)
+    sz = sums[:, SUM_Z]
+    attrs = _attribute_table(
+        sums[:, COUNT], sz, sums[:, SUM_ZZ], sums[:, SUM_X], sums[:, SUM_Y],
+        sums[:, SUM_XZ] if metric else sz, sums[:, SUM_YZ] if metric else sz, fx, fy, cx, cy,
+    )  # fmt: skip
+    present = np.flatnonzero(attrs[:, 0] > 0)
+    # a stable sort on the mean depth, as of the parts in slice order
+    order = present[np.argsort(attrs[present, 1], kind="mergesort")]
+    out = np.empty((order.size, 12), np.float64)
+    for k in range(order.size):
+        j = order[k]
+        out[k, :8] = attrs[j]
+        out[k, 3] = attrs[j, 3] + x0
+        out[k, 4] = attrs[j, 4] + y0
+        out[k, 8] = boxes[j + 1, 0] + x0
+        out[k, 9] = boxes[j + 1, 1] + y0
+        out[k, 10] = boxes[j + 1, 2] + 1 + x0
+        out[k, 11] = boxes[j + 1, 3] + 1 + y0
+    return out
 
 
 @njit(cache=True, nogil=True)
@@ -175,6 +216,35 @@ def _part_sums(
             boxes[j, 2] = max(boxes[j, 2], x - 1 - x0)
             boxes[j, 3] = max(boxes[j, 3], yy)
     return sums, boxes
+
+
+def small_supports(sums: NDArray[np.float64], min_px: int, min_spread: float) -> tuple[NDArray[np.bool_], int]:
+    """Return which supports are too small or too flat to keep, and how many.
+
+    A row of the statistics table ``sums`` (row 0 unused) is small when it has fewer than
+    ``min_px`` pixels or its depth spread (standard deviation) is under ``min_spread`` times
+    its mean depth: numpy's ``(count < min_px) | (std < min_spread * mean)`` with ``mean =
+    SUM_Z / max(count, 1)`` and ``std = sqrt(max(SUM_ZZ / max(count, 1) - mean², 0))``.
+    """
+    return _small_supports(sums, float(min_px), float(min_spread))
+
+
+@njit(cache=True, nogil=True)
+def _small_supports(sums: NDArray[np.float64], min_px: float, min_spread: float) -> tuple[NDArray[np.bool_], int]:
+    # compiled: the half-dozen numpy calls on a few rows cost more than their arithmetic (two
+    # uses per frame); the same float64 operations
+    n = sums.shape[0]
+    small = np.zeros(n, np.bool_)
+    k = 0
+    for i in range(1, n):
+        c = sums[i, COUNT]
+        d = max(c, 1.0)
+        mean = sums[i, SUM_Z] / d
+        std = math.sqrt(max(sums[i, SUM_ZZ] / d - mean * mean, 0.0))
+        if c < min_px or std < min_spread * mean:
+            small[i] = True
+            k += 1
+    return small, k
 
 
 def support_kind(cls: int, centroid_y_mm: float, is_lowest: bool) -> str:
