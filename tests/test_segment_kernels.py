@@ -1055,3 +1055,23 @@ def test_large_pieces_are_opencvs_8_connected_pieces() -> None:
         np.testing.assert_array_equal(_large_pieces(mask, min_px), large_pieces_opencv(mask, min_px))
     diagonal = np.eye(5, dtype=bool)  # one piece through corners only
     assert _large_pieces(diagonal, 5).sum() == 5 and not _large_pieces(diagonal, 6).any()
+
+
+def test_prominent_peaks_are_scipys_find_peaks() -> None:
+    # the histogram's peaks: flat tops (their middle sample, rounded down), peaks at the ends
+    # of the padding, ties between the two sides, every prominence floor
+    from scipy.signal import find_peaks
+
+    from depthgram.segmentation.histogram import prominent_peaks
+
+    rng = np.random.default_rng(16)
+    for t in range(600):
+        n = int(rng.integers(0, 300))
+        x = rng.integers(0, 6 if t % 2 else 1000, n).astype(np.float64)  # few levels: plateaus
+        if t % 3 == 0:
+            x = np.concatenate(([0.0], x, [0.0]))
+        floor = float(rng.choice([1e-9, 0.5, 1.0, 3.0, 50.0, 400.0]))
+        want = find_peaks(x, prominence=floor)[0]
+        got = prominent_peaks(x, floor)
+        np.testing.assert_array_equal(got, want)
+        assert got.dtype == want.dtype
