@@ -204,7 +204,7 @@ STAGES = (
     "_support_class", "support_pieces_lazy", "join_near", "drop_classes", "frame_sensor",
     "_surface_objects", "bin_counts", "depth_bands", "concave_creases", "surfaces_kept",
     "relabel", "label_stats_fused", "merge_openings", "make_objects", "add_through", "_below_camera",
-    "front_faces", "side_faces", "slice_parts",
+    "front_faces", "side_faces", "slice_parts", "grid_frame", "_slices", "to_full_resolution",
 )  # fmt: skip
 
 
