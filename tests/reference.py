@@ -18,7 +18,6 @@ from depthgram.segmentation.label import ACTIVE, BLOCK, HOLE, label_keyed, relab
 from depthgram.segmentation.planes import (
     Plane,
     _assign,
-    _large_pieces,
     coplanar_groups,
     near_planes,
     plane_residual_mask,
@@ -28,6 +27,7 @@ from depthgram.segmentation.planes import (
 
 __all__ = [
     "label_stats_bincount",
+    "large_pieces_opencv",
     "merge_coplanar",
     "on_support_planes",
     "plane_fits",
@@ -147,6 +147,15 @@ def relabel_small(labels: NDArray[np.int32], count: NDArray[np.float64], min_px:
     return out
 
 
+def large_pieces_opencv(mask: NDArray[np.bool_], min_px: int) -> NDArray[np.bool_]:
+    """Pixels of the 8-connected pieces of ``mask`` of at least ``min_px`` pixels, by OpenCV."""
+    _, lab, stats, _ = cv2.connectedComponentsWithStats(mask.view(np.uint8), connectivity=8)
+    keep = stats[:, cv2.CC_STAT_AREA] >= min_px
+    keep[0] = False
+    out: NDArray[np.bool_] = keep[lab]
+    return out
+
+
 def _fit(u: NDArray[np.float64], v: NDArray[np.float64], inv: NDArray[np.float64]) -> tuple[float, float, float]:
     a = np.stack([u, v, np.ones_like(u)], axis=1)
     coef = np.linalg.lstsq(a, inv, rcond=None)[0]
@@ -210,7 +219,7 @@ def plane_search_numpy(
         coef = _fit(u[on], v[on], 1000.0 / z[on])
         on_img = plane_residual_mask(z_sub, left, coef, tol_mm=tol_mm, tol_rel=tol_rel, step=s)
         left &= ~on_img
-        pieces = _large_pieces(on_img, max(int(min_sub) // 4, 1))
+        pieces = large_pieces_opencv(on_img, max(int(min_sub) // 4, 1))
         if int(np.count_nonzero(pieces)) < min_sub:
             continue
         p5, p50, p95 = np.percentile(z_sub[pieces], (5, 50, 95))

@@ -867,7 +867,7 @@ def test_load_rare_kernels_loads_the_kernels_of_the_rare_branches() -> None:
     from depthgram.segmentation.core import load_rare_kernels
     from depthgram.segmentation.label import keyed, stats
     from depthgram.segmentation.label.unionfind import resolve_tables
-    from depthgram.segmentation.planes import _coplanar_join, _piece_percentiles, _planes_from_sums, _search_plane
+    from depthgram.segmentation.planes import _coplanar_join, _plane_pieces, _planes_from_sums, _search_plane
     from depthgram.segmentation.slices import _class_state, _drop_classes, _merge_rows
     from depthgram.sensor import simulate
 
@@ -881,7 +881,7 @@ def test_load_rare_kernels_loads_the_kernels_of_the_rare_branches() -> None:
         _drop_classes,
         stats._stats,
         _search_plane,
-        _piece_percentiles,
+        _plane_pieces,
         _planes_from_sums,
         _coplanar_join,
     )
@@ -1039,3 +1039,39 @@ def test_small_supports_are_numpys_test() -> None:
         got, k = small_supports(sums, min_px, spread)
         np.testing.assert_array_equal(got, want)
         assert k == want.sum()
+
+
+def test_large_pieces_are_opencvs_8_connected_pieces() -> None:
+    # the pieces of a found plane on the search grid: 8-connected (diagonal touches join),
+    # those under the size dropped; OpenCV's labelling gives the same pixels
+    from depthgram.segmentation.planes import _large_pieces
+    from reference import large_pieces_opencv
+
+    rng = np.random.default_rng(15)
+    for _ in range(300):
+        h, w = (int(v) for v in rng.integers(1, 70, 2))
+        mask = rng.random((h, w)) < rng.uniform(0.05, 0.8)
+        min_px = int(rng.integers(1, 30))
+        np.testing.assert_array_equal(_large_pieces(mask, min_px), large_pieces_opencv(mask, min_px))
+    diagonal = np.eye(5, dtype=bool)  # one piece through corners only
+    assert _large_pieces(diagonal, 5).sum() == 5 and not _large_pieces(diagonal, 6).any()
+
+
+def test_prominent_peaks_are_scipys_find_peaks() -> None:
+    # the histogram's peaks: flat tops (their middle sample, rounded down), peaks at the ends
+    # of the padding, ties between the two sides, every prominence floor
+    from scipy.signal import find_peaks
+
+    from depthgram.segmentation.histogram import prominent_peaks
+
+    rng = np.random.default_rng(16)
+    for t in range(600):
+        n = int(rng.integers(0, 300))
+        x = rng.integers(0, 6 if t % 2 else 1000, n).astype(np.float64)  # few levels: plateaus
+        if t % 3 == 0:
+            x = np.concatenate(([0.0], x, [0.0]))
+        floor = float(rng.choice([1e-9, 0.5, 1.0, 3.0, 50.0, 400.0]))
+        want = find_peaks(x, prominence=floor)[0]
+        got = prominent_peaks(x, floor)
+        np.testing.assert_array_equal(got, want)
+        assert got.dtype == want.dtype

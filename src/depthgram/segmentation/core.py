@@ -508,14 +508,18 @@ def _compound_objects(
         key=lambda o: below[o.id],
         default=None,
     )
-    # the supports' objects again from their stacked rows (a folded face's added): the facing
-    # objects are not built a second time
-    sup_old = [o.id for _, o in compounds]
-    recount = _stats_rows(stack.sums, stack.boxes, np.array([0, *sup_old]))
-    sup_new = np.array([0, *(remap[i] for i in sup_old)], np.int64)
     part_id = len(objects) + len(compounds) + 1
     keep_metric = intrinsics is not None
-    merged = {o.id: o for o in make_objects(labels, recount, intrinsics=cam, ids=sup_new)}
+    if fronts:
+        # the supports' objects again from their stacked rows (a folded face's added): the
+        # facing objects are not built a second time
+        sup_old = [o.id for _, o in compounds]
+        recount = _stats_rows(stack.sums, stack.boxes, np.array([0, *sup_old]))
+        sup_new = np.array([0, *(remap[i] for i in sup_old)], np.int64)
+        merged = {o.id: o for o in make_objects(labels, recount, intrinsics=cam, ids=sup_new)}
+    else:
+        # no face folded: the rows and the ids are those the supports' objects were built from
+        merged = {o.id: o for _, o in compounds}
     for cls, o in compounds:
         whole = merged[remap[o.id]]
         kind = support_kind(cls, below[o.id], lowest is not None and o.id == lowest.id)

@@ -34,6 +34,7 @@ from numba.extending import intrinsic
 from numpy.typing import NDArray
 
 from depthgram.frame import Intrinsics
+from depthgram.segmentation.label.unionfind import find, union
 from depthgram.segmentation.order_stats import percentile32
 
 __all__ = [
@@ -198,8 +199,7 @@ def find_planes(
         if status < _FOUND:
             break
         coef = (a, b, c)
-        pieces = _large_pieces(on_img, max(int(min_sub) // 4, 1))
-        n_on, p5, p50, p95 = _piece_percentiles(z_sub, pieces, min_sub)
+        pieces, n_on, p5, p50, p95 = _plane_pieces(on_img, max(int(min_sub) // 4, 1), z_sub, min_sub)
         if n_on < min_sub:
             continue
         spread = float((p95 - p5) / max(p50, 1e-6))
@@ -323,22 +323,26 @@ def _search_plane(
 
 
 @njit(cache=True, nogil=True)
-def _piece_percentiles(
-    z_sub: NDArray[np.float32], pieces: NDArray[np.bool_], min_px: float
-) -> tuple[int, float, float, float]:
-    """Pixel count of ``pieces`` and the 5th, 50th and 95th percentiles of their depth.
+def _plane_pieces(
+    on_img: NDArray[np.bool_], piece_px: int, z_sub: NDArray[np.float32], min_px: float
+) -> tuple[NDArray[np.bool_], int, float, float, float]:
+    """Return a found plane's large pieces on the grid, their pixel count and depth percentiles.
 
-    ``np.percentile(z_sub[pieces], (5, 50, 95))`` (:func:`percentile32`: the same values) in one
-    compiled call; the percentiles are left at 0 below ``min_px`` pixels, where the search
-    drops the plane anyway.
+    The pieces are those of :func:`_large_pieces` (8-connected pieces of ``on_img`` of at
+    least ``piece_px`` pixels); the 5th, 50th and 95th percentiles of their depth are
+    ``np.percentile(z_sub[pieces], (5, 50, 95))`` (:func:`percentile32`: the same values), left
+    at 0 below ``min_px`` pixels, where the search drops the plane anyway. One compiled call
+    for OpenCV's labelling (30 us on a 3000-point grid, most of it the call) and a handful of
+    numpy calls.
     """
+    pieces = _large_pieces(on_img, piece_px)
     h, w = z_sub.shape
     n = 0
     for y in range(h):
         for x in range(w):
             n += pieces[y, x]
     if n < min_px or n == 0:
-        return n, 0.0, 0.0, 0.0
+        return pieces, n, 0.0, 0.0, 0.0
     on_z = np.empty(n, np.float32)
     k = 0
     for y in range(h):
@@ -349,7 +353,7 @@ def _piece_percentiles(
     p5 = percentile32(on_z, 5.0, False)
     p50 = percentile32(on_z, 50.0, False)
     p95 = percentile32(on_z, 95.0, False)
-    return n, p5, p50, p95
+    return pieces, n, p5, p50, p95
 
 
 @njit(cache=True, nogil=True)
@@ -505,16 +509,39 @@ def _take_residual(
     return out
 
 
+@njit(cache=True, nogil=True)
 def _large_pieces(mask: NDArray[np.bool_], min_px: int) -> NDArray[np.bool_]:
-    """Pixels of the 8-connected pieces of ``mask`` of at least ``min_px`` pixels.
+    """Return the pixels of the 8-connected pieces of ``mask`` of at least ``min_px`` pixels.
 
     A far object that happens to cross the plane's extension makes small pieces; the support
-    itself is large even when the objects standing on it cut it apart.
+    itself is large even when the objects standing on it cut it apart. Union-find over the
+    pixels (the pieces are a property of the mask alone: OpenCV's labelling gives the same).
     """
-    _, lab, stats, _ = cv2.connectedComponentsWithStats(mask.view(np.uint8), connectivity=8)
-    keep = stats[:, cv2.CC_STAT_AREA] >= min_px
-    keep[0] = False
-    out: NDArray[np.bool_] = keep[lab]
+    h, w = mask.shape
+    parent = np.empty(h * w, np.int32)
+    for y in range(h):
+        for x in range(w):
+            if not mask[y, x]:
+                continue
+            i = y * w + x
+            parent[i] = i
+            # the neighbours met before this pixel in raster order
+            if x > 0 and mask[y, x - 1]:
+                union(parent, i, i - 1)
+            if y > 0:
+                for dx in range(-1, 2):
+                    if 0 <= x + dx < w and mask[y - 1, x + dx]:
+                        union(parent, i, i - w + dx)
+    size = np.zeros(h * w, np.int32)
+    for y in range(h):
+        for x in range(w):
+            if mask[y, x]:
+                size[find(parent, y * w + x)] += 1
+    out = np.zeros((h, w), np.bool_)
+    for y in range(h):
+        for x in range(w):
+            if mask[y, x]:
+                out[y, x] = size[find(parent, y * w + x)] >= min_px
     return out
 
 
