@@ -91,3 +91,47 @@ def test_the_pipeline_reads_the_same_motions_with_and_without_the_motion_thread(
     inline = list(pipe.run(frames))
     assert [r.motions for r in threaded] == [r.motions for r in inline]
     assert [r.sentence for r in threaded] == [r.sentence for r in inline]
+
+
+def test_a_recording_described_beside_the_next_segmentation_gives_the_results_of_process() -> None:
+    # run() of frames read ahead describes frame t on the thread beside while frame t + 1 is
+    # segmented; process() does one frame after the other
+    frames = _frames("crossing", 24)
+    pipe = Pipeline(Config())
+    stepped = [pipe.process(f) for f in frames]
+    overlapped = list(Pipeline(Config()).run(frames))
+    assert [r.frame.index for r in overlapped] == [f.index for f in frames]
+    for a, b in zip(stepped, overlapped, strict=True):
+        assert a.sentence == b.sentence
+        assert a.motions == b.motions
+        assert a.plan == b.plan
+        assert np.array_equal(a.segmentation.labels, b.segmentation.labels)
+    assert sum(m.v_radial is not None for r in overlapped for m in r.motions.values()) > 20
+
+
+def test_stopping_a_described_recording_early_leaves_the_tracker_usable() -> None:
+    frames = _frames("approach", 12)
+    pipe = Pipeline(Config())
+    run = pipe.run(frames)
+    first = [next(run) for _ in range(5)]
+    run.close()  # the description of frame 5, in flight, finishes before close returns
+    later = [pipe.process(f) for f in frames[6:]]
+    again = list(Pipeline(Config()).run(frames))
+    assert [r.sentence for r in first] == [r.sentence for r in again[:5]]
+    assert later and all(r.motions for r in later)
+
+
+def test_a_live_source_gets_each_result_before_its_next_frame_is_read() -> None:
+    frames = _frames("approach", 6)
+    taken: list[int] = []
+
+    class Live:
+        live = True
+
+        def __iter__(self):  # type: ignore[no-untyped-def]
+            for f in frames:
+                taken.append(f.index)
+                yield f
+
+    for r in Pipeline(Config()).run(Live()):
+        assert taken[-1] == r.frame.index  # no frame was taken before this result came

@@ -417,9 +417,18 @@ class Pipeline:
         cfg = self.config
         if not self.track or cfg.stills is True or cfg.tracker.depth_from != "core":
             return None
+        # the tracker is looked up when the task runs: in :meth:`run` the previous frame's
+        # description, queued before it on the same thread, may start a new tracker (a still)
+        return self._beside().submit(lambda: self._tracker.prepare(frame.depth, frame.intrinsics))
+
+    def _beside(self) -> ThreadPoolExecutor:
+        """Return the thread beside the caller's: image motion, and in :meth:`run` the descriptions.
+
+        One thread, so its tasks run in the order they were given.
+        """
         if self._motion_thread is None:
             self._motion_thread = ThreadPoolExecutor(max_workers=1, thread_name_prefix="depthgram-motion")
-        return self._motion_thread.submit(self._tracker.prepare, frame.depth, frame.intrinsics)
+        return self._motion_thread
 
     def _describe(self, frame: Frame, seg: Segmentation, t0: float, motion: Future[None] | None) -> SceneResult:
         """Everything after the segmentation, in frame order: tracks, tree, plan.
@@ -473,11 +482,41 @@ class Pipeline:
         """
         if workers < 1:
             raise InputError(f"pipeline: workers must be >= 1, got {workers}")
-        if workers == 1:
+        if workers > 1:
+            yield from self._run_parallel(prefetch(frames, ahead=read_ahead), workers)
+        elif read_ahead == 0 or getattr(frames, "live", False):
+            # a frame's result is due before the next frame is taken
             for frame in prefetch(frames, ahead=read_ahead):
                 yield self.process(frame)
-            return
-        yield from self._run_parallel(prefetch(frames, ahead=read_ahead), workers)
+        else:
+            yield from self._run_overlapped(prefetch(frames, ahead=read_ahead))
+
+    def _run_overlapped(self, frames: Iterator[Frame]) -> Iterator[SceneResult]:
+        """:meth:`run` of a recording: each frame described (tracks, tree, plan) beside the next one's segmentation.
+
+        The description runs on the thread beside (:meth:`_beside`), after the frame's image
+        motion and before the next frame's, so the tracker sees the frames in order and the
+        results are those of :meth:`process`. A result is given once the next frame is
+        segmented: for a recording read ahead, not for a live camera, whose results would wait
+        for its next frame (:meth:`run` takes this route only for frames read ahead).
+        """
+        pending: Future[SceneResult] | None = None
+        try:
+            for frame in frames:
+                t0 = time.perf_counter()
+                args = _segment_args(frame, self.config.segment, self._sensor_model(frame))
+                motion = self._prepare_motion(frame)
+                seg = _segment(*args)
+                if pending is not None:
+                    yield pending.result()
+                pending = self._beside().submit(self._describe, frame, seg, t0, motion)
+            if pending is not None:
+                yield pending.result()
+                pending = None
+        finally:
+            if pending is not None:
+                # closed early: the description in flight still owns the tracker
+                pending.result()
 
     def _run_parallel(self, frames: Iterator[Frame], workers: int) -> Iterator[SceneResult]:
         """:meth:`run` with the segmentation in ``workers`` processes."""
