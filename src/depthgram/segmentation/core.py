@@ -167,7 +167,7 @@ def load_rare_kernels() -> None:
     label_stats_fused(np.zeros((2, 2), np.int32), 0, z, np.zeros((2, 2), np.float32))
     # a plane search that finds a plane (its pieces' percentiles), planes from their sums, and
     # large pieces compared for one plane
-    find_planes(z, ok, min_area=0.0)
+    find_planes(z, ok, min_area=0.0, min_spread=0.0)
     planes_from_sums(np.zeros((1, 9), np.float64))
     coplanar_groups(np.eye(3), np.ones(3), np.ones(3))
     # the pixels of the planes found (a 2 x 2 frame finds none; 7-Scenes on the grid of a
