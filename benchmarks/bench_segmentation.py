@@ -202,7 +202,7 @@ def threshold_stages(size: tuple[int, int], seed: int = 0) -> dict[str, float]:
 STAGES = (
     "check_depth_far", "_orientation", "_add_support_planes", "find_planes", "_supports", "label_two_classes",
     "_support_class", "support_pieces_lazy", "join_near", "drop_classes", "frame_sensor",
-    "_surface_objects", "bin_counts", "depth_bands", "concave_creases", "surfaces_kept",
+    "_surface_objects", "log_bin_counts", "depth_bands", "concave_creases", "surfaces_kept",
     "relabel", "label_stats_fused", "merge_openings", "make_objects", "add_through", "_below_camera",
     "front_faces", "side_faces", "slice_parts", "grid_frame", "_slices", "to_full_resolution",
 )  # fmt: skip

@@ -14,7 +14,7 @@ from depthgram.segmentation.attributes import Stats, make_objects
 from depthgram.segmentation.coarse import grid_frame, grid_step, to_full_resolution
 from depthgram.segmentation.config import SegmentConfig
 from depthgram.segmentation.contacts import front_faces, side_faces
-from depthgram.segmentation.histogram import Bands, bin_counts, bin_index, depth_bands
+from depthgram.segmentation.histogram import Bands, bin_index, depth_bands, log_bin_counts
 from depthgram.segmentation.label import label_bands_stats, label_stats_fused, label_two_classes, relabel
 from depthgram.segmentation.label.stats import COUNT, KEY, N_COLUMNS, N_SUMS, SUM_Z
 from depthgram.segmentation.objects import Histogram, SceneObject, Segmentation
@@ -260,9 +260,8 @@ def _surface_objects(
     bin_far = max(cfg.bin_mm * far / cfg.ref_depth_mm, 3.0 * float(sensor.resolution(far)))
     # within the config's own bounds, so that a frame of absurd depths is binned, not refused here
     ref = min(max(far, 1.0), 1e6)
-    bin_cfg = cfg.with_overrides(depth_dependent_bins=True, ref_depth_mm=ref, bin_mm=min(max(bin_far, 0.01), 10_000.0))
-    edges, counts = bin_counts(d2, m2, bin_cfg)
-    bands = depth_bands(counts, edges, bin_cfg)
+    edges, counts = log_bin_counts(d2, m2, min(max(bin_far, 0.01), 10_000.0), ref)
+    bands = depth_bands(counts, edges, cfg)
     r = crease_scale_px(depth.shape[1])
     creases = concave_creases(depth, ok, sensor, scale_px=r, min_angle_deg=cfg.crease_deg, focal_px=cam.fx)
     t0, t2 = sensor.tolerance(cfg.join_resolutions)

@@ -446,13 +446,35 @@ def _best_hypothesis(
     for k in range(coef.shape[0]):
         a, b, c = coef[k, 0], coef[k, 1], coef[k, 2]
         cnt = 0
-        for i in range(m):
-            inv = a * ue[i] + b * ve[i] + c
-            cnt += (inv > 0) & (abs(1000.0 - ze[i] * inv) <= te[i] * inv)
+        # by blocks of points: a hypothesis that could not pass the best one even if all its
+        # remaining points were inliers is left there (it would not be chosen: the same argmax)
+        for i0 in range(0, m, _SCORE_BLOCK):
+            if cnt + (m - i0) <= best:
+                break
+            cnt += _inliers_counted(a, b, c, ue[i0 : i0 + _SCORE_BLOCK], ve[i0 : i0 + _SCORE_BLOCK],
+                                    ze[i0 : i0 + _SCORE_BLOCK], te[i0 : i0 + _SCORE_BLOCK])  # fmt: skip
         if cnt > best:
             best = cnt
             arg = k
     return arg
+
+
+#: Points scored between two checks of whether a RANSAC hypothesis can still win.
+_SCORE_BLOCK = 256
+
+
+@njit(cache=True, inline="always")
+def _inliers_counted(
+    a: float, b: float, c: float, u: NDArray[np.float64], v: NDArray[np.float64], z: NDArray[np.float64],
+    tol: NDArray[np.float64],
+) -> int:  # fmt: skip
+    # the points on the plane among these; views from index 0, so that the loop vectorises
+    # (an offset index would keep numba's negative-index check in it)
+    cnt = 0
+    for i in range(u.size):
+        inv = a * u[i] + b * v[i] + c
+        cnt += (inv > 0) & (abs(1000.0 - z[i] * inv) <= tol[i] * inv)
+    return cnt
 
 
 @njit(cache=True, nogil=True)
