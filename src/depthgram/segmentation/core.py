@@ -486,15 +486,17 @@ def _compound_objects(
     """
     compounds = stack.compounds
     with_front = set(fronts.values())
-    fold = np.arange(stack.next_id, dtype=np.int32)
-    for f, sup in fronts.items():
-        fold[f] = sup
     objects = [o for o in objects if o.id not in fronts]
     old = [o.id for o in objects] + [o.id for _, o in compounds]
     remap = {oid: new for new, oid in enumerate(old, start=1)}
-    renum = np.zeros(stack.next_id, np.int32)
-    renum[old] = np.arange(1, len(old) + 1, dtype=np.int32)
-    labels = relabel(labels, renum[fold] if fronts else renum)
+    # without a folded face or a missing id the ids stay 1..n: no pass over the label map
+    if fronts or old != list(range(1, stack.next_id)):
+        renum = np.zeros(stack.next_id, np.int32)
+        renum[old] = np.arange(1, len(old) + 1, dtype=np.int32)
+        fold = np.arange(stack.next_id, dtype=np.int32)
+        for f, sup in fronts.items():
+            fold[f] = sup
+        labels = relabel(labels, renum[fold])
     # ids change only after a folded face (a replace costs more than the comparison)
     objects = [o if remap[o.id] == o.id else replace(o, id=remap[o.id]) for o in objects]
     # the floor is the lowest horizontal support with nothing seen beneath it: a table top
