@@ -867,7 +867,14 @@ def test_load_rare_kernels_loads_the_kernels_of_the_rare_branches() -> None:
     from depthgram.segmentation.core import load_rare_kernels
     from depthgram.segmentation.label import keyed, stats
     from depthgram.segmentation.label.unionfind import resolve_tables
-    from depthgram.segmentation.planes import _coplanar_join, _plane_pieces, _planes_from_sums, _search_plane
+    from depthgram.segmentation.planes import (
+        _assign,
+        _coplanar_join,
+        _dilate3,
+        _plane_pieces,
+        _planes_from_sums,
+        _search_plane,
+    )
     from depthgram.segmentation.slices import _class_state, _drop_classes, _merge_rows
     from depthgram.sensor import simulate
 
@@ -884,6 +891,8 @@ def test_load_rare_kernels_loads_the_kernels_of_the_rare_branches() -> None:
         _plane_pieces,
         _planes_from_sums,
         _coplanar_join,
+        _dilate3,
+        _assign,
     )
     before = [len(k.signatures) for k in kernels]
     assert all(before)
@@ -1075,3 +1084,17 @@ def test_prominent_peaks_are_scipys_find_peaks() -> None:
         got = prominent_peaks(x, floor)
         np.testing.assert_array_equal(got, want)
         assert got.dtype == want.dtype
+
+
+def test_dilate3_is_opencvs_3x3_dilation() -> None:
+    import cv2
+
+    from depthgram.segmentation.planes import _dilate3
+
+    rng = np.random.default_rng(17)
+    for _ in range(100):
+        p, h, w = (int(v) for v in rng.integers(1, 40, 3))
+        p = min(p, 4)
+        masks = rng.random((p, h, w)) < rng.uniform(0.0, 0.3)
+        want = np.stack([cv2.dilate(m.view(np.uint8), np.ones((3, 3), np.uint8)) for m in masks])
+        np.testing.assert_array_equal(_dilate3(masks), want)

@@ -202,3 +202,16 @@ def test_surfaces_cut_boxes_off_the_table_even_without_planes() -> None:
 def test_config_rejects_absurd_plane_options(field: str, value: float) -> None:
     with pytest.raises(InputError, match=field):
         SegmentConfig(**{field: value})
+
+
+def test_the_seeded_generator_draws_default_rngs_numbers_on_every_call() -> None:
+    # the plane search's generator is set back to its seeded state at each call instead of
+    # seeded again: every call draws what np.random.default_rng(seed) draws
+    from depthgram.segmentation.planes import _seeded_rng
+
+    for seed in (0, 5, 0):
+        for _ in range(3):
+            got = _seeded_rng(seed)
+            want = np.random.default_rng(seed)
+            np.testing.assert_array_equal(got.integers(0, 3000, 384), want.integers(0, 3000, 384))
+            np.testing.assert_array_equal(got.integers(0, 7, 2000), want.integers(0, 7, 2000))

@@ -14,7 +14,7 @@ from depthgram.segmentation.attributes import Stats, make_objects
 from depthgram.segmentation.coarse import grid_frame, grid_step, to_full_resolution
 from depthgram.segmentation.config import SegmentConfig
 from depthgram.segmentation.contacts import front_faces, side_faces
-from depthgram.segmentation.histogram import Bands, bin_counts, bin_index, depth_bands
+from depthgram.segmentation.histogram import Bands, bin_index, depth_bands, log_bin_counts
 from depthgram.segmentation.label import label_bands_stats, label_stats_fused, label_two_classes, relabel
 from depthgram.segmentation.label.stats import COUNT, KEY, N_COLUMNS, N_SUMS, SUM_Z
 from depthgram.segmentation.objects import Histogram, SceneObject, Segmentation
@@ -167,7 +167,7 @@ def load_rare_kernels() -> None:
     label_stats_fused(np.zeros((2, 2), np.int32), 0, z, np.zeros((2, 2), np.float32))
     # a plane search that finds a plane (its pieces' percentiles), planes from their sums, and
     # large pieces compared for one plane
-    find_planes(z, ok, min_area=0.0)
+    find_planes(z, ok, min_area=0.0, min_spread=0.0)
     planes_from_sums(np.zeros((1, 9), np.float64))
     coplanar_groups(np.eye(3), np.ones(3), np.ones(3))
     # the pixels of the planes found (a 2 x 2 frame finds none; 7-Scenes on the grid of a
@@ -260,9 +260,8 @@ def _surface_objects(
     bin_far = max(cfg.bin_mm * far / cfg.ref_depth_mm, 3.0 * float(sensor.resolution(far)))
     # within the config's own bounds, so that a frame of absurd depths is binned, not refused here
     ref = min(max(far, 1.0), 1e6)
-    bin_cfg = cfg.with_overrides(depth_dependent_bins=True, ref_depth_mm=ref, bin_mm=min(max(bin_far, 0.01), 10_000.0))
-    edges, counts = bin_counts(d2, m2, bin_cfg)
-    bands = depth_bands(counts, edges, bin_cfg)
+    edges, counts = log_bin_counts(d2, m2, min(max(bin_far, 0.01), 10_000.0), ref)
+    bands = depth_bands(counts, edges, cfg)
     r = crease_scale_px(depth.shape[1])
     creases = concave_creases(depth, ok, sensor, scale_px=r, min_angle_deg=cfg.crease_deg, focal_px=cam.fx)
     t0, t2 = sensor.tolerance(cfg.join_resolutions)
@@ -487,15 +486,17 @@ def _compound_objects(
     """
     compounds = stack.compounds
     with_front = set(fronts.values())
-    fold = np.arange(stack.next_id, dtype=np.int32)
-    for f, sup in fronts.items():
-        fold[f] = sup
     objects = [o for o in objects if o.id not in fronts]
     old = [o.id for o in objects] + [o.id for _, o in compounds]
     remap = {oid: new for new, oid in enumerate(old, start=1)}
-    renum = np.zeros(stack.next_id, np.int32)
-    renum[old] = np.arange(1, len(old) + 1, dtype=np.int32)
-    labels = relabel(labels, renum[fold] if fronts else renum)
+    # without a folded face or a missing id the ids stay 1..n: no pass over the label map
+    if fronts or old != list(range(1, stack.next_id)):
+        renum = np.zeros(stack.next_id, np.int32)
+        renum[old] = np.arange(1, len(old) + 1, dtype=np.int32)
+        fold = np.arange(stack.next_id, dtype=np.int32)
+        for f, sup in fronts.items():
+            fold[f] = sup
+        labels = relabel(labels, renum[fold])
     # ids change only after a folded face (a replace costs more than the comparison)
     objects = [o if remap[o.id] == o.id else replace(o, id=remap[o.id]) for o in objects]
     # the floor is the lowest horizontal support with nothing seen beneath it: a table top

@@ -62,12 +62,23 @@ def bin_counts(
     if not config.depth_dependent_bins:
         _, edges, counts = bin_index(depth_mm, valid, config)
         return edges, counts
+    return log_bin_counts(depth_mm, valid, config.bin_mm, config.ref_depth_mm)
+
+
+def log_bin_counts(
+    depth_mm: NDArray[np.float32], valid: NDArray[np.bool_], bin_mm: float, ref_depth_mm: float
+) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+    """Return the edges and counts of depth-dependent bins ``bin_mm`` wide at ``ref_depth_mm`` (mm).
+
+    :func:`bin_counts` of a config with ``depth_dependent_bins``, for a caller whose bin width
+    changes with every frame (building and checking a config per frame cost more than this).
+    """
     depth = np.ascontiguousarray(depth_mm, np.float32)
     ok = np.ascontiguousarray(valid, np.bool_)
     lo, hi, n = depth_range(depth, ok)
     if n == 0:
         return np.zeros(1), np.zeros(0, np.int64)
-    step = math.log1p(config.bin_mm / config.ref_depth_mm)
+    step = math.log1p(bin_mm / ref_depth_mm)
     l0 = math.log(lo)
     nb = int((math.log(hi) - l0) / step) + 1
     counts = log_counts(depth, ok, lo, hi, l0, step, nb)

@@ -22,11 +22,11 @@ support's plane near it are found (:func:`near_planes`).
 from __future__ import annotations
 
 import math
+import threading
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import cast
+from typing import Any, cast
 
-import cv2
 import numpy as np
 from llvmlite import ir
 from numba import njit, types
@@ -171,7 +171,7 @@ def find_planes(
     # about 3000 grid points whatever the frame size: the search costs the same at 176 x 132
     # and 640 x 480, and only the final inlier test runs at full resolution
     s = sample_step or max(1, round(math.sqrt(h * w / 3000.0)))
-    rng = np.random.default_rng(seed)
+    rng = _seeded_rng(seed)
     z_sub = np.ascontiguousarray(depth_mm[::s, ::s], dtype=np.float32)
     # the grid's own pixels only, not a full-frame `valid & search`
     left = np.ascontiguousarray(valid[::s, ::s] if search is None else valid[::s, ::s] & search[::s, ::s])
@@ -211,8 +211,7 @@ def find_planes(
     coefs = np.array([c for c, _, _ in found], np.float64)
     # a full-resolution pixel may join a plane when its grid cell or a neighbouring one did:
     # the contact rows at the foot of an object are kept, far pixels on the plane's extension not
-    kernel = np.ones((3, 3), np.uint8)
-    allowed = np.stack([np.asarray(cv2.dilate(m.view(np.uint8), kernel), np.uint8) for _, m, _ in found])
+    allowed = _dilate3(np.stack([m for _, m, _ in found]))
     which = _assign(depth_mm, valid, coefs, allowed, s, float(tol_mm), float(tol_rel))
     planes: list[Plane] = []
     for k, (coef, _, spread) in enumerate(found, start=1):
@@ -221,6 +220,25 @@ def find_planes(
         if area >= min_px:
             planes.append(Plane(coef, mask, area, spread))
     return planes
+
+
+@njit(cache=True, nogil=True)
+def _dilate3(masks: NDArray[np.bool_]) -> NDArray[np.uint8]:
+    """Return each of the stacked masks dilated by a 3 x 3 square, as 0 / 1.
+
+    ``cv2.dilate(mask, np.ones((3, 3)))`` per mask (outside the grid counts as unset): one
+    compiled call for the planes of a frame instead of two OpenCV and numpy calls per plane.
+    """
+    p, h, w = masks.shape
+    out = np.zeros((p, h, w), np.uint8)
+    for k in range(p):
+        for y in range(h):
+            for x in range(w):
+                if masks[k, y, x]:
+                    for yy in range(max(y - 1, 0), min(y + 2, h)):
+                        for xx in range(max(x - 1, 0), min(x + 2, w)):
+                            out[k, yy, xx] = 1
+    return out
 
 
 @njit(cache=True, nogil=True)
@@ -257,6 +275,27 @@ def _assign(
                     out[y, x] = k + 1
                     break
     return out
+
+
+#: Per thread: seed -> (its PCG64 bit generator, the state it was seeded with).
+_RNGS = threading.local()
+
+
+def _seeded_rng(seed: int) -> np.random.Generator:
+    """Return ``np.random.default_rng(seed)``: the same numbers, without seeding it again.
+
+    Seeding (numpy's ``SeedSequence`` hashing) cost 8 us per frame; the bit generator seeded
+    once per thread and seed is set back to its first state instead (1 us).
+    """
+    cache: dict[int, tuple[np.random.PCG64, Any]] | None = getattr(_RNGS, "by_seed", None)
+    if cache is None:
+        cache = _RNGS.by_seed = {}
+    if seed not in cache:
+        bits = np.random.PCG64(seed)
+        cache[seed] = (bits, bits.state)
+    bits, first = cache[seed]
+    bits.state = first
+    return np.random.Generator(bits)
 
 
 #: :func:`_search_plane`'s outcome: no solvable sample, too few inliers, a plane found.
@@ -407,13 +446,35 @@ def _best_hypothesis(
     for k in range(coef.shape[0]):
         a, b, c = coef[k, 0], coef[k, 1], coef[k, 2]
         cnt = 0
-        for i in range(m):
-            inv = a * ue[i] + b * ve[i] + c
-            cnt += (inv > 0) & (abs(1000.0 - ze[i] * inv) <= te[i] * inv)
+        # by blocks of points: a hypothesis that could not pass the best one even if all its
+        # remaining points were inliers is left there (it would not be chosen: the same argmax)
+        for i0 in range(0, m, _SCORE_BLOCK):
+            if cnt + (m - i0) <= best:
+                break
+            cnt += _inliers_counted(a, b, c, ue[i0 : i0 + _SCORE_BLOCK], ve[i0 : i0 + _SCORE_BLOCK],
+                                    ze[i0 : i0 + _SCORE_BLOCK], te[i0 : i0 + _SCORE_BLOCK])  # fmt: skip
         if cnt > best:
             best = cnt
             arg = k
     return arg
+
+
+#: Points scored between two checks of whether a RANSAC hypothesis can still win.
+_SCORE_BLOCK = 256
+
+
+@njit(cache=True, inline="always")
+def _inliers_counted(
+    a: float, b: float, c: float, u: NDArray[np.float64], v: NDArray[np.float64], z: NDArray[np.float64],
+    tol: NDArray[np.float64],
+) -> int:  # fmt: skip
+    # the points on the plane among these; views from index 0, so that the loop vectorises
+    # (an offset index would keep numba's negative-index check in it)
+    cnt = 0
+    for i in range(u.size):
+        inv = a * u[i] + b * v[i] + c
+        cnt += (inv > 0) & (abs(1000.0 - z[i] * inv) <= tol[i] * inv)
+    return cnt
 
 
 @njit(cache=True, nogil=True)
@@ -525,13 +586,17 @@ def _large_pieces(mask: NDArray[np.bool_], min_px: int) -> NDArray[np.bool_]:
                 continue
             i = y * w + x
             parent[i] = i
-            # the neighbours met before this pixel in raster order
+            # the neighbours met before this pixel in raster order; the one above touches the
+            # other three, which are then in its set already
+            if y > 0 and mask[y - 1, x]:
+                union(parent, i, i - w)
+                continue
             if x > 0 and mask[y, x - 1]:
                 union(parent, i, i - 1)
-            if y > 0:
-                for dx in range(-1, 2):
-                    if 0 <= x + dx < w and mask[y - 1, x + dx]:
-                        union(parent, i, i - w + dx)
+            if y > 0 and x > 0 and mask[y - 1, x - 1]:
+                union(parent, i, i - w - 1)
+            if y > 0 and x + 1 < w and mask[y - 1, x + 1]:
+                union(parent, i, i - w + 1)
     size = np.zeros(h * w, np.int32)
     for y in range(h):
         for x in range(w):
@@ -934,7 +999,7 @@ def coplanar_groups(
     n = normal.shape[0] - 1
     # only pieces big enough for a reliable plane can join: compare those alone (a few),
     # not all pairs of pieces (hundreds of noise specks)
-    big = np.flatnonzero(count[1:] >= min_fit_px) + 1
+    big = _big_pieces(count, float(min_fit_px))
     if big.size < 2:
         return np.arange(n + 1, dtype=np.int32), n
     nb = normal[big]
@@ -942,6 +1007,19 @@ def coplanar_groups(
     # products do not repeat for every size); the tests and the joins after it are compiled
     lut, m = _coplanar_join(nb @ nb.T, off, big, math.cos(math.radians(max_angle_deg)), float(max_offset_rel), n)
     return lut, int(m)
+
+
+@njit(cache=True, nogil=True)
+def _big_pieces(count: NDArray[np.float64], min_px: float) -> NDArray[np.intp]:
+    # the pieces 1..n of at least min_px pixels: np.flatnonzero(count[1:] >= min_px) + 1 in one
+    # compiled call (four numpy calls cost more, four uses per frame)
+    out = np.empty(count.size, np.intp)
+    k = 0
+    for i in range(1, count.size):
+        if count[i] >= min_px:
+            out[k] = i
+            k += 1
+    return out[:k]
 
 
 @njit(cache=True, nogil=True)

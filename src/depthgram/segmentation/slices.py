@@ -85,7 +85,8 @@ def slice_parts(
     # every part's label in one call (one numpy call per part cost more on small frames); a
     # callable giving one label whatever the depth is broadcast
     depths = table[:, 1]
-    part_labels = np.broadcast_to(np.asarray(fn(depths)), depths.shape).tolist()  # type: ignore[operator]
+    found = np.asarray(fn(depths))  # type: ignore[operator]
+    part_labels = (found if found.shape == depths.shape else np.broadcast_to(found, depths.shape)).tolist()
     total = labels.size
     out = []
     for k, (c, mean, std, cx, cy, gx, gy, amm, bx0, by0, bx1, by1) in enumerate(table.tolist()):
