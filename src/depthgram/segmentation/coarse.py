@@ -28,7 +28,7 @@ from numpy.typing import NDArray
 
 from depthgram.frame import Intrinsics
 from depthgram.segmentation.attributes import Stats, make_objects
-from depthgram.segmentation.label.stats import COUNT, N_COLUMNS, SUM_X, SUM_XZ, SUM_Y, SUM_YZ, SUM_Z, SUM_ZZ
+from depthgram.segmentation.label.stats import N_COLUMNS, flush_run
 from depthgram.segmentation.objects import SceneObject, Segmentation
 from depthgram.segmentation.orientation import upsample_classes
 
@@ -99,7 +99,7 @@ def refine_labels(
     tol_0: float,
     tol_2: float,
     slope_per_px: float,
-) -> tuple[NDArray[np.int32], NDArray[np.float64], NDArray[np.int64]]:
+) -> tuple[NDArray[np.int32], NDArray[np.float64], NDArray[np.int32]]:
     """Full-resolution labels from those of the sampling grid, with their statistics.
 
     Each pixel with a reading takes, of the (up to) four grid samples around it, the label of
@@ -132,7 +132,7 @@ def refine_labels(
     sums : ndarray of float64, shape (n + 1, N_COLUMNS)
         The statistics table of :mod:`depthgram.segmentation.label.stats` (``KEY`` 0), ``n``
         the largest grid label.
-    boxes : ndarray of int64, shape (n + 1, 4)
+    boxes : ndarray of int32, shape (n + 1, 4)
         Inclusive (x0, y0, x1, y1).
     """
     return _refine(
@@ -159,7 +159,7 @@ def _refine(
     t2: np.float32,
     sl: np.float32,
     n_labels: int,
-) -> tuple[NDArray[np.int32], NDArray[np.float64], NDArray[np.int64]]:
+) -> tuple[NDArray[np.int32], NDArray[np.float64], NDArray[np.int32]]:
     # Hand-written: the choice among a pixel's four grid samples by depth and by the surface
     # labeller's own continuity rule has no library kernel (OpenCV's and scipy's upsampling
     # interpolate values, they do not pick a label). Walked cell by cell, so that no pixel pays
@@ -177,7 +177,8 @@ def _refine(
     per_px = np.zeros((2, gw + 1), np.float32)
     one = np.zeros(gw, np.bool_)
     sums = np.zeros((n_labels + 1, N_COLUMNS), np.float64)
-    box = np.empty((n_labels + 1, 4), np.int64)
+    # label.stats' boxes: each label's first row is set when its first run is added
+    box = np.empty((n_labels + 1, 4), np.int32)
     box[:, 0] = w
     box[:, 1] = h
     box[:, 2] = -1
@@ -229,7 +230,9 @@ def _refine(
                     out[y, x] = best
                 if best != run:
                     if run:
-                        _flush(sums, box, run, c, sz, szz, sx, sxz, y, start, x - 1)
+                        if box[run, 3] < 0:
+                            box[run, 1] = y
+                        flush_run(sums, box, run, c, sz, szz, sx, sxz, y, start, x - 1, 0.0)
                     run = best
                     start = x
                     c = sz = szz = sx = sxz = 0.0
@@ -245,35 +248,6 @@ def _refine(
                     j0 += 1
                     dx0 = 0
     return out, sums, box
-
-
-@njit(cache=True, inline="always")
-def _flush(
-    sums: NDArray[np.float64],
-    box: NDArray[np.int64],
-    i: int,
-    c: float,
-    sz: float,
-    szz: float,
-    sx: float,
-    sxz: float,
-    y: int,
-    x0: int,
-    x1: int,
-) -> None:
-    # a run of label i along row y, columns x0..x1 (a pixel without a reading inside a run
-    # ends it, so every pixel of the run counted)
-    sums[i, COUNT] += c
-    sums[i, SUM_Z] += sz
-    sums[i, SUM_ZZ] += szz
-    sums[i, SUM_X] += sx
-    sums[i, SUM_Y] += c * y
-    sums[i, SUM_XZ] += sxz
-    sums[i, SUM_YZ] += sz * y
-    box[i, 0] = min(box[i, 0], x0)
-    box[i, 1] = min(box[i, 1], y)
-    box[i, 2] = max(box[i, 2], x1)
-    box[i, 3] = max(box[i, 3], y)
 
 
 def _scaled_part(part: SceneObject, step: int, width: int, height: int) -> SceneObject:
