@@ -165,6 +165,71 @@ def test_merge_openings_equals_the_dilation_formulation(seed: int) -> None:
         assert ref is not None and int(ref.max()) < n
 
 
+def _merge_openings_numpy(
+    labels: np.ndarray, depth: np.ndarray, objs: np.ndarray, z_mean: np.ndarray, focal: float, ring: int, jump: float
+) -> np.ndarray | None:
+    """merge_openings before its pair test and table were compiled (numpy around the ring kernel)."""
+    from depthgram.segmentation.surfaces import _opening_parents
+
+    n = z_mean.size - 1
+    parent = np.arange(n + 1)
+    width = (objs[:, 2] - objs[:, 0] + 1) * z_mean / focal
+    margin_all = 0.15 * (objs[:, 2] - objs[:, 0] + 1)
+    zr_col = z_mean[:, None]
+    maybe = (z_mean[None, :] < zr_col) & (zr_col - z_mean[None, :] <= width[None, :])
+    maybe &= objs[None, :, 0] - margin_all[None, :] <= objs[:, 0, None]
+    maybe &= objs[:, 2, None] <= objs[None, :, 2] + margin_all[None, :]
+    maybe[:, 0] = False
+    np.fill_diagonal(maybe, False)
+    todo = np.flatnonzero(maybe.any(axis=1) & (objs[:, 2] >= 0))
+    todo = todo[todo > 0]
+    if todo.size:
+        _opening_parents(labels, depth, objs, z_mean, todo, parent, ring, jump, 0.3, focal)
+    if (parent == np.arange(n + 1)).all():
+        return None
+    roots = parent.copy()
+    for i in range(n + 1):
+        j = i
+        while roots[j] != j:
+            j = roots[j]
+        roots[i] = j
+    keep = np.unique(roots[1:])
+    new = np.zeros(n + 1, np.int32)
+    new[keep] = np.arange(1, keep.size + 1, dtype=np.int32)
+    out: np.ndarray = new[roots]
+    return out
+
+
+@pytest.mark.parametrize("seed", range(20))
+def test_merge_openings_compiled_pair_test_equals_numpys(seed: int) -> None:
+    # the pair test (and the table of roots) in one compiled call: the same candidates and the
+    # same table as the n x n numpy test, ties of depth and box edges included (depths and boxes
+    # on a coarse grid, so that the <= tests meet equal values)
+    rng = np.random.default_rng(seed)
+    if seed % 2:
+        labels, depth = _cups(seed)
+    else:
+        h, w = 60, 80
+        labels = np.zeros((h, w), np.int32)
+        depth = np.zeros((h, w), np.float32)
+        for i in range(1, int(rng.integers(2, 25))):
+            y0, x0 = int(rng.integers(0, h - 4)), int(rng.integers(0, w - 4))
+            y1, x1 = y0 + int(rng.integers(2, 20)), x0 + int(rng.integers(2, 30))
+            labels[y0:y1, x0:x1] = i
+            depth[y0:y1, x0:x1] = float(rng.choice([900.0, 950.0, 1000.0, 1050.0, 1200.0]))
+        depth[rng.random((h, w)) < 0.05] = 0.0
+    n = int(labels.max())
+    sums, boxes = label_stats_fused(labels, n, depth, np.zeros(depth.shape, np.float32))
+    z_mean = np.round(sums[:, 1] / np.maximum(sums[:, 0], 1.0), -1)  # ties between surfaces
+    focal = float(rng.choice([20.0, 50.0, 200.0]))
+    got = merge_openings(labels, depth, boxes, z_mean, focal_px=focal, ring_px=3, jump_mm=20.0)
+    ref = _merge_openings_numpy(labels, depth, boxes, z_mean, focal, 3, 20.0)
+    if ref is None:
+        assert got is None
+    else:
+        assert got is not None and got.dtype == np.int32 and np.array_equal(got, ref)
+
+
 def test_float32_median_is_numpys_float32_mean() -> None:
     from depthgram.segmentation.surfaces import _median32
 

@@ -654,36 +654,84 @@ def merge_openings(
     n = z_mean.size - 1
     if n < 2:
         return None
-    objs = boxes
+    jump = float(np.max(jump_mm)) if np.ndim(jump_mm) else float(jump_mm)
+    table = _openings_table(
+        labels,
+        depth_mm,
+        np.ascontiguousarray(boxes, np.int64),
+        np.ascontiguousarray(z_mean, np.float64),
+        float(focal_px),
+        int(ring_px),
+        jump,
+        float(min_share),
+    )
+    return table if table.size else None
+
+
+@njit(cache=True, nogil=True)
+def _openings_table(
+    labels: NDArray[np.int32],
+    depth: NDArray[np.float32],
+    objs: NDArray[np.int64],
+    z_mean: NDArray[np.float64],
+    focal_px: float,
+    ring_px: int,
+    jump: float,
+    min_share: float,
+) -> NDArray[np.int32]:
+    # merge_openings in one compiled call: the pair test, the ring tests, the table. Empty when
+    # nothing joins. The cheap tests first, for every pair (R, A): some nearer A that holds R's
+    # columns, R no deeper behind it than it is wide (the ring costs a dilation of R's box); the
+    # float64 arithmetic of the n x n numpy test it replaces (a dozen calls, most of the time
+    # at small sizes), pair by pair
+    n = z_mean.size - 1
+    todo = np.empty(n, np.intp)
+    k = 0
+    for r in range(1, n + 1):
+        if objs[r, 2] < 0:
+            continue
+        zr = z_mean[r]
+        for a in range(1, n + 1):
+            if a == r:
+                continue
+            wa = objs[a, 2] - objs[a, 0] + 1
+            width = wa * z_mean[a] / focal_px
+            margin = 0.15 * wa
+            if (
+                z_mean[a] < zr
+                and zr - z_mean[a] <= width
+                and objs[a, 0] - margin <= objs[r, 0]
+                and objs[r, 2] <= objs[a, 2] + margin
+            ):
+                todo[k] = r
+                k += 1
+                break
     parent = np.arange(n + 1)
-    width = (objs[:, 2] - objs[:, 0] + 1) * z_mean / focal_px
-    # cheap tests first, for every pair (R, A) at once: some nearer A that holds R's columns, R
-    # no deeper behind it than it is wide (the ring below costs a dilation of R's box). As one
-    # n x n test instead of a dozen numpy calls per surface, which dominated small frames.
-    margin_all = 0.15 * (objs[:, 2] - objs[:, 0] + 1)
-    zr_col = z_mean[:, None]
-    maybe = (z_mean[None, :] < zr_col) & (zr_col - z_mean[None, :] <= width[None, :])
-    maybe &= objs[None, :, 0] - margin_all[None, :] <= objs[:, 0, None]
-    maybe &= objs[:, 2, None] <= objs[None, :, 2] + margin_all[None, :]
-    maybe[:, 0] = False
-    np.fill_diagonal(maybe, False)
-    todo = np.flatnonzero(maybe.any(axis=1) & (objs[:, 2] >= 0))
-    todo = todo[todo > 0]
-    if todo.size:
-        jump = float(np.max(jump_mm)) if np.ndim(jump_mm) else float(jump_mm)
-        _opening_parents(labels, depth_mm, objs, z_mean, todo, parent, ring_px, jump, min_share, focal_px)
-    if (parent == np.arange(n + 1)).all():
-        return None
+    if k:
+        _opening_parents(labels, depth, objs, z_mean, todo[:k], parent, ring_px, jump, min_share, focal_px)
+    changed = False
+    for i in range(n + 1):
+        changed |= parent[i] != i
+    if not changed:
+        return np.zeros(0, np.int32)
+    # each surface's root, the roots numbered 1..m in increasing order (np.unique's)
     roots = parent.copy()
     for i in range(n + 1):
         j = i
         while roots[j] != j:
             j = roots[j]
         roots[i] = j
-    keep = np.unique(roots[1:])
     new = np.zeros(n + 1, np.int32)
-    new[keep] = np.arange(1, keep.size + 1, dtype=np.int32)
-    out: NDArray[np.int32] = new[roots]
+    for i in range(1, n + 1):
+        new[roots[i]] = 1
+    m = 0
+    for i in range(n + 1):
+        if new[i]:
+            m += 1
+            new[i] = m
+    out = np.empty(n + 1, np.int32)
+    for i in range(n + 1):
+        out[i] = new[roots[i]]
     return out
 
 
