@@ -98,6 +98,31 @@ def test_keyed_planes_equal_keyed_stats_then_plane_sums_exactly() -> None:
         assert planes.shape == (n + 1, 9)
 
 
+def test_keyed_planes_in_a_window_holding_every_active_pixel_equal_the_whole_frame() -> None:
+    # a support labelled again reads only a window around its pixels: the same labels, numbers,
+    # sums, boxes and plane sums to the last bit, whatever the state outside the window
+    rng = np.random.default_rng(12)
+    for t in range(200):
+        key, state, depth = _random_keyed(rng, smooth=t % 2 == 0)
+        h, w = key.shape
+        # the active pixels inside a random window, random other states around them
+        y0, y1 = sorted(int(v) for v in rng.integers(0, h + 1, 2))
+        x0, x1 = sorted(int(v) for v in rng.integers(0, w + 1, 2))
+        inside = np.zeros((h, w), bool)
+        inside[y0:y1, x0:x1] = True
+        state = np.where(inside | (state != ACTIVE), state, np.int8(BLOCK)).astype(np.int8)
+        if t % 3 == 0:
+            key = depth.copy()
+        bridge = int(rng.integers(0, 4))
+        fx, fy = (float(v) for v in rng.random(2) * 500 + 100)
+        cx, cy = float(rng.random() * w), float(rng.random() * h)
+        want = label_keyed_planes(key, state, depth, fx, fy, cx, cy, rel=0.05, bridge=bridge)
+        garbage = np.where(inside, state, rng.integers(0, 3, (h, w))).astype(np.int8)
+        got = label_keyed_planes(key, garbage, depth, fx, fy, cx, cy, rel=0.05, bridge=bridge, window=(y0, y1, x0, x1))
+        for a, b in zip(got, want, strict=True):
+            np.testing.assert_array_equal(a, b)
+
+
 def test_two_classes_in_one_pass_equal_one_labelling_per_class_exactly() -> None:
     # the supports' first labelling takes horizontal and vertical pixels in one pass: each
     # class's labels, sums, boxes and plane sums must be those of its own pass to the last bit
@@ -817,6 +842,50 @@ def test_join_near_is_near_planes_then_the_class_written() -> None:
         got = classes.copy()
         assert join_near(got, ok, 1, 0, normal, off, count, boxes, depth, cam, min_px=min_px, tol_rel=tol) == near.sum()
         np.testing.assert_array_equal(got, want)
+
+
+def test_support_labelled_again_in_its_window_equals_the_whole_frame() -> None:
+    # after join_near a class is labelled again inside class_window alone: its pixels all lie
+    # there, and the pieces, tables and joined supports are those of the whole frame's pass
+    from depthgram.segmentation.planes import class_window, join_near
+    from depthgram.segmentation.slices import support_pieces_lazy
+
+    rng = np.random.default_rng(9)
+    smaller = 0
+    for _ in range(40):
+        depth, ok, cam = _floor_scene()
+        depth = depth + rng.normal(0, 8, depth.shape).astype(np.float32) * ok
+        ok = ok & (rng.random(depth.shape) > 0.1)
+        classes = np.zeros(depth.shape, np.int8)
+        # the class in a random block (and specks of a third class), so that the window is
+        # smaller than the frame
+        y0, x0 = (int(v) for v in rng.integers(0, 25, 2))
+        classes[y0 : y0 + 15, x0 : x0 + 15] = rng.choice(np.array([0, 1], np.int8), (15, 15), p=[0.3, 0.7])[
+            : 40 - y0, : 40 - x0
+        ]
+        classes[rng.random(depth.shape) < 0.05] = 2
+        kw = {"jump_rel": 0.25, "bridge": int(rng.integers(0, 3)), "min_fit_px": 5}
+        _, _, _, _, boxes, planes, fit = support_pieces_lazy(depth, ok, classes, 1, cam, **kw)
+        normal, off, count = fit if fit is not None else planes_from_sums(planes)
+        min_px = int(rng.integers(1, 40))
+        join_near(classes, ok, 1, 0, normal, off, count, boxes, depth, cam, min_px=min_px, tol_rel=0.05)
+        win = class_window(boxes, count, depth.shape, min_px=min_px)
+        smaller += (win[1] - win[0]) * (win[3] - win[2]) < depth.size
+        ys, xs = np.nonzero((classes == 1) & ok)
+        if ys.size:
+            assert win[0] <= ys.min() and ys.max() < win[1] and win[2] <= xs.min() and xs.max() < win[3]
+        want = support_pieces_lazy(depth, ok, classes, 1, cam, **kw)
+        got = support_pieces_lazy(depth, ok, classes, 1, cam, **kw, window=win)
+        for a, b in zip(got[:6], want[:6], strict=True):
+            if a is None or b is None:
+                assert a is b
+            else:
+                np.testing.assert_array_equal(a, b)
+        assert (got[6] is None) == (want[6] is None)
+        if got[6] is not None and want[6] is not None:
+            for a, b in zip(got[6], want[6], strict=True):
+                np.testing.assert_array_equal(a, b)
+    assert smaller > 20  # the windows read less than the frame
 
 
 def test_dropping_through_the_joined_table_is_joining_then_dropping() -> None:

@@ -30,6 +30,7 @@ from depthgram.segmentation.orientation import (
 from depthgram.segmentation.paper_slices import paper_slices
 from depthgram.segmentation.planes import _assign as assign_planes
 from depthgram.segmentation.planes import (
+    class_window,
     coplanar_groups,
     find_planes,
     join_near,
@@ -155,7 +156,8 @@ def load_rare_kernels() -> None:
     classes = np.full((2, 2), HORIZONTAL, np.int8)
     cam = default_intrinsics(z.shape)
     # a class labelled alone (its near pixels joined): labeller state, labeller, tables, planes
-    support_pieces_lazy(z, ok, classes, HORIZONTAL, cam, jump_rel=0.05, bridge=2, min_fit_px=1)
+    win = class_window(np.array([[2, 2, -1, -1], [0, 0, 1, 1]], np.int64), np.ones(2), z.shape, min_px=1)
+    support_pieces_lazy(z, ok, classes, HORIZONTAL, cam, jump_rel=0.05, bridge=2, min_fit_px=1, window=win)
     # small or flat pieces dropped back to the facing class
     drop_classes(
         np.zeros((2, 2), np.int32), np.zeros(1, np.int32), 0, classes.copy(), FACING, np.zeros((0, 4), np.int64)
@@ -715,9 +717,12 @@ def _support_class(
             classes, ok, cls, FACING, normal, off, count, boxes, depth, cam, min_px=min_px, tol_rel=cfg.jump_rel / 2
         )
         if near:
+            # the class's pixels lie inside its supports' boxes and the margins join_near searched
+            win = class_window(boxes, count, depth.shape, min_px=min_px)
             lab, merge, n, sums, boxes, planes, _ = support_pieces_lazy(
-                depth, ok, classes, cls, cam, jump_rel=cfg.jump_rel, bridge=cfg.fill_holes_px, min_fit_px=fit_px
-            )
+                depth, ok, classes, cls, cam, jump_rel=cfg.jump_rel, bridge=cfg.fill_holes_px, min_fit_px=fit_px,
+                window=win,
+            )  # fmt: skip
             n_pieces = merge.size - 1 if merge is not None else n
             base, size = 0, n_pieces + 1
     small, n_small = small_supports(sums, min_px, cfg.min_spread)

@@ -39,6 +39,7 @@ from depthgram.segmentation.order_stats import percentile32
 
 __all__ = [
     "Plane",
+    "class_window",
     "coplanar_groups",
     "find_planes",
     "join_near",
@@ -1125,11 +1126,7 @@ def _near(
     for x in range(w):
         ucol[x] = (x - cx) / fx
     for i in ids:
-        bx0, by0, bx1, by1 = boxes[i, 0], boxes[i, 1], boxes[i, 2], boxes[i, 3]
-        my = (by1 - by0 + 1) // 10 + 1
-        mx = (bx1 - bx0 + 1) // 10 + 1
-        y0, y1 = max(by0 - my, 0), min(by1 + 1 + my, h)
-        x0, x1 = max(bx0 - mx, 0), min(bx1 + 1 + mx, w)
+        y0, y1, x0, x1 = _near_box(boxes, i, h, w)
         n0, n1, n2, d = normal[i, 0], normal[i, 1], normal[i, 2], off[i]
         for y in range(y0, y1):
             v = (y - cy) / fy
@@ -1189,6 +1186,48 @@ def join_near(
     )
 
 
+@njit(cache=True, inline="always")
+def _near_box(boxes: NDArray[np.int64], i: int, h: int, w: int) -> tuple[int, int, int, int]:
+    # the rows y0..y1 - 1 and columns x0..x1 - 1 where support i's near pixels are looked for:
+    # its inclusive box and a tenth of its size more on each side, inside the frame
+    bx0, by0, bx1, by1 = boxes[i, 0], boxes[i, 1], boxes[i, 2], boxes[i, 3]
+    my = (by1 - by0 + 1) // 10 + 1
+    mx = (bx1 - bx0 + 1) // 10 + 1
+    return max(by0 - my, 0), min(by1 + 1 + my, h), max(bx0 - mx, 0), min(bx1 + 1 + mx, w)
+
+
+def class_window(
+    boxes: NDArray[np.int64], count: NDArray[np.float64], shape: tuple[int, int], *, min_px: int
+) -> tuple[int, int, int, int]:
+    """Return the window ``(y0, y1, x0, x1)`` (half-open, px) holding a class after :func:`join_near`.
+
+    ``boxes`` (n + 1, 4, inclusive) hold every pixel of the class before (row 0 unused);
+    :func:`join_near` with the same ``count`` and ``min_px`` gives it pixels only inside the
+    margins it searches around the supports of ``min_px`` pixels or more. The union of both
+    holds every pixel of the class after it, so that labelling the class again reads this
+    window alone (:func:`depthgram.segmentation.slices.support_pieces_lazy`). An empty table
+    gives an empty window.
+    """
+    y0, y1, x0, x1 = _class_window(np.ascontiguousarray(boxes, np.int64), count, float(min_px), shape[0], shape[1])
+    return int(y0), int(y1), int(x0), int(x1)
+
+
+@njit(cache=True, nogil=True)
+def _class_window(
+    boxes: NDArray[np.int64], count: NDArray[np.float64], min_px: float, h: int, w: int
+) -> tuple[int, int, int, int]:
+    y0, y1, x0, x1 = h, 0, w, 0
+    for i in range(1, boxes.shape[0]):
+        if count[i] >= min_px:
+            a0, a1, b0, b1 = _near_box(boxes, i, h, w)
+        else:
+            a0, a1, b0, b1 = boxes[i, 1], boxes[i, 3] + 1, boxes[i, 0], boxes[i, 2] + 1
+        y0, y1, x0, x1 = min(y0, a0), max(y1, a1), min(x0, b0), max(x1, b1)
+    if y0 >= y1 or x0 >= x1:
+        return 0, 0, 0, 0
+    return y0, y1, x0, x1
+
+
 @njit(cache=True, nogil=True, error_model="numpy")
 def _join_near(
     classes: NDArray[np.int8],
@@ -1218,11 +1257,7 @@ def _join_near(
     for i in range(1, count.size):
         if not count[i] >= min_px:
             continue
-        bx0, by0, bx1, by1 = boxes[i, 0], boxes[i, 1], boxes[i, 2], boxes[i, 3]
-        my = (by1 - by0 + 1) // 10 + 1
-        mx = (bx1 - bx0 + 1) // 10 + 1
-        y0, y1 = max(by0 - my, 0), min(by1 + 1 + my, h)
-        x0, x1 = max(bx0 - mx, 0), min(bx1 + 1 + mx, w)
+        y0, y1, x0, x1 = _near_box(boxes, i, h, w)
         n0, n1, n2, d = normal[i, 0], normal[i, 1], normal[i, 2], off[i]
         for y in range(y0, y1):
             v = (y - cy) / fy

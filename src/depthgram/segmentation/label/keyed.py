@@ -42,6 +42,10 @@ def _label_runs(
     bridge: int,
     depth: NDArray[np.float32],
     stats: bool,
+    y0: int,
+    y1: int,
+    x0: int,
+    x1: int,
 ) -> tuple[NDArray[np.int32], NDArray[np.int32], int, NDArray[np.float64], NDArray[np.int32]]:
     # First pass of a two-pass labeller with provisional labels. Each column remembers its last
     # pixel with a reading (row, label, key) and the row scan its last one, so the neighbour
@@ -50,21 +54,32 @@ def _label_runs(
     # With `stats`, sums are gathered per run of one label along a row and flushed once per run.
     # (Band images have their own run-based labeller, bands._label_bands: a mode for them here
     # would put tests on runtime flags inside this pixel loop.)
+    # Only the window rows y0..y1 - 1, columns x0..x1 - 1 are read, in frame coordinates (the
+    # sums and boxes too); labels are 0 outside it. A window holding every active pixel gives
+    # the labels and tables of the whole frame: no join reaches across a pixel outside it.
     h, w = state.shape
     lab = np.zeros((h, w), np.int32)
     # one provisional label per pixel at most; np.empty only reserves the memory, the pages
     # of labels never used are never touched (growing the tables inside the loop instead makes
     # numba count references on every pixel)
-    cap = h * w + 1
+    nw = x1 - x0
+    cap = (y1 - y0) * nw + 1
     parent = np.empty(cap, np.int32)
     sums = np.empty((cap if stats else 1, N_COLUMNS), np.float64)
     boxes = np.empty((cap if stats else 1, 4), np.int32)
     reach = bridge + 1
-    col_row = np.full(w, -reach - 1, np.int64)
-    col_lab = np.zeros(w, np.int32)
-    col_key = np.zeros(w, np.float32)
+    # per column of the window; the row scan reads the window's rows as slices from 0 (indices
+    # from x0 cost a quarter more: the compiler no longer knows them in bounds and unsigned)
+    col_row = np.full(nw, -reach - 1, np.int64)
+    col_lab = np.zeros(nw, np.int32)
+    col_key = np.zeros(nw, np.float32)
     nxt = 1
-    for y in range(h):
+    for y in range(y0, y1):
+        sr = state[y, x0:x1]
+        kr = key[y, x0:x1]
+        lr = lab[y, x0:x1]
+        # the depth is not read without statistics (and may be a 1 x 1 stand-in then)
+        dr = depth[y, x0:x1] if stats else depth[0, 0:1]
         last_x = -reach - 1
         last_lab = 0
         last_key = np.float32(0.0)
@@ -78,25 +93,25 @@ def _label_runs(
         rx1 = 0
         rk = np.float32(0.0)
         merged_up = 0
-        for x in range(w):
-            s = state[y, x]
+        for j in range(nw):
+            s = sr[j]
             if s == HOLE:
                 continue
             active = s == ACTIVE
-            kp = key[y, x]
+            kp = kr[j]
             if not active:
-                last_x = x
+                last_x = j
                 last_lab = 0
-                col_row[x] = y
-                col_lab[x] = 0
+                col_row[j] = y
+                col_lab[j] = 0
                 continue
             lim = tol + rel * abs(kp)
             left = 0
-            if last_lab != 0 and x - last_x <= reach and abs(last_key - kp) <= lim:
+            if last_lab != 0 and j - last_x <= reach and abs(last_key - kp) <= lim:
                 left = last_lab
             up = 0
-            cl = col_lab[x]
-            if cl != 0 and y - col_row[x] <= reach and abs(col_key[x] - kp) <= lim:
+            cl = col_lab[j]
+            if cl != 0 and y - col_row[j] <= reach and abs(col_key[j] - kp) <= lim:
                 up = cl
             if left == 0 and up == 0:
                 merged_up = 0
@@ -120,14 +135,15 @@ def _label_runs(
                 if up != merged_up:
                     union(parent, left, up)
                     merged_up = up
-            lab[y, x] = lab_here
-            last_x = x
+            lr[j] = lab_here
+            last_x = j
             last_lab = lab_here
             last_key = kp
-            col_row[x] = y
-            col_lab[x] = lab_here
-            col_key[x] = kp
+            col_row[j] = y
+            col_lab[j] = lab_here
+            col_key[j] = kp
             if stats:
+                x = x0 + j
                 if lab_here != run:
                     if run != 0:
                         flush_run(sums, boxes, run, c, sz, szz, sx, sxz, y, rx0, rx1, rk)
@@ -139,7 +155,7 @@ def _label_runs(
                     sxz = 0.0
                     rx0 = x
                     rk = kp
-                z = np.float64(depth[y, x])
+                z = np.float64(dr[j])
                 c += 1.0
                 sz += z
                 szz += z * z
@@ -183,7 +199,9 @@ def label_keyed(
     """
     k = np.ascontiguousarray(key, dtype=np.float32)
     s = np.ascontiguousarray(state, dtype=np.int8)
-    lab, parent, nxt, ps, pb = _label_runs(k, s, float(tol), float(rel), int(bridge), _NO_DEPTH, False)
+    lab, parent, nxt, ps, pb = _label_runs(
+        k, s, float(tol), float(rel), int(bridge), _NO_DEPTH, False, 0, s.shape[0], 0, s.shape[1]
+    )
     labels, n, _, _ = resolve(lab, parent, nxt, ps, pb, 0, False)
     return labels, int(n)
 
@@ -219,7 +237,9 @@ def label_keyed_stats(
     k = np.ascontiguousarray(key, dtype=np.float32)
     s = np.ascontiguousarray(state, dtype=np.int8)
     z = np.ascontiguousarray(depth_mm, dtype=np.float32)
-    lab, parent, nxt, ps, pb = _label_runs(k, s, float(tol), float(rel), int(bridge), z, True)
+    lab, parent, nxt, ps, pb = _label_runs(
+        k, s, float(tol), float(rel), int(bridge), z, True, 0, k.shape[0], 0, k.shape[1]
+    )
     labels, n, sums, boxes = resolve(lab, parent, nxt, ps, pb, int(min_px), True)
     return labels, int(n), sums, boxes
 
@@ -234,28 +254,33 @@ def _relabel_planes(
     fy: float,
     cx: float,
     cy: float,
+    y0: int,
+    y1: int,
+    x0: int,
+    x1: int,
 ) -> NDArray[np.float64]:
     # The relabelling pass of resolve, gathering on the way the plane sums that
     # planes._plane_sums takes from the final labels: the same runs of one final label along a
     # row, the same float64 operations in the same order, hence the same numbers, without a
     # second pass over the image. Each run is added by planes.flush_plane_run, as there; the
     # per-pixel sums below must stay those of planes._plane_sums (tests/test_segment_kernels.py
-    # compares the two).
-    h, w = lab.shape
+    # compares the two). Only the window rows y0..y1 - 1, columns x0..x1 - 1 of _label_runs.
     out = np.zeros((n + 1, 9), np.float64)
-    ucol = np.empty(w, np.float64)
-    for x in range(w):
-        ucol[x] = (x - cx) / fx
-    for y in range(h):
+    # the window's rows as slices read from 0, as in _label_runs
+    ucol = np.empty(x1 - x0, np.float64)
+    for x in range(x0, x1):
+        ucol[x - x0] = (x - cx) / fx
+    for y in range(y0, y1):
         v = (y - cy) / fy
-        row = lab[y]
+        row = lab[y, x0:x1]
+        zr = depth[y, x0:x1]
         run = 0
         c = 0.0
         su = 0.0
         suu = 0.0
         sq = 0.0
         suq = 0.0
-        for x in range(w):
+        for x in range(x1 - x0):
             i = final[row[x]]
             row[x] = i
             if i != run:
@@ -269,7 +294,7 @@ def _relabel_planes(
                 suq = 0.0
             if i != 0:
                 u = ucol[x]
-                q = 1.0 / depth[y, x]
+                q = 1.0 / zr[x]
                 c += 1.0
                 su += u
                 suu += u * u
@@ -293,6 +318,7 @@ def label_keyed_planes(
     rel: float = 0.0,
     bridge: int = 0,
     min_px: int = 1,
+    window: tuple[int, int, int, int] | None = None,
 ) -> tuple[NDArray[np.int32], int, NDArray[np.float64], NDArray[np.int64], NDArray[np.float64]]:
     """:func:`label_keyed_stats` and the plane sums of its components, gathered while relabelling.
 
@@ -300,13 +326,19 @@ def label_keyed_planes(
     :func:`depthgram.segmentation.planes.plane_sums` on the returned labels (same numbers),
     shape (n + 1, 9), for pixel focal lengths ``fx``, ``fy`` and principal point ``cx``, ``cy``
     (px).
+
+    ``window`` ``(y0, y1, x0, x1)`` (half-open, px): only these rows and columns are read (the
+    rest of ``state`` may hold anything) and labelled, the tables in frame coordinates. A
+    window holding every active pixel gives the whole frame's results to the last bit at the
+    cost of the window.
     """
     k = np.ascontiguousarray(key, dtype=np.float32)
     s = np.ascontiguousarray(state, dtype=np.int8)
     z = np.ascontiguousarray(depth_mm, dtype=np.float32)
-    lab, parent, nxt, ps, pb = _label_runs(k, s, float(tol), float(rel), int(bridge), z, True)
+    y0, y1, x0, x1 = window if window is not None else (0, k.shape[0], 0, k.shape[1])
+    lab, parent, nxt, ps, pb = _label_runs(k, s, float(tol), float(rel), int(bridge), z, True, y0, y1, x0, x1)
     final, n, sums, boxes = resolve_tables(lab, parent, nxt, ps, pb, int(min_px), True)
-    planes = _relabel_planes(lab, final, int(n), z, float(fx), float(fy), float(cx), float(cy))
+    planes = _relabel_planes(lab, final, int(n), z, float(fx), float(fy), float(cx), float(cy), y0, y1, x0, x1)
     return lab, int(n), sums, boxes, planes
 
 
@@ -551,7 +583,8 @@ def label_two_classes(
         int(bridge),
     )
     final, na, nb, sums, boxes = _resolve_two(lab, parent, pcls, np.int8(cls_a), nxt, ps, pb)
-    planes = _relabel_planes(lab, final, int(na + nb), z, float(fx), float(fy), float(cx), float(cy))
+    h, w = z.shape
+    planes = _relabel_planes(lab, final, int(na + nb), z, float(fx), float(fy), float(cx), float(cy), 0, h, 0, w)
     return lab, int(na), int(nb), sums, boxes, planes
 
 
