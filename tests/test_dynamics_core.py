@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 import pytest
 from scipy import ndimage
@@ -44,6 +46,24 @@ def test_image_shift_finds_a_known_shift() -> None:
     now = (2000.0 + _relief(u - 5, v + 3)).astype(np.float32)  # the point at (x, y) was at (x - 5, y + 3)
     dx, dy = image_shift(prev, now)
     assert dx == pytest.approx(-5.0, abs=0.5) and dy == pytest.approx(3.0, abs=0.5)
+
+
+def test_the_tracker_keeps_each_frames_structure_for_the_next_shift() -> None:
+    # the tracker computes a frame's gradient structure once and reads it again as the next
+    # frame's previous one; OpenCV's phaseCorrelate windows its inputs in place, so the kept
+    # structure must not go into it (it did: 58 of 59 shifts on 7-Scenes moved by 0.1 px)
+    from depthgram.dynamics.core import shift_structure, structure_shift
+
+    u, v = np.meshgrid(np.arange(W, dtype=np.float64), np.arange(H, dtype=np.float64))
+    frames = [(2000.0 + _relief(u - 2 * k, v + k)).astype(np.float32) for k in range(4)]
+    kept = shift_structure(frames[0])
+    before = kept.copy()
+    structure_shift(kept, shift_structure(frames[1]), (W, H))
+    assert np.array_equal(kept, before)
+    tracker = Tracker(TrackerConfig(fps=FPS))
+    shifts = [tracker._shift(a, b) for a, b in itertools.pairwise(frames)]
+    assert shifts == [image_shift(a, b) for a, b in itertools.pairwise(frames)]
+    assert all(dx == pytest.approx(-2.0, abs=0.5) and dy == pytest.approx(1.0, abs=0.5) for dx, dy in shifts)
 
 
 def test_core_change_of_a_sliding_surface_is_its_points_motion() -> None:

@@ -83,13 +83,17 @@ class FramePixels:
     intrinsics: Intrinsics | None = None
 
 
-def _structure(depth_mm: NDArray[np.floating]) -> NDArray[np.float32]:
+def shift_structure(depth_mm: NDArray[np.floating]) -> NDArray[np.float32]:
     """Down-sampled depth gradient magnitude (mm/px), clipped.
 
     The scene's edges, whose place moves with the image while their depth offset (the radial motion)
     does not matter.
     """
-    z = np.nan_to_num(np.asarray(depth_mm, dtype=np.float32), nan=0.0)
+    z = np.asarray(depth_mm, dtype=np.float32)
+    if not math.isfinite(float(np.sum(z, dtype=np.float64))):
+        # a frame from depthgram's sources has 0 where invalid; nan_to_num's copy is a third of
+        # this function's time, so it is paid only where a NaN or inf is there to replace
+        z = np.nan_to_num(z, nan=0.0)
     small = cv2.resize(z, (_SHIFT_W, _SHIFT_H), interpolation=cv2.INTER_AREA)
     gx = cv2.Sobel(small, cv2.CV_32F, 1, 0)
     gy = cv2.Sobel(small, cv2.CV_32F, 0, 1)
@@ -111,8 +115,20 @@ def image_shift(prev_depth_mm: NDArray[np.floating], depth_mm: NDArray[np.floati
         at ``(x + dx, y + dy)`` in the previous one.
     """
     h, w = np.shape(depth_mm)
+    return structure_shift(shift_structure(prev_depth_mm), shift_structure(depth_mm), (w, h))
+
+
+def structure_shift(
+    prev_structure: NDArray[np.float32], structure: NDArray[np.float32], size: tuple[int, int]
+) -> tuple[float, float]:
+    """:func:`image_shift` from the two frames' :func:`shift_structure` (a caller keeps the last one).
+
+    ``size`` is the frames' (width, height) in px.
+    """
+    w, h = size
     win = cv2.createHanningWindow((_SHIFT_W, _SHIFT_H), cv2.CV_32F)
-    (sx, sy), response = cv2.phaseCorrelate(_structure(prev_depth_mm), _structure(depth_mm), win)
+    # copies: OpenCV's phaseCorrelate windows its inputs in place, and a caller keeps them
+    (sx, sy), response = cv2.phaseCorrelate(prev_structure.copy(), structure.copy(), win)
     if not response >= _MIN_RESPONSE:
         # No clear peak: a still view of smooth surfaces (the simulator's), whose gradients
         # are mostly noise. Most of such an image does not move.

@@ -24,9 +24,10 @@ from depthgram.dynamics.core import (
     EgoMotion,
     FramePixels,
     core_depth_change,
-    image_shift,
     inner_edge_shift,
+    shift_structure,
     still_depth_change,
+    structure_shift,
 )
 from depthgram.dynamics.kernels import (
     FORBIDDEN,
@@ -287,6 +288,9 @@ class Tracker:
         self._ego = EgoMotion()
         # this frame's image motion when prepare() found it ahead of update(): (depth, camera, shift)
         self._prepared: tuple[object, CameraMotion | None, tuple[float, float] | None] | None = None
+        # the last depth array read for the frame's shift and its structure, which the next
+        # frame's shift reads again as its previous one
+        self._structure: tuple[object, NDArray[np.float32]] | None = None
 
     # ------------------------------------------------------------------ public views
     @property
@@ -386,8 +390,20 @@ class Tracker:
         camera = self._camera_motion(depth_mm, intrinsics)
         shift = None
         if prev is not None and np.shape(prev.depth_mm) == np.shape(depth_mm):
-            shift = image_shift(prev.depth_mm, depth_mm)
+            shift = self._shift(prev.depth_mm, depth_mm)
         self._prepared = (depth_mm, camera, shift)
+
+    def _shift(self, prev_depth_mm: NDArray[np.floating], depth_mm: NDArray[np.floating]) -> tuple[float, float]:
+        """:func:`image_shift`, with the previous frame's structure kept from its own shift."""
+        known = self._structure
+        if known is not None and known[0] is prev_depth_mm:
+            before = known[1]
+        else:
+            before = shift_structure(prev_depth_mm)
+        now = shift_structure(depth_mm)
+        self._structure = (depth_mm, now)
+        h, w = np.shape(depth_mm)
+        return structure_shift(before, now, (w, h))
 
     def update(
         self,
@@ -557,7 +573,7 @@ class Tracker:
         if not pairs:
             return out, still
         if shift is None:
-            shift = image_shift(prev.depth_mm, pixels.depth_mm)
+            shift = self._shift(prev.depth_mm, pixels.depth_mm)
         change = core_depth_change(prev, pixels, pairs, shift, camera=camera)
         for c, o in enumerate(objects):
             out[c] = change.get(o.id, math.nan)
