@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 
 import numpy as np
@@ -135,3 +136,24 @@ def test_a_live_source_gets_each_result_before_its_next_frame_is_read() -> None:
 
     for r in Pipeline(Config()).run(Live()):
         assert taken[-1] == r.frame.index  # no frame was taken before this result came
+
+
+def test_a_recording_that_fails_midway_still_gives_every_frame_before_the_failure() -> None:
+    frames = _frames("approach", 8)
+
+    def broken():  # type: ignore[no-untyped-def]
+        yield from frames[:5]
+        raise OSError("frame 5: truncated file")
+
+    got = []
+    with pytest.raises(OSError, match="frame 5"):
+        for r in Pipeline(Config()).run(broken()):
+            got.append(r.frame.index)
+    assert got == [0, 1, 2, 3, 4]
+    # a frame the segmentation refuses: the frames before it come first, then its error
+    bad = [*frames[:3], dataclasses.replace(frames[3], depth=np.zeros((2, 2, 2), np.float32))]
+    got = []
+    with pytest.raises(Exception, match="2-D"):
+        for r in Pipeline(Config()).run(bad):
+            got.append(r.frame.index)
+    assert got == [0, 1, 2]

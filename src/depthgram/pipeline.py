@@ -510,13 +510,19 @@ class Pipeline:
                 if pending is not None:
                     yield pending.result()
                 pending = self._beside().submit(self._describe, frame, seg, t0, motion)
+        except Exception:
+            # a frame that cannot be read or segmented: the frame before it is still given,
+            # as one frame at a time would have given it, before the error
             if pending is not None:
-                yield pending.result()
-                pending = None
+                done, pending = pending, None
+                yield done.result()
+            raise
         finally:
-            if pending is not None:
+            if pending is not None and not pending.done():
                 # closed early: the description in flight still owns the tracker
-                pending.result()
+                pending.exception()
+        if pending is not None:
+            yield pending.result()
 
     def _run_parallel(self, frames: Iterator[Frame], workers: int) -> Iterator[SceneResult]:
         """:meth:`run` with the segmentation in ``workers`` processes."""
