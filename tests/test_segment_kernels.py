@@ -342,7 +342,7 @@ def test_one_sided_rows_match_numpy_at_every_border(shape: tuple[int, int]) -> N
 def test_orientation_classes_and_kept_slopes_match_numpy() -> None:
     # the per-pixel class from the window-mean slopes, and the slopes kept under 80 degrees,
     # against the float32 numpy expressions they replaced
-    from depthgram.segmentation.orientation import FACING, HORIZONTAL, VERTICAL, _classify, _keep_slopes
+    from depthgram.segmentation.orientation import FACING, HORIZONTAL, VERTICAL, _classify, _kept_slopes
 
     rng = np.random.default_rng(4)
     h, w = 37, 53
@@ -367,7 +367,9 @@ def test_orientation_classes_and_kept_slopes_match_numpy() -> None:
     # takes them at least 1e-6 as np.maximum did; the row and column jumps joined
     raw = np.where(den > 1e-3, den, f32(0.0))
     across = jump & (rng.random((h, w)) < 0.5)
-    got = _classify(sgx, sgy, raw, inv3, valid, jump & ~across, across, fx, fy, cx, cy, cos_t)
+    # the window sums come as the channels of one image
+    sums = np.stack([raw, sgx, sgy], axis=-1)
+    got = _classify(sums, inv3, valid, jump & ~across, across, fx, fy, cx, cy, cos_t)
     np.testing.assert_array_equal(got, ref)
     assert len(np.unique(got)) == 3
     steep = f32(math.tan(math.radians(80.0)))
@@ -375,12 +377,32 @@ def test_orientation_classes_and_kept_slopes_match_numpy() -> None:
     gx, gy = sgx * f32(40.0), sgy * f32(40.0)
     lim = steep * inv3
     keep = has & (np.abs(fx * gx) <= lim) & (np.abs(fy * gy) <= lim)
-    kx, ky = gx.copy(), gy.copy()
-    mk = _keep_slopes(kx, ky, has, inv3, fx, fy, steep)
-    np.testing.assert_array_equal(mk, keep.astype(f32))
-    np.testing.assert_array_equal(kx, np.where(keep, gx, f32(0.0)))
-    np.testing.assert_array_equal(ky, np.where(keep, gy, f32(0.0)))
+    kept = _kept_slopes(gx, gy, has, inv3, fx, fy, steep)
+    assert kept.shape == (h, w, 3) and kept.dtype == f32
+    np.testing.assert_array_equal(kept[:, :, 0], keep.astype(f32))
+    np.testing.assert_array_equal(kept[:, :, 1], np.where(keep, gx, f32(0.0)))
+    np.testing.assert_array_equal(kept[:, :, 2], np.where(keep, gy, f32(0.0)))
     assert 0 < keep.sum() < keep.size
+
+
+def test_box_filter_of_channels_equals_one_filter_per_channel() -> None:
+    # the orientation field sums its kept slopes and their count as the channels of one image
+    # (three running sums side by side): each channel's sums must be those of a one-channel
+    # filter to the last bit, the values the field had before
+    import cv2
+
+    rng = np.random.default_rng(21)
+    for _ in range(60):
+        h, w = (int(v) for v in rng.integers(1, 90, 2))
+        img = (rng.normal(0, 1, (h, w, 3)) * float(rng.choice([1e-3, 0.05, 1.0, 1e3]))).astype(np.float32)
+        img[rng.random((h, w, 3)) < 0.3] = 0.0
+        k = int(rng.choice([3, 5, 7, 9]))
+        three = cv2.boxFilter(img, -1, (k, k), normalize=False, borderType=cv2.BORDER_REPLICATE)
+        for c in range(3):
+            one = cv2.boxFilter(
+                np.ascontiguousarray(img[:, :, c]), -1, (k, k), normalize=False, borderType=cv2.BORDER_REPLICATE
+            )
+            np.testing.assert_array_equal(three[:, :, c], one)
 
 
 def test_orientation_inverse_and_mean_match_numpy() -> None:
