@@ -392,16 +392,16 @@ def test_box_filter_of_channels_equals_one_filter_per_channel() -> None:
     import cv2
 
     rng = np.random.default_rng(21)
-    for _ in range(60):
+    for t in range(120):
         h, w = (int(v) for v in rng.integers(1, 90, 2))
-        img = (rng.normal(0, 1, (h, w, 3)) * float(rng.choice([1e-3, 0.05, 1.0, 1e3]))).astype(np.float32)
-        img[rng.random((h, w, 3)) < 0.3] = 0.0
+        cn = 3 if t % 2 else 2  # the slopes (3), 1/Z and the readings (2)
+        img = (rng.normal(0, 1, (h, w, cn)) * float(rng.choice([1e-3, 0.05, 1.0, 1e3]))).astype(np.float32)
+        img[rng.random((h, w, cn)) < 0.3] = 0.0
         k = int(rng.choice([3, 5, 7, 9]))
-        three = cv2.boxFilter(img, -1, (k, k), normalize=False, borderType=cv2.BORDER_REPLICATE)
-        for c in range(3):
-            one = cv2.boxFilter(
-                np.ascontiguousarray(img[:, :, c]), -1, (k, k), normalize=False, borderType=cv2.BORDER_REPLICATE
-            )
+        border = cv2.BORDER_REPLICATE if t % 4 < 2 else cv2.BORDER_CONSTANT
+        three = cv2.boxFilter(img, -1, (k, k), normalize=False, borderType=border)
+        for c in range(cn):
+            one = cv2.boxFilter(np.ascontiguousarray(img[:, :, c]), -1, (k, k), normalize=False, borderType=border)
             np.testing.assert_array_equal(three[:, :, c], one)
 
 
@@ -419,13 +419,15 @@ def test_orientation_inverse_and_mean_match_numpy() -> None:
     z[~valid] = 0
     inv_ref = np.zeros_like(z)
     np.divide(1000.0, z, out=inv_ref, where=valid)
-    inv, m = _inverse(z, valid)
+    both = _inverse(z, valid)  # the two as channels of one image
+    assert both.shape == (*z.shape, 2) and both.dtype == np.float32
+    inv, m = both[:, :, 0], both[:, :, 1]
     np.testing.assert_array_equal(inv, inv_ref)
     np.testing.assert_array_equal(m, valid.astype(np.float32))
     box = {"ddepth": -1, "ksize": (3, 3), "normalize": False, "borderType": cv2.BORDER_REPLICATE}
-    s_inv, s_m = cv2.boxFilter(inv, **box), cv2.boxFilter(m, **box)
+    s_inv, s_m = cv2.boxFilter(np.ascontiguousarray(inv), **box), cv2.boxFilter(np.ascontiguousarray(m), **box)
     den3 = np.maximum(s_m, 1e-6)
-    inv3, has = _mean3(s_inv, s_m)
+    inv3, has = _mean3(np.stack([s_inv, s_m], axis=-1))
     np.testing.assert_array_equal(inv3, np.asarray(s_inv / den3, np.float32))
     np.testing.assert_array_equal(has, den3 > 0.5)
     assert 0 < has.sum() < has.size
@@ -757,7 +759,7 @@ def test_creases_compiled_equal_numpy(seed: int) -> None:
     # the compiled crease pass against the numpy one it replaced, on a tilted, bent surface with
     # noise, steps and holes, under a structured-light, a ToF and an estimated sensor model
     from depthgram.segmentation.sensor import PROFILES, SensorModel
-    from depthgram.segmentation.surfaces import _creases_numpy, concave_creases
+    from depthgram.segmentation.surfaces import _creases_numpy, _inverse, concave_creases
 
     rng = np.random.default_rng(seed)
     h, w = 60, 80
@@ -774,6 +776,10 @@ def test_creases_compiled_equal_numpy(seed: int) -> None:
             ref = _creases_numpy(depth, valid, sensor, r, k, geom, np.float32(math.sqrt(6.0) / (0.7 * k)))
             got = concave_creases(depth, valid, sensor, scale_px=r, min_angle_deg=10.0, focal_px=500.0)
             assert ref.any()
+            assert np.array_equal(got, ref)
+            # with the orientation field's 1/Z and readings handed over
+            inverse = _inverse(depth, valid)
+            got = concave_creases(depth, valid, sensor, scale_px=r, min_angle_deg=10.0, focal_px=500.0, inverse=inverse)
             assert np.array_equal(got, ref)
 
 

@@ -52,6 +52,7 @@ from depthgram.segmentation.slices import (
     support_pieces_lazy,
 )
 from depthgram.segmentation.surfaces import (
+    _inverse,
     concave_creases,
     crease_scale_px,
     merge_openings,
@@ -243,9 +244,11 @@ def _surface_objects(
     cam: Intrinsics,
     cfg: SegmentConfig,
     sensor: SensorModel,
+    inverse: NDArray[np.float32] | None = None,
 ) -> tuple[NDArray[np.int32], list[SceneObject], Bands, NDArray[np.float64], NDArray[np.int64]]:
     """Facing objects as depth-continuous surfaces (:mod:`depthgram.segmentation.surfaces`).
 
+    ``inverse``: the frame's 1000 / Z and readings, when the orientation field took them.
     The same outputs as :func:`_facing_objects`; the histogram's bands give each object its
     depth label only. Its bins follow the sensor: geometric, and at the far end of the frame
     three resolutions wide, so that a structured-light camera's depth steps (which grow with the
@@ -265,7 +268,9 @@ def _surface_objects(
     edges, counts = log_bin_counts(d2, m2, min(max(bin_far, 0.01), 10_000.0), ref)
     bands = depth_bands(counts, edges, cfg)
     r = crease_scale_px(depth.shape[1])
-    creases = concave_creases(depth, ok, sensor, scale_px=r, min_angle_deg=cfg.crease_deg, focal_px=cam.fx)
+    creases = concave_creases(
+        depth, ok, sensor, scale_px=r, min_angle_deg=cfg.crease_deg, focal_px=cam.fx, inverse=inverse
+    )
     t0, t2 = sensor.tolerance(cfg.join_resolutions)
     slope = math.tan(math.radians(cfg.max_slope_deg)) / cam.fx
     state = surface_state(ok, facing, creases)
@@ -322,14 +327,16 @@ def _slices(
     5. :func:`_compound_objects`: ids 1..n again, each support's kind and its slice parts.
     """
     cam = intrinsics or default_intrinsics(depth.shape)
-    classes, wanted = _pixel_classes(depth, ok, cam, cfg)
+    classes, wanted, inverse = _pixel_classes(depth, ok, cam, cfg)
     min_px = cfg.min_pixels(depth.size)
     # supports first: a piece of surface too small to matter goes back to the facing pixels
     support_maps = _supports(depth, ok, classes, wanted, cam, cfg, min_px)
     facing = classes == FACING
     if cfg.method == "surfaces":
         sensor = sensor or frame_sensor(depth, ok, cfg)
-        labels, objects, bands, fsums, fboxes = _surface_objects(depth, ok, facing, intrinsics, cam, cfg, sensor)
+        labels, objects, bands, fsums, fboxes = _surface_objects(
+            depth, ok, facing, intrinsics, cam, cfg, sensor, inverse=inverse
+        )
     else:
         labels, objects, bands, fsums, fboxes = _facing_objects(depth, ok, facing, intrinsics, cfg)
     stack = _stack_supports(labels, objects, fsums, fboxes, support_maps, cam)
@@ -345,12 +352,13 @@ def _slices(
 
 def _pixel_classes(
     depth: NDArray[np.float32], ok: NDArray[np.bool_], cam: Intrinsics, cfg: SegmentConfig
-) -> tuple[NDArray[np.int8], list[int]]:
-    """Return each pixel's orientation class and the support classes the config slices.
+) -> tuple[NDArray[np.int8], list[int], NDArray[np.float32] | None]:
+    """Return each pixel's orientation class, the support classes the config slices, and 1/Z.
 
-    Classes of directions the config does not slice are turned back into facing pixels.
+    Classes of directions the config does not slice are turned back into facing pixels. The
+    last item is the frame's 1000 / Z and readings (:func:`_orientation`), or None.
     """
-    classes = _orientation(depth, ok, cam, cfg)
+    classes, inverse = _orientation(depth, ok, cam, cfg)
     if cfg.support_planes and cfg.max_planes:
         _add_support_planes(depth, ok, classes, cam, cfg)
     wanted = []
@@ -361,7 +369,7 @@ def _pixel_classes(
     for cls in (HORIZONTAL, VERTICAL):
         if cls not in wanted:
             classes[classes == cls] = FACING
-    return classes, wanted
+    return classes, wanted, inverse
 
 
 @dataclass
@@ -752,23 +760,27 @@ def _stats_rows(sums: NDArray[np.float64], boxes: NDArray[np.int64], rows: NDArr
 
 def _orientation(
     depth: NDArray[np.float32], ok: NDArray[np.bool_], cam: Intrinsics, cfg: SegmentConfig
-) -> NDArray[np.int8]:
+) -> tuple[NDArray[np.int8], NDArray[np.float32] | None]:
     """Orientation classes, estimated on every ``k``-th pixel for frames wider than 320 px.
 
     Orientation is a property of surfaces many pixels wide, so a 2x (4x) subsampled frame gives
     the same classes at a quarter (sixteenth) of the cost; the class map is then repeated back.
     Support pixels are refined at full resolution afterwards (plane test, depth continuity).
+    Also returns the frame's 1000 / Z and readings (``surfaces._inverse``) when the field read
+    every pixel, for the creases (None otherwise).
     """
     w = depth.shape[1]
     k = 1 if w <= 320 else 2 if w <= 960 else 4
     if k == 1:
-        sub_cam, d, v = cam, depth, ok
-    else:
-        sub_cam = Intrinsics(cam.fx / k, cam.fy / k, cam.cx / k, cam.cy / k)
-        d, v = np.ascontiguousarray(depth[::k, ::k]), np.ascontiguousarray(ok[::k, ::k])
+        inverse = _inverse(np.ascontiguousarray(depth, np.float32), np.ascontiguousarray(ok, np.bool_))
+        cls = orientation_classes(
+            depth, ok, cam, window_px=cfg.normal_window_px, oblique_deg=cfg.oblique_deg, jump_rel=cfg.jump_rel,
+            inverse=inverse,
+        )  # fmt: skip
+        return cls, inverse
+    sub_cam = Intrinsics(cam.fx / k, cam.fy / k, cam.cx / k, cam.cy / k)
+    d, v = np.ascontiguousarray(depth[::k, ::k]), np.ascontiguousarray(ok[::k, ::k])
     cls = orientation_classes(
         d, v, sub_cam, window_px=cfg.normal_window_px, oblique_deg=cfg.oblique_deg, jump_rel=cfg.jump_rel
     )
-    if k == 1:
-        return cls
-    return upsample_classes(cls, ok, k)
+    return upsample_classes(cls, ok, k), None

@@ -42,6 +42,7 @@ def orientation_classes(
     window_px: int = 7,
     oblique_deg: float = 35.0,
     jump_rel: float = 0.05,
+    inverse: NDArray[np.float32] | None = None,
 ) -> NDArray[np.int8]:
     """Per-pixel class: 0 facing the sensor (or unknown), 1 horizontal, 2 vertical lateral.
 
@@ -60,12 +61,16 @@ def orientation_classes(
         horizontal surface, or its horizontal axis for a wall.
     jump_rel : float
         Relative depth step between neighbours marking an occlusion edge.
+    inverse : ndarray of float32, shape (H, W, 2), optional
+        ``1000 / depth_mm`` and the readings (1 / 0) as channels, as
+        ``depthgram.segmentation.surfaces._inverse`` gives them, when the caller has them (the
+        creases take the same).
 
     Returns
     -------
     classes : ndarray of int8, shape (H, W)
     """
-    return _field(depth_mm, valid, intrinsics, window_px, oblique_deg, jump_rel, False)[0]
+    return _field(depth_mm, valid, intrinsics, window_px, oblique_deg, jump_rel, False, inverse)[0]
 
 
 def _field(
@@ -76,17 +81,19 @@ def _field(
     oblique_deg: float,
     jump_rel: float,
     want_normals: bool,
+    inverse: NDArray[np.float32] | None = None,
 ) -> tuple[NDArray[np.int8], NDArray[np.float32] | None]:
     h, w = depth_mm.shape
-    # 1000 / Z (1/m keeps float32 well scaled) and the readings as 1 / 0, in one pass
-    inv, m = _inverse(np.ascontiguousarray(depth_mm, np.float32), np.ascontiguousarray(valid, np.bool_))
+    # 1000 / Z (1/m keeps float32 well scaled) and the readings as 1 / 0, in one pass, as the
+    # two channels of one image (one box filter for both: the same sums, a test)
+    if inverse is None:
+        inverse = _inverse(np.ascontiguousarray(depth_mm, np.float32), np.ascontiguousarray(valid, np.bool_))
     # a 3 x 3 valid-weighted mean, then differences over `step` px: the slope of a distant floor
     # (1/Z changes by 1 / (h fy) per row) must stand above the noise of one difference
     # the mean is defined wherever a 3 x 3 neighbour has a reading, which bridges a sieve of
     # dropouts (registered structured light keeps one pixel in four)
     inv3, has = _mean3(
-        np.asarray(cv2.boxFilter(inv, -1, (3, 3), normalize=False, borderType=cv2.BORDER_REPLICATE), np.float32),
-        np.asarray(cv2.boxFilter(m, -1, (3, 3), normalize=False, borderType=cv2.BORDER_REPLICATE), np.float32),
+        np.asarray(cv2.boxFilter(inverse, -1, (3, 3), normalize=False, borderType=cv2.BORDER_REPLICATE), np.float32)
     )
     step = max(1, window_px // 2)
     gx = _one_sided(inv3, has, step)
@@ -135,17 +142,24 @@ def _field(
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _mean3(sum_inv: NDArray[np.float32], sum_m: NDArray[np.float32]) -> tuple[NDArray[np.float32], NDArray[np.bool_]]:
-    # the 3 x 3 mean of 1/Z where a neighbour has a reading, from the window sums: numpy's
+def _mean3(sums: NDArray[np.float32]) -> tuple[NDArray[np.float32], NDArray[np.bool_]]:
+    # the 3 x 3 mean of 1/Z where a neighbour has a reading, from the window sums (H, W, 2:
+    # of 1/Z and of the readings, read back per row into buffers): numpy's
     # np.maximum(sum_m, 1e-6) (float32), float32 division and test against 0.5, in one pass
-    h, w = sum_inv.shape
+    h, w = sums.shape[0], sums.shape[1]
+    flat = sums.reshape((h, 2 * w))
+    si = np.empty(w, np.float32)
+    sm = np.empty(w, np.float32)
     inv3 = np.empty((h, w), np.float32)
     has = np.empty((h, w), np.bool_)
     eps = np.float32(1e-6)
     half = np.float32(0.5)
     for y in range(h):
-        si = sum_inv[y]
-        sm = sum_m[y]
+        fr = flat[y]
+        for ux in range(np.uint64(w)):
+            j = np.uint64(2) * ux
+            si[ux] = fr[j]
+            sm[ux] = fr[j + np.uint64(1)]
         ir = inv3[y]
         hr = has[y]
         for x in range(w):

@@ -63,6 +63,7 @@ def concave_creases(
     scale_px: int,
     min_angle_deg: float,
     focal_px: float,
+    inverse: NDArray[np.float32] | None = None,
 ) -> NDArray[np.bool_]:
     """Pixels on a concave crease (an inside corner seen from the camera).
 
@@ -81,6 +82,10 @@ def concave_creases(
         facing the sensor.
     focal_px : float
         Focal length (px).
+    inverse : ndarray of float32, shape (H, W, 2), optional
+        ``1000 / depth_mm`` and the readings (1 / 0) of this frame as :func:`_inverse` gives
+        them, when the caller has them (the orientation field takes the same): read where the
+        creases are taken on every pixel.
 
     Returns
     -------
@@ -118,41 +123,45 @@ def concave_creases(
         return _creases_numpy(depth_mm, valid, sensor, scale_px, k, geom, noise_scale)
     z = np.ascontiguousarray(depth_mm, np.float32)
     ok = np.ascontiguousarray(valid, np.bool_)
-    inv, m = _inverse(z, ok)
-    den = np.asarray(cv2.boxFilter(m, -1, (k, k), normalize=False, borderType=cv2.BORDER_CONSTANT), np.float32)
-    ws = np.asarray(cv2.boxFilter(inv, -1, (k, k), normalize=False, borderType=cv2.BORDER_CONSTANT), np.float32)
+    im = inverse if inverse is not None else _inverse(z, ok)
+    # both window sums from one two-channel filter (the same sums as one filter each, a test)
+    sums = np.asarray(cv2.boxFilter(im, -1, (k, k), normalize=False, borderType=cv2.BORDER_CONSTANT), np.float32)
     # the sensor's coefficients as float32, as numpy's scalar rules make them in _creases_numpy
     c32 = np.array(coefs, np.float32)
-    return _creases(ws, den, ok, c32, np.float32(0.5 * k * k), int(scale_px), geom, noise_scale)
+    return _creases(sums, ok, c32, np.float32(0.5 * k * k), int(scale_px), geom, noise_scale)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _inverse(z: NDArray[np.float32], valid: NDArray[np.bool_]) -> tuple[NDArray[np.float32], NDArray[np.float32]]:
-    # 1000 / z and 1 where there is a reading, else 0: every pixel divided and masked (numpy's
-    # division rule, no zero test), so that the row loop vectorises
+def _inverse(z: NDArray[np.float32], valid: NDArray[np.bool_]) -> NDArray[np.float32]:
+    # (H, W, 2): 1000 / z and 1 where there is a reading, else 0, as the channels of one image
+    # for the box filters. Every pixel divided and masked (numpy's division rule, no zero
+    # test) into row buffers, then interleaved, so that both loops vectorise
     h, w = z.shape
-    inv = np.empty((h, w), np.float32)
-    m = np.empty((h, w), np.float32)
+    out = np.empty((h, 2 * w), np.float32)
+    inv = np.empty(w, np.float32)
+    m = np.empty(w, np.float32)
     thousand = np.float32(1000.0)
     zero = np.float32(0.0)
     one = np.float32(1.0)
     for y in range(h):
         zr = z[y]
         vr = valid[y]
-        ir = inv[y]
-        mr = m[y]
         for x in range(w):
             ok = vr[x]
             q = thousand / zr[x]
-            ir[x] = q if ok else zero
-            mr[x] = one if ok else zero
-    return inv, m
+            inv[x] = q if ok else zero
+            m[x] = one if ok else zero
+        o = out[y]
+        for ux in range(np.uint64(w)):
+            j = np.uint64(2) * ux
+            o[j] = inv[ux]
+            o[j + np.uint64(1)] = m[ux]
+    return out.reshape((h, w, 2))
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def _creases(
-    ws: NDArray[np.float32],
-    den: NDArray[np.float32],
+    sums: NDArray[np.float32],
     valid: NDArray[np.bool_],
     c: NDArray[np.float32],
     min_den: np.float32,
@@ -164,8 +173,12 @@ def _creases(
     # means and the threshold of each pixel, then one branch-free pass per direction (they
     # vectorise; a per-pixel loop with the four tests behind branches took 3x as long). Every
     # operation is the float32 one numpy does there, in the same order (no fast-math, no
-    # contraction), so the same creases (a test compares the two).
-    h, w = ws.shape
+    # contraction), so the same creases (a test compares the two). `sums` (H, W, 2): the
+    # window sums of 1000 / z and of the readings, read back per row into buffers.
+    h, w = valid.shape
+    flat = sums.reshape((h, 2 * w))
+    ws = np.empty((h, w), np.float32)
+    dr = np.empty(w, np.float32)
     has = np.zeros((h, w), np.bool_)
     bend = np.zeros((h, w), np.float32)
     thousand = np.float32(1000.0)
@@ -176,7 +189,11 @@ def _creases(
     zero = np.float32(0.0)
     for y in range(h):
         wr = ws[y]
-        dr = den[y]
+        fr = flat[y]
+        for ux in range(np.uint64(w)):
+            j = np.uint64(2) * ux
+            wr[ux] = fr[j]
+            dr[ux] = fr[j + np.uint64(1)]
         vr = valid[y]
         hr = has[y]
         br = bend[y]
