@@ -314,5 +314,9 @@ def to_full_resolution(
             o.id: o for o in make_objects(labels, stats, kinds=kinds, depth_labels=depth_labels, intrinsics=intrinsics)
         }
         h, w = depth_mm.shape
-        objs = tuple(replace(full[o.id], parts=tuple(_scaled_part(p, step, w, h) for p in o.parts)) for o in objs)
+        # only compounds have parts to scale; the others are the full-resolution objects as made
+        objs = tuple(
+            replace(full[o.id], parts=tuple(_scaled_part(p, step, w, h) for p in o.parts)) if o.parts else full[o.id]
+            for o in objs
+        )
     return replace(grid_seg, labels=labels, objects=objs, classes=classes)
