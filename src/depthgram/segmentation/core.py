@@ -203,9 +203,20 @@ def _segment(
     gd, gok, gcam = grid_frame(depth, ok, cam, step)
     gcfg = cfg.with_overrides(min_area_px=max(1, cfg.min_area_px // (step * step)))
     grid = _slices(gd, gok, gcam if intrinsics is not None else None, gcfg, sensor)
-    t0, t2 = sensor.tolerance(cfg.join_resolutions)
-    slope = math.tan(math.radians(cfg.max_slope_deg)) / cam.fx
+    t0, t2, slope = _join_rule(sensor, cfg, cam.fx)
     return to_full_resolution(grid, gd, depth, ok, intrinsics, step, tol_0=t0, tol_2=t2, slope_per_px=slope)
+
+
+def _join_rule(sensor: SensorModel, cfg: SegmentConfig, focal_px: float) -> tuple[float, float, float]:
+    """Return when two readings lie on one surface: ``(tol_0, tol_2, slope_per_px)``.
+
+    Depths ``z_a``, ``z_b`` a distance ``d`` px apart join when ``|z_a - z_b| <= tol_0 + tol_2 z**2
+    + d slope_per_px z``: the sensor's resolution times ``join_resolutions``, plus what a surface
+    at ``max_slope_deg`` moves over ``d`` px at focal length ``focal_px``. The surface labeller
+    and the grid's refinement use the same rule.
+    """
+    t0, t2 = sensor.tolerance(cfg.join_resolutions)
+    return t0, t2, math.tan(math.radians(cfg.max_slope_deg)) / focal_px
 
 
 def frame_sensor(depth: NDArray[np.float32], ok: NDArray[np.bool_], cfg: SegmentConfig) -> SensorModel:
@@ -271,8 +282,7 @@ def _surface_objects(
     creases = concave_creases(
         depth, ok, sensor, scale_px=r, min_angle_deg=cfg.crease_deg, focal_px=cam.fx, inverse=inverse
     )
-    t0, t2 = sensor.tolerance(cfg.join_resolutions)
-    slope = math.tan(math.radians(cfg.max_slope_deg)) / cam.fx
+    t0, t2, slope = _join_rule(sensor, cfg, cam.fx)
     state = surface_state(ok, facing, creases)
     # crease pixels and pieces too small to keep (the inside of a cup cut off by the crease of
     # its bottom) go to the surface they continue, then what is still too small is dropped
