@@ -401,10 +401,14 @@ class Pipeline:
 
     def process(self, frame: Frame) -> SceneResult:
         """Segment one frame, build its tree, update tracks and plan actions."""
+        return self._describe(*self._segmented(frame))
+
+    def _segmented(self, frame: Frame) -> tuple[Frame, Segmentation, float, Future[None] | None]:
+        """Segment ``frame`` with its image motion started beside: what :meth:`_describe` takes."""
         t0 = time.perf_counter()
         args = _segment_args(frame, self.config.segment, self._sensor_model(frame))
         motion = self._prepare_motion(frame)
-        return self._describe(frame, _segment(*args), t0, motion)
+        return frame, _segment(*args), t0, motion
 
     def _prepare_motion(self, frame: Frame) -> Future[None] | None:
         """Start the tracker's image motion of ``frame`` in a thread beside its segmentation.
@@ -503,13 +507,12 @@ class Pipeline:
         pending: Future[SceneResult] | None = None
         try:
             for frame in frames:
-                t0 = time.perf_counter()
-                args = _segment_args(frame, self.config.segment, self._sensor_model(frame))
-                motion = self._prepare_motion(frame)
-                seg = _segment(*args)
+                segmented = self._segmented(frame)
                 if pending is not None:
-                    yield pending.result()
-                pending = self._beside().submit(self._describe, frame, seg, t0, motion)
+                    # cleared first: a description that failed is raised once, not again below
+                    done, pending = pending, None
+                    yield done.result()
+                pending = self._beside().submit(self._describe, *segmented)
         except Exception:
             # a frame that cannot be read or segmented: the frame before it is still given,
             # as one frame at a time would have given it, before the error
