@@ -22,8 +22,8 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-from depthgram.segmentation.label.stats import KEY, N_COLUMNS, N_SUMS, flush_run
-from depthgram.segmentation.label.unionfind import find, resolve, resolve_tables, union
+from depthgram.segmentation.label.stats import N_COLUMNS, flush_run
+from depthgram.segmentation.label.unionfind import find, fold_tables, resolve, resolve_tables, union
 from depthgram.segmentation.planes import flush_plane_run
 
 __all__ = ["ACTIVE", "BLOCK", "HOLE", "label_keyed", "label_keyed_planes", "label_keyed_stats", "label_two_classes"]
@@ -522,23 +522,7 @@ def _resolve_two(
     for i in range(1, nxt):
         if final[i] < 0:
             final[i] = na - final[i]
-    n = na + nb
-    sums = np.zeros((n + 1, N_COLUMNS), np.float64)
-    boxes = np.empty((n + 1, 4), np.int64)
-    h, w = lab.shape
-    boxes[:, 0] = w
-    boxes[:, 1] = h
-    boxes[:, 2] = -1
-    boxes[:, 3] = -1
-    for i in range(1, nxt):
-        f = final[i]
-        for k in range(N_SUMS):
-            sums[f, k] += psums[i, k]
-        sums[f, KEY] = psums[i, KEY]
-        boxes[f, 0] = min(boxes[f, 0], pboxes[i, 0])
-        boxes[f, 1] = min(boxes[f, 1], pboxes[i, 1])
-        boxes[f, 2] = max(boxes[f, 2], pboxes[i, 2])
-        boxes[f, 3] = max(boxes[f, 3], pboxes[i, 3])
+    sums, boxes = fold_tables(final, nxt, na + nb, psums, pboxes, lab.shape[0], lab.shape[1])
     return final, na, nb, sums, boxes
 
 

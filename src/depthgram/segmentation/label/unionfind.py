@@ -14,7 +14,7 @@ from numpy.typing import NDArray
 
 from depthgram.segmentation.label.stats import COUNT, KEY, N_COLUMNS, N_SUMS
 
-__all__ = ["find", "resolve", "resolve_tables", "union"]
+__all__ = ["find", "fold_tables", "resolve", "resolve_tables", "union"]
 
 
 @njit(cache=True, inline="always")
@@ -28,6 +28,39 @@ def find(parent: NDArray[np.int32], i: int) -> int:
         parent[i] = root
         i = nxt
     return root
+
+
+@njit(cache=True, inline="always")
+def fold_tables(
+    final: NDArray[np.int32],
+    nxt: int,
+    n: int,
+    psums: NDArray[np.float64],
+    pboxes: NDArray[np.int32],
+    h: int,
+    w: int,
+) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+    """Return the statistics table and inclusive boxes of labels 1..n from the provisional ones.
+
+    Provisional label ``i`` (1..nxt-1) goes to final label ``final[i]``; its rows are added in
+    provisional order, so every labeller that folds this way gets the same numbers.
+    """
+    sums = np.zeros((n + 1, N_COLUMNS), np.float64)
+    boxes = np.empty((n + 1, 4), np.int64)
+    boxes[:, 0] = w
+    boxes[:, 1] = h
+    boxes[:, 2] = -1
+    boxes[:, 3] = -1
+    for i in range(1, nxt):
+        f = final[i]
+        for k in range(N_SUMS):
+            sums[f, k] += psums[i, k]
+        sums[f, KEY] = psums[i, KEY]
+        boxes[f, 0] = min(boxes[f, 0], pboxes[i, 0])
+        boxes[f, 1] = min(boxes[f, 1], pboxes[i, 1])
+        boxes[f, 2] = max(boxes[f, 2], pboxes[i, 2])
+        boxes[f, 3] = max(boxes[f, 3], pboxes[i, 3])
+    return sums, boxes
 
 
 @njit(cache=True, nogil=True)
@@ -96,22 +129,8 @@ def resolve_tables(
             final[i] = n
         else:
             final[i] = final[r]
-    sums = np.zeros((n + 1, N_COLUMNS), np.float64)
-    boxes = np.empty((n + 1, 4), np.int64)
     if stats:
-        boxes[:, 0] = lab.shape[1]
-        boxes[:, 1] = lab.shape[0]
-        boxes[:, 2] = -1
-        boxes[:, 3] = -1
-        for i in range(1, nxt):
-            f = final[i]
-            for k in range(N_SUMS):
-                sums[f, k] += psums[i, k]
-            sums[f, KEY] = psums[i, KEY]
-            boxes[f, 0] = min(boxes[f, 0], pboxes[i, 0])
-            boxes[f, 1] = min(boxes[f, 1], pboxes[i, 1])
-            boxes[f, 2] = max(boxes[f, 2], pboxes[i, 2])
-            boxes[f, 3] = max(boxes[f, 3], pboxes[i, 3])
+        sums, boxes = fold_tables(final, nxt, n, psums, pboxes, lab.shape[0], lab.shape[1])
         newid = np.zeros(n + 1, np.int32)
         k = 0
         for j in range(1, n + 1):
@@ -126,6 +145,9 @@ def resolve_tables(
         n = k
         sums = sums[: n + 1].copy()
         boxes = boxes[: n + 1].copy()
+    else:
+        sums = np.zeros((n + 1, N_COLUMNS), np.float64)
+        boxes = np.empty((n + 1, 4), np.int64)
     sums[0] = 0.0
     h, w = lab.shape
     boxes[0, 0] = w
