@@ -222,3 +222,27 @@ def test_objects_walking_into_the_view_are_not_read_as_approaching() -> None:
                 if abs(m.v_radial) > 300.0:
                     fast.append((fr.index, body.name, m.v_radial))
     assert len(fast) <= 2, fast  # measured 1: the person's first reading, -776 mm/s
+
+
+def test_a_helper_thread_reading_half_of_the_cores_changes_nothing() -> None:
+    # the pairs are shared out between two threads by size: each reading must land on its own
+    # (object, motion), whichever thread made it
+    from concurrent.futures import ThreadPoolExecutor
+
+    from depthgram.segmentation import segment
+    from depthgram.sensor import simulate
+
+    frames = [sf.frame for sf in simulate("crossing", 20, size=(176, 132), fps=30, seed=2)]
+    segs = [segment(fr.depth, valid=fr.valid, intrinsics=fr.intrinsics) for fr in frames]
+    runs = []
+    with ThreadPoolExecutor(1) as helper:
+        for use in (None, helper):
+            tr = Tracker()
+            got = []
+            for fr, seg in zip(frames, segs, strict=True):
+                pixels = FramePixels(fr.depth, seg.labels, fr.intrinsics)
+                upd = tr.update(seg.objects, fr.time_s, fr.size, pixels, helper=use)
+                got.append(dict(upd.motions))
+            runs.append(got)
+    assert runs[0] == runs[1]
+    assert sum(m.v_radial is not None for got in runs[0] for m in got.values()) >= 20

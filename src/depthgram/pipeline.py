@@ -401,7 +401,9 @@ class Pipeline:
 
     def process(self, frame: Frame) -> SceneResult:
         """Segment one frame, build its tree, update tracks and plan actions."""
-        return self._describe(*self._segmented(frame))
+        # the thread beside has found this frame's image motion by the time the tracker reads
+        # the cores, and would idle: it reads half of them
+        return self._describe(*self._segmented(frame), helper=self._beside())
 
     def _segmented(self, frame: Frame) -> tuple[Frame, Segmentation, float, Future[None] | None]:
         """Segment ``frame`` with its image motion started beside: what :meth:`_describe` takes."""
@@ -434,10 +436,18 @@ class Pipeline:
             self._motion_thread = ThreadPoolExecutor(max_workers=1, thread_name_prefix="depthgram-motion")
         return self._motion_thread
 
-    def _describe(self, frame: Frame, seg: Segmentation, t0: float, motion: Future[None] | None) -> SceneResult:
+    def _describe(
+        self,
+        frame: Frame,
+        seg: Segmentation,
+        t0: float,
+        motion: Future[None] | None,
+        helper: ThreadPoolExecutor | None = None,
+    ) -> SceneResult:
         """Everything after the segmentation, in frame order: tracks, tree, plan.
 
-        ``motion`` is the tracker's image motion of this frame being found (:meth:`_prepare_motion`).
+        ``motion`` is the tracker's image motion of this frame being found (:meth:`_prepare_motion`);
+        ``helper`` a thread for the tracker's core reading, never the one this runs on.
         """
         if motion is not None:
             motion.result()
@@ -451,7 +461,7 @@ class Pipeline:
             # the pixels let the tracker read each object's depth change from its core
             use_core = cfg.tracker.depth_from == "core"
             pixels = FramePixels(frame.depth, seg.labels, frame.intrinsics) if use_core else None
-            update = self._tracker.update(seg.objects, frame.time_s, frame.size, pixels)
+            update = self._tracker.update(seg.objects, frame.time_s, frame.size, pixels, helper=helper)
             seg = _relabel(seg, {oid: m.track_id for oid, m in update.motions.items()})
             motions = {m.track_id: m for m in update.motions.values()}
             occluded = tuple((dataclasses.replace(t.last, id=t.id), _occluded_motion(t)) for t in update.occluded)
@@ -549,7 +559,7 @@ class Pipeline:
     def _finish(self, frame: Frame, segmented: Future[Segmentation], t0: float) -> SceneResult:
         """:meth:`_describe` a frame segmented by a worker, its image motion found meanwhile."""
         motion = self._prepare_motion(frame)
-        return self._describe(frame, segmented.result(), t0, motion)
+        return self._describe(frame, segmented.result(), t0, motion, helper=self._beside())
 
 
 def _segment_args(

@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
+from concurrent.futures import Executor
 from dataclasses import dataclass
 
 import cv2
@@ -717,7 +718,8 @@ class _Core:
         z1 = np.asarray(now.depth_mm[y0:y1:step, x0:x1:step], dtype=np.float32)
         self.own = (np.asarray(now.labels[y0:y1:step, x0:x1:step]) == oid) & (z1 > 0)
         self.z1 = z1
-        self.area = int(np.count_nonzero(self.own)) * step * step
+        self.sampled = int(np.count_nonzero(self.own))
+        self.area = self.sampled * step * step
         self.gx = np.arange(x0, x1, step, dtype=np.float64)[: z1.shape[1]]
         self.gy = np.arange(y0, y1, step, dtype=np.float64)[: z1.shape[0]]
         self.prev = prev
@@ -790,6 +792,7 @@ def core_depth_change(
     min_px: int = 20,
     min_share: float = 0.1,
     prefer: float = 0.8,
+    helper: Executor | None = None,
 ) -> dict[int, float]:
     """Mean depth change of each object's core from the previous frame (mm).
 
@@ -822,6 +825,9 @@ def core_depth_change(
         is mostly new surface and its core says little (0..1).
     prefer : float
         How much smaller the spread under the object's own motion must be to take it (0..1).
+    helper : Executor, optional
+        A thread that reads about half of the (object, motion) pairs while the caller reads the
+        others, when the caller's second core would idle otherwise (the result is the same).
 
     Returns
     -------
@@ -831,7 +837,7 @@ def core_depth_change(
     """
     if np.shape(prev.labels) != np.shape(now.labels) or np.shape(prev.depth_mm) != np.shape(now.depth_mm):
         return {}
-    out: dict[int, float] = {}
+    cores: list[tuple[int, _Core, int]] = []
     for oid, (pid, box, owns, scale) in pairs.items():
         tried: list[tuple[float, float]] = [shift]
         todo: list[Candidate] = [shift] if camera is None else [camera, shift]
@@ -841,10 +847,13 @@ def core_depth_change(
                 continue
             tried.append(own)
             todo.append(own)
-        core = _Core(prev, now, oid, pid, box, todo, scale)
-        n, mean, spread = core.stats(0)
+        cores.append((oid, _Core(prev, now, oid, pid, box, todo, scale), len(todo)))
+    read = _read_cores([(core, m) for _, core, m in cores], helper)
+    out: dict[int, float] = {}
+    for c, (oid, core, m) in enumerate(cores):
+        n, mean, spread = read[c, 0]
         # sizes on the sampled grid, compared with the area on it
-        k = max(core.area // max(int(np.count_nonzero(core.own)), 1), 1)
+        k = max(core.area // max(core.sampled, 1), 1)
         ok = n * k >= min_px and n * k >= min_share * core.area
         first = 1
         if camera is not None:
@@ -852,17 +861,48 @@ def core_depth_change(
             # the object inside its previous segment: the ICP slid along what the still scene
             # does not pin down (a floor and a wall say nothing of a sideways move), which
             # moves a small object's core off it.
-            n2, mean2, spread2 = core.stats(1)
+            n2, mean2, spread2 = read[c, 1]
             if n2 > (1.0 + _SHIFT_KEEPS_MORE) * n:
                 n, mean, spread = n2, mean2, spread2
                 ok = n * k >= min_px and n * k >= min_share * core.area
             first = 2
-        for j in range(first, len(todo)):
-            n2, mean2, spread2 = core.stats(j)
+        for j in range(first, m):
+            n2, mean2, spread2 = read[c, j]
             if n2 * k >= min_px and n2 * k >= min_share * core.area and (not ok or spread2 < prefer * spread):
                 n, mean, spread, ok = n2, mean2, spread2 / prefer, True
         if ok:
             out[oid] = mean
+    return out
+
+
+def _read_cores(
+    cores: Sequence[tuple[_Core, int]], helper: Executor | None
+) -> dict[tuple[int, int], tuple[int, float, float]]:
+    """Return :meth:`_Core.stats` of each core's first ``m`` motions, keyed by ``(core's index, motion)``.
+
+    With a ``helper``, the (core, motion) pairs are shared out by their sampled pixels (largest
+    first, each to the lighter side) and the helper reads its share while this thread reads
+    the other: each reading is one compiled call that releases the GIL, and its result does
+    not depend on the thread that made it.
+    """
+    jobs = [(c, k) for c, (_, m) in enumerate(cores) for k in range(m)]
+
+    def read(share: Sequence[tuple[int, int]]) -> list[tuple[int, float, float]]:
+        return [cores[c][0].stats(k) for c, k in share]
+
+    mine: list[tuple[int, int]] = jobs
+    theirs: list[tuple[int, int]] = []
+    if helper is not None and len(jobs) > 1:
+        mine = []
+        load = [0, 0]
+        for c, k in sorted(jobs, key=lambda ck: -cores[ck[0]][0].sampled):
+            side = 0 if load[0] <= load[1] else 1
+            (mine if side == 0 else theirs).append((c, k))
+            load[side] += cores[c][0].sampled + 1
+    future = helper.submit(read, theirs) if helper is not None and theirs else None
+    out = dict(zip(mine, read(mine), strict=True))
+    if future is not None:
+        out.update(zip(theirs, future.result(), strict=True))
     return out
 
 

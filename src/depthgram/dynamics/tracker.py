@@ -12,6 +12,7 @@ import itertools
 import math
 import warnings
 from collections.abc import Sequence
+from concurrent.futures import Executor
 from dataclasses import dataclass
 
 import numpy as np
@@ -411,6 +412,8 @@ class Tracker:
         time_s: float | None,
         frame_size: tuple[int, int],
         pixels: FramePixels | None = None,
+        *,
+        helper: Executor | None = None,
     ) -> TrackUpdate:
         """Match this frame's objects to the tracks and read their motion.
 
@@ -432,6 +435,10 @@ class Tracker:
         pixels : FramePixels, optional
             This frame's depth (mm) and label map (``SceneObject.id`` per pixel), shape
             (height, width). Ignored (not even checked) when ``config.depth_from == "mean"``.
+        helper : Executor, optional
+            A thread that reads about half of the objects' cores beside the caller's
+            (:func:`depthgram.dynamics.core.core_depth_change`): for a caller whose second
+            core idles meanwhile. The update is the same with or without it.
 
         Returns
         -------
@@ -470,7 +477,7 @@ class Tracker:
             rows, cols = linear_sum_assignment(cost)
         else:
             rows = cols = _NO_PAIRS
-        dcore, dstill = self._core_changes(objects, pixels, rows, cols, cost, (width, height))
+        dcore, dstill = self._core_changes(objects, pixels, rows, cols, cost, (width, height), helper)
         params = self._step_params
         obj_row, v_out, ttc, dead, restarted, k, offset = step(
             tracks, self._qt, self._qz, n, f, rows, cols, cost, t_now, self._dt,
@@ -520,6 +527,7 @@ class Tracker:
         cols: NDArray[np.intp],
         cost: NDArray[np.float64],
         frame_size: tuple[int, int],
+        helper: Executor | None,
     ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Return each object's core depth change since the previous frame, and the change it would show standing still.
 
@@ -574,7 +582,7 @@ class Tracker:
             return out, still
         if shift is None:
             shift = self._shift(prev.depth_mm, pixels.depth_mm)
-        change = core_depth_change(prev, pixels, pairs, shift, camera=camera)
+        change = core_depth_change(prev, pixels, pairs, shift, camera=camera, helper=helper)
         for c, o in enumerate(objects):
             out[c] = change.get(o.id, math.nan)
         return out, still
