@@ -319,16 +319,6 @@ def _smooth(z: NDArray[np.float32], k: int) -> NDArray[np.float32]:
     return np.where((z > 0) & (count > 0), total / np.maximum(count, 1e-6), 0.0).astype(np.float32)
 
 
-def _rotation(w: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Return the rotation matrix of the rotation vector ``w`` (rad), by Rodrigues' formula."""
-    th = float(np.linalg.norm(w))
-    k = np.array([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]], dtype=np.float64)
-    if th < 1e-12:
-        return np.asarray(np.eye(3) + k, dtype=np.float64)
-    k /= th
-    return np.asarray(np.eye(3) + math.sin(th) * k + (1.0 - math.cos(th)) * (k @ k), dtype=np.float64)
-
-
 #: The ICP's passes: every k-th point of this frame's grid, and the iterations on it.
 _ICP_PASSES = ((4, 6), (2, 3), (1, 2))
 #: Weight of the ICP's pull toward standing still, per matched point (m^2 of residual per unit
@@ -412,6 +402,68 @@ def _icp_sums(
     return n, ata, atr
 
 
+@njit(cache=True, nogil=True)
+def _icp_steps(
+    sx: NDArray[np.float32],
+    sy: NDArray[np.float32],
+    sz: NDArray[np.float32],
+    rot: NDArray[np.float64],
+    t: NDArray[np.float64],
+    cam32: NDArray[np.float32],
+    px0: NDArray[np.float32],
+    py0: NDArray[np.float32],
+    pz0: NDArray[np.float32],
+    nx0: NDArray[np.float32],
+    ny0: NDArray[np.float32],
+    nz0: NDArray[np.float32],
+    target_ok: NDArray[np.bool_],
+    w: int,
+    h: int,
+    gate: float,
+    iterations: int,
+    prior: float,
+) -> bool:
+    """Run ``iterations`` ICP steps on one pass's points, updating ``rot`` and ``t`` in place.
+
+    Each step solves the normal equations of :func:`_icp_sums`, pulled toward standing still
+    by ``prior`` per matched pair, and applies the increment by Rodrigues' formula. Compiled
+    with the sums: as numpy calls, the 6 x 6 solve and the 3 x 3 products cost some 50 us a
+    step, eleven steps a frame. False when a step matches fewer than 100 pairs.
+    """
+    eye6 = np.eye(6)
+    total = np.empty(6)
+    for _ in range(iterations):
+        n, ata, atr = _icp_sums(
+            sx, sy, sz, rot.astype(np.float32), t.astype(np.float32), cam32,
+            px0, py0, pz0, nx0, ny0, nz0, target_ok, w, h, gate,
+        )  # fmt: skip
+        if n < 100:
+            return False
+        mu = prior * n
+        total[0] = 0.5 * (rot[2, 1] - rot[1, 2])
+        total[1] = 0.5 * (rot[0, 2] - rot[2, 0])
+        total[2] = 0.5 * (rot[1, 0] - rot[0, 1])
+        total[3:] = t
+        delta = -np.linalg.solve(ata + mu * eye6, atr + mu * total)
+        d_rot = _rodrigues(delta[0], delta[1], delta[2])
+        rot[:] = d_rot @ rot
+        t[:] = d_rot @ t + delta[3:]
+    return True
+
+
+@njit(cache=True, nogil=True)
+def _rodrigues(w0: float, w1: float, w2: float) -> NDArray[np.float64]:
+    """Return the rotation matrix of the rotation vector ``(w0, w1, w2)`` (rad), by Rodrigues' formula."""
+    th = math.sqrt(w0 * w0 + w1 * w1 + w2 * w2)
+    k: NDArray[np.float64] = np.array([[0.0, -w2, w1], [w2, 0.0, -w0], [-w1, w0, 0.0]])
+    out: NDArray[np.float64] = np.eye(3) + k
+    if th < 1e-12:
+        return out
+    k /= th
+    out = np.eye(3) + math.sin(th) * k + (1.0 - math.cos(th)) * (k @ k)
+    return out
+
+
 def _icp(now: _Surface, before: _Surface, cam: tuple[float, float, float, float]) -> NDArray[np.float64] | None:
     """Point-to-plane ICP with projective matching: the 4x4 motion from ``now``'s camera to ``before``'s (m).
 
@@ -430,19 +482,11 @@ def _icp(now: _Surface, before: _Surface, cam: tuple[float, float, float, float]
         grid = now.points[:, ::step, ::step]
         mine = grid[2] > 0
         sx, sy, sz = (grid[i][mine] for i in range(3))
-        for _ in range(iterations):
-            r32 = rot.astype(np.float32)
-            t32 = t.astype(np.float32)
-            n, ata, atr = _icp_sums(sx, sy, sz, r32, t32, cam32, px0, py0, pz0, nx0, ny0, nz0, target_ok, w, h, gate)
-            if n < 100:
-                return None
-            mu = _ICP_PRIOR * n
-            w_rot = 0.5 * np.array([rot[2, 1] - rot[1, 2], rot[0, 2] - rot[2, 0], rot[1, 0] - rot[0, 1]])
-            total = np.concatenate([w_rot, t])
-            delta = -np.asarray(np.linalg.solve(ata + mu * np.eye(6), atr + mu * total), dtype=np.float64)
-            d_rot = _rotation(delta[:3])
-            rot = d_rot @ rot
-            t = d_rot @ t + delta[3:]
+        found = _icp_steps(
+            sx, sy, sz, rot, t, cam32, px0, py0, pz0, nx0, ny0, nz0, target_ok, w, h, gate, iterations, _ICP_PRIOR
+        )
+        if not found:
+            return None
     out = np.eye(4)
     out[:3, :3] = rot
     out[:3, 3] = t
