@@ -663,36 +663,45 @@ Candidate = tuple[float, float] | CameraMotion
 
 @njit(cache=True, nogil=True)
 def _core_sums(
-    z1: NDArray[np.float32],
-    own: NDArray[np.bool_],
-    gx: NDArray[np.float64],
-    gy: NDArray[np.float64],
+    z_now: NDArray[np.floating],
+    labels_now: NDArray[np.integer],
+    oid: int,
+    box: tuple[int, int, int, int],
+    step: int,
     camera: bool,
     a: NDArray[np.float64],
     prev_z: NDArray[np.floating],
     prev_labels: NDArray[np.integer],
     pid: int,
     edge: float,
-) -> tuple[int, float, float]:
+) -> tuple[int, float, float, int]:
     """Core size (sampled px), mean depth change (mm) and its spread (mm) under one image motion.
 
-    ``camera``: ``a`` holds the rotation (row-major), the translation (mm) and fx, fy, cx, cy;
-    otherwise the shift dx, dy (px), the scale and its centre (px). One pass per object and
-    motion: the same steps in numpy and ``cv2.remap`` cost some twenty calls, which made the
-    core reading 5.9 ms of a 7-Scenes frame for 13 objects.
+    The object ``oid``'s pixels are read in its ``box`` (x0, y0, x1, y1, half-open) on every
+    ``step``-th row and column, as float32; the fourth value is how many of them have a reading
+    (sampled px). ``camera``: ``a`` holds the rotation (row-major), the translation (mm) and fx,
+    fy, cx, cy; otherwise the shift dx, dy (px), the scale and its centre (px). One pass per
+    object and motion: the same steps in numpy and ``cv2.remap`` cost some twenty calls, which
+    made the core reading 5.9 ms of a 7-Scenes frame for 13 objects.
     """
     h, w = prev_z.shape
+    x0, y0, x1, y1 = box
     n = 0
+    own = 0
     s1 = 0.0
     s2 = 0.0
-    for i in range(z1.shape[0]):
-        for j in range(z1.shape[1]):
-            if not own[i, j]:
+    for yy0 in range(y0, y1, step):
+        gy = float(yy0)
+        for xx0 in range(x0, x1, step):
+            z32 = np.float32(z_now[yy0, xx0])
+            if not (labels_now[yy0, xx0] == oid and z32 > 0):
                 continue
-            z = float(z1[i, j])
+            own += 1
+            z = float(z32)
+            gx = float(xx0)
             if camera:
-                px = (gx[j] - a[14]) / a[12] * z
-                py = (gy[i] - a[15]) / a[13] * z
+                px = (gx - a[14]) / a[12] * z
+                py = (gy - a[15]) / a[13] * z
                 qx = a[0] * px + a[1] * py + a[2] * z + a[9]
                 qy = a[3] * px + a[4] * py + a[5] * z + a[10]
                 qz = a[6] * px + a[7] * py + a[8] * z + a[11]
@@ -701,8 +710,8 @@ def _core_sums(
                 x = a[12] * qx / qz + a[14]
                 y = a[13] * qy / qz + a[15]
             else:
-                x = (gx[j] - a[3]) * a[2] + a[3] + a[0]
-                y = (gy[i] - a[4]) * a[2] + a[4] + a[1]
+                x = (gx - a[3]) * a[2] + a[3] + a[0]
+                y = (gy - a[4]) * a[2] + a[4] + a[1]
             if not (x > -1.0 and y > -1.0 and x < w and y < h):
                 continue
             xf = math.floor(x)
@@ -730,9 +739,16 @@ def _core_sums(
                 s1 += d
                 s2 += d * d
     if n == 0:
-        return 0, math.nan, math.nan
+        return 0, math.nan, math.nan, own
     mean = s1 / n
-    return n, mean, math.sqrt(max(s2 / n - mean * mean, 0.0))
+    return n, mean, math.sqrt(max(s2 / n - mean * mean, 0.0)), own
+
+
+def _camera_params(camera: CameraMotion) -> NDArray[np.float64]:
+    """Return the camera's motion as :func:`_core_sums` reads it: rotation, translation (mm), fx, fy, cx, cy."""
+    k = camera.intrinsics
+    a = np.concatenate([camera.rotation.ravel(), camera.translation_mm, [k.fx, k.fy, k.cx, k.cy]])
+    return np.ascontiguousarray(a, dtype=np.float64)
 
 
 class _Core:
@@ -756,36 +772,33 @@ class _Core:
         box: tuple[int, int, int, int],
         motions: Sequence[Candidate],
         scale: float,
+        camera_params: NDArray[np.float64] | None,
     ) -> None:
         x0, y0, x1, y1 = box
-        step = _sample_step(box)
-        z1 = np.asarray(now.depth_mm[y0:y1:step, x0:x1:step], dtype=np.float32)
-        self.own = (np.asarray(now.labels[y0:y1:step, x0:x1:step]) == oid) & (z1 > 0)
-        self.z1 = z1
-        self.sampled = int(np.count_nonzero(self.own))
-        self.area = self.sampled * step * step
-        self.gx = np.arange(x0, x1, step, dtype=np.float64)[: z1.shape[1]]
-        self.gy = np.arange(y0, y1, step, dtype=np.float64)[: z1.shape[0]]
+        self.box = box
+        self.step = _sample_step(box)
+        #: pixels read per motion (an upper bound of the core: sharing the work out)
+        self.size = len(range(y0, y1, self.step)) * len(range(x0, x1, self.step))
+        self.now = now
         self.prev = prev
+        self.oid = oid
         self.pid = pid
         centre = (0.5 * (x0 + x1 - 1), 0.5 * (y0 + y1 - 1))
         self.params: list[tuple[bool, NDArray[np.float64]]] = []
         for m in motions:
             if isinstance(m, CameraMotion):
-                k = m.intrinsics
-                a = np.concatenate([m.rotation.ravel(), m.translation_mm, [k.fx, k.fy, k.cx, k.cy]])
-                self.params.append((True, a.astype(np.float64)))
+                self.params.append((True, camera_params if camera_params is not None else _camera_params(m)))
             else:
                 self.params.append((False, np.array([m[0], m[1], scale, *centre], dtype=np.float64)))
 
-    def stats(self, k: int) -> tuple[int, float, float]:
-        """Core size (sampled px), mean depth change (mm) and its spread (mm) under motion ``k``."""
-        if self.area == 0:
-            return 0, math.nan, math.nan
+    def stats(self, k: int) -> tuple[int, float, float, int]:
+        """:func:`_core_sums` of this object under motion ``k``: core px, mean change, spread, object px."""
         camera, a = self.params[k]
-        prev = self.prev
-        z0, lab0 = prev.depth_mm, prev.labels
-        return _core_sums(self.z1, self.own, self.gx, self.gy, camera, a, z0, lab0, self.pid, _EDGE_FRACTION)
+        now, prev = self.now, self.prev
+        return _core_sums(
+            now.depth_mm, now.labels, self.oid, self.box, self.step, camera, a,
+            prev.depth_mm, prev.labels, self.pid, _EDGE_FRACTION,
+        )  # fmt: skip
 
 
 def inner_edge_shift(
@@ -881,6 +894,7 @@ def core_depth_change(
     """
     if np.shape(prev.labels) != np.shape(now.labels) or np.shape(prev.depth_mm) != np.shape(now.depth_mm):
         return {}
+    cam = None if camera is None else _camera_params(camera)
     cores: list[tuple[int, _Core, int]] = []
     for oid, (pid, box, owns, scale) in pairs.items():
         tried: list[tuple[float, float]] = [shift]
@@ -891,28 +905,29 @@ def core_depth_change(
                 continue
             tried.append(own)
             todo.append(own)
-        cores.append((oid, _Core(prev, now, oid, pid, box, todo, scale), len(todo)))
+        cores.append((oid, _Core(prev, now, oid, pid, box, todo, scale, cam), len(todo)))
     read = _read_cores([(core, m) for _, core, m in cores], helper)
     out: dict[int, float] = {}
     for c, (oid, core, m) in enumerate(cores):
-        n, mean, spread = read[c, 0]
+        n, mean, spread, sampled = read[c, 0]
         # sizes on the sampled grid, compared with the area on it
-        k = max(core.area // max(core.sampled, 1), 1)
-        ok = n * k >= min_px and n * k >= min_share * core.area
+        area = sampled * core.step * core.step
+        k = max(area // max(sampled, 1), 1)
+        ok = n * k >= min_px and n * k >= min_share * area
         first = 1
         if camera is not None:
             # The frame's shift instead of the camera's motion where it keeps clearly more of
             # the object inside its previous segment: the ICP slid along what the still scene
             # does not pin down (a floor and a wall say nothing of a sideways move), which
             # moves a small object's core off it.
-            n2, mean2, spread2 = read[c, 1]
+            n2, mean2, spread2, _ = read[c, 1]
             if n2 > (1.0 + _SHIFT_KEEPS_MORE) * n:
                 n, mean, spread = n2, mean2, spread2
-                ok = n * k >= min_px and n * k >= min_share * core.area
+                ok = n * k >= min_px and n * k >= min_share * area
             first = 2
         for j in range(first, m):
-            n2, mean2, spread2 = read[c, j]
-            if n2 * k >= min_px and n2 * k >= min_share * core.area and (not ok or spread2 < prefer * spread):
+            n2, mean2, spread2, _ = read[c, j]
+            if n2 * k >= min_px and n2 * k >= min_share * area and (not ok or spread2 < prefer * spread):
                 n, mean, spread, ok = n2, mean2, spread2 / prefer, True
         if ok:
             out[oid] = mean
@@ -921,17 +936,17 @@ def core_depth_change(
 
 def _read_cores(
     cores: Sequence[tuple[_Core, int]], helper: Executor | None
-) -> dict[tuple[int, int], tuple[int, float, float]]:
+) -> dict[tuple[int, int], tuple[int, float, float, int]]:
     """Return :meth:`_Core.stats` of each core's first ``m`` motions, keyed by ``(core's index, motion)``.
 
-    With a ``helper``, the (core, motion) pairs are shared out by their sampled pixels (largest
+    With a ``helper``, the (core, motion) pairs are shared out by the pixels they read (largest
     first, each to the lighter side) and the helper reads its share while this thread reads
     the other: each reading is one compiled call that releases the GIL, and its result does
     not depend on the thread that made it.
     """
     jobs = [(c, k) for c, (_, m) in enumerate(cores) for k in range(m)]
 
-    def read(share: Sequence[tuple[int, int]]) -> list[tuple[int, float, float]]:
+    def read(share: Sequence[tuple[int, int]]) -> list[tuple[int, float, float, int]]:
         return [cores[c][0].stats(k) for c, k in share]
 
     mine: list[tuple[int, int]] = jobs
@@ -939,10 +954,10 @@ def _read_cores(
     if helper is not None and len(jobs) > 1:
         mine = []
         load = [0, 0]
-        for c, k in sorted(jobs, key=lambda ck: -cores[ck[0]][0].sampled):
+        for c, k in sorted(jobs, key=lambda ck: -cores[ck[0]][0].size):
             side = 0 if load[0] <= load[1] else 1
             (mine if side == 0 else theirs).append((c, k))
-            load[side] += cores[c][0].sampled + 1
+            load[side] += cores[c][0].size + 1
     future = helper.submit(read, theirs) if helper is not None and theirs else None
     out = dict(zip(mine, read(mine), strict=True))
     if future is not None:
