@@ -10,11 +10,13 @@ import math
 
 import cv2
 import numpy as np
+from numba import njit
 from numpy.typing import NDArray
 
 from depthgram.frame import Intrinsics
 from depthgram.segmentation.attributes import Stats, label_stats
 from depthgram.segmentation.label import ACTIVE, BLOCK, HOLE, label_keyed, relabel
+from depthgram.segmentation.label.stats import N_COLUMNS, flush_run
 from depthgram.segmentation.planes import (
     Plane,
     _assign,
@@ -33,6 +35,7 @@ __all__ = [
     "plane_fits",
     "plane_search_numpy",
     "planes_from_sums_numpy",
+    "refine_per_pixel",
     "relabel_small",
     "support_components",
 ]
@@ -253,3 +256,110 @@ def planes_from_sums_numpy(
     coef = np.linalg.solve(ata, atb[..., None])[..., 0]
     norm = np.maximum(np.linalg.norm(coef, axis=1), 1e-15)
     return -coef / norm[:, None], 1.0 / norm, sums[:, 5]
+
+
+@njit(cache=False, nogil=True)
+def refine_per_pixel(
+    glab: NDArray[np.int32],
+    gz: NDArray[np.float32],
+    depth: NDArray[np.float32],
+    valid: NDArray[np.bool_],
+    step: int,
+    t0: np.float32,
+    t2: np.float32,
+    sl: np.float32,
+    n_labels: int,
+) -> tuple[NDArray[np.int32], NDArray[np.float64], NDArray[np.int32]]:
+    """:func:`depthgram.segmentation.coarse.refine_labels`'s kernel pixel by pixel, as it was.
+
+    Each pixel's four candidates tried in turn behind branches, and each run summed with a
+    test per pixel: the route the branch-free rows and paired run sums replaced.
+    """
+    # Hand-written: the choice among a pixel's four grid samples by depth and by the surface
+    # labeller's own continuity rule has no library kernel (OpenCV's and scipy's upsampling
+    # interpolate values, they do not pick a label). Walked cell by cell, so that no pixel pays
+    # an integer division and a cell whose four samples carry one label (most of a frame) only
+    # asks whether any of them continues the pixel, nearest first. The statistics table of
+    # the new map (label.stats' layout) is gathered in the same pass, run by run.
+    h, w = depth.shape
+    gh, gw = glab.shape
+    out = np.zeros((h, w), np.int32)
+    # the samples of the grid rows above and below a band of `step` pixel rows, with a column
+    # past the end (label 0) so that every pixel reads four candidates
+    lab = np.zeros((2, gw + 1), np.int32)
+    zs = np.zeros((2, gw + 1), np.float32)
+    tol = np.zeros((2, gw + 1), np.float32)
+    per_px = np.zeros((2, gw + 1), np.float32)
+    one = np.zeros(gw, np.bool_)
+    sums = np.zeros((n_labels + 1, N_COLUMNS), np.float64)
+    # label.stats' boxes: each label's first row is set when its first run is added
+    box = np.empty((n_labels + 1, 4), np.int32)
+    box[:, 0] = w
+    box[:, 1] = h
+    box[:, 2] = -1
+    box[:, 3] = -1
+    for i0 in range(gh):
+        for r in range(2):
+            i = i0 + r
+            for j in range(gw):
+                v = glab[i, j] if i < gh else 0
+                lab[r, j] = v
+                z = gz[i, j] if v else np.float32(0.0)
+                zs[r, j] = z
+                tol[r, j] = t0 + t2 * z * z
+                per_px[r, j] = sl * z
+        for j in range(gw):
+            a = lab[0, j]
+            one[j] = (
+                a != 0
+                and (lab[0, j + 1] == 0 or lab[0, j + 1] == a)
+                and (lab[1, j] == 0 or lab[1, j] == a)
+                and (lab[1, j + 1] == 0 or lab[1, j + 1] == a)
+            )
+        for dy0 in range(min(step, h - i0 * step)):
+            y = i0 * step + dy0
+            gy = (np.float32(dy0), np.float32(step - dy0))
+            j0 = 0
+            dx0 = 0
+            run = 0  # the label of the run being summed, its start and sums
+            start = 0
+            c = sz = szz = sx = sxz = 0.0
+            for x in range(w + 1):
+                best = 0
+                if x < w and valid[y, x]:
+                    z = depth[y, x]
+                    best_d = np.float32(np.inf)
+                    for k in range(4):
+                        r = k >> 1
+                        j = j0 + (k & 1)
+                        cand = lab[r, j]
+                        if cand == 0:
+                            continue
+                        d = abs(zs[r, j] - z)
+                        gap = gy[r] + np.float32(dx0 if (k & 1) == 0 else step - dx0)
+                        if d < best_d and d <= tol[r, j] + gap * per_px[r, j]:
+                            best = cand
+                            best_d = d
+                            if one[j0]:
+                                break
+                    out[y, x] = best
+                if best != run:
+                    if run:
+                        if box[run, 3] < 0:
+                            box[run, 1] = y
+                        flush_run(sums, box, run, c, sz, szz, sx, sxz, y, start, x - 1, 0.0)
+                    run = best
+                    start = x
+                    c = sz = szz = sx = sxz = 0.0
+                if best:
+                    zf = np.float64(depth[y, x])
+                    c += 1.0
+                    sz += zf
+                    szz += zf * zf
+                    sx += x
+                    sxz += x * zf
+                dx0 += 1
+                if dx0 == step:
+                    j0 += 1
+                    dx0 = 0
+    return out, sums, box

@@ -62,6 +62,30 @@ def test_refined_labels_put_the_edges_where_the_depth_jumps(step: int) -> None:
     assert boxes[2].tolist() == [23, 13, 46, 37]
 
 
+@pytest.mark.parametrize(("step", "h", "w"), [(2, 48, 64), (2, 47, 63), (3, 50, 61), (4, 37, 90)])
+def test_refined_labels_and_sums_are_those_of_the_pixel_by_pixel_kernel(step: int, h: int, w: int) -> None:
+    from depthgram.segmentation.coarse import _refine
+    from reference import refine_per_pixel
+
+    rng = np.random.default_rng(step * 1000 + h)
+    # patches of a few labels on surfaces of a few depths, with equal depths (ties between
+    # samples of two labels), holes, and grid samples left out
+    depth = rng.choice(np.array([800.0, 803.0, 806.0, 1500.0, 1510.0], np.float32), size=(h, w))
+    depth = (depth + rng.integers(0, 3, size=(h, w))).astype(np.float32)
+    valid = rng.random((h, w)) > 0.1
+    depth[~valid] = 0.0
+    gd, gok, _ = grid_frame(depth, valid, default_intrinsics((h, w)), step)
+    grid = np.where(gok, rng.integers(1, 5, size=gok.shape), 0).astype(np.int32)
+    grid[rng.random(grid.shape) < 0.1] = 0
+    args = (grid, gd, depth, valid, step, np.float32(2.0), np.float32(2e-6), np.float32(0.004), int(grid.max()))
+    want = refine_per_pixel(*args)
+    got = _refine(*args)
+    assert np.array_equal(got[0], want[0])
+    assert np.array_equal(got[1], want[1])  # the same sums to the last bit (the same additions)
+    assert np.array_equal(got[2], want[2])
+    assert len(np.unique(got[0])) > 3  # the case is not trivial
+
+
 def test_pixels_without_a_reading_or_off_every_sampled_surface_get_no_label() -> None:
     depth, truth = _two_surfaces(2)
     valid = depth > 0

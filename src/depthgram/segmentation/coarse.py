@@ -162,20 +162,25 @@ def _refine(
 ) -> tuple[NDArray[np.int32], NDArray[np.float64], NDArray[np.int32]]:
     # Hand-written: the choice among a pixel's four grid samples by depth and by the surface
     # labeller's own continuity rule has no library kernel (OpenCV's and scipy's upsampling
-    # interpolate values, they do not pick a label). Walked cell by cell, so that no pixel pays
-    # an integer division and a cell whose four samples carry one label (most of a frame) only
-    # asks whether any of them continues the pixel, nearest first. The statistics table of
-    # the new map (label.stats' layout) is gathered in the same pass, run by run.
+    # interpolate values, they do not pick a label). Per band of `step` pixel rows, the grid
+    # rows above and below are repeated to pixel width once (a pixel's right-hand sample is
+    # then `step` places on), so that the choice of each row is one branch-free loop over
+    # plain arrays that vectorises; then the row's runs give the statistics table of the new
+    # map (label.stats' layout), two rows side by side (_run_sums_two).
     h, w = depth.shape
     gh, gw = glab.shape
     out = np.zeros((h, w), np.int32)
-    # the samples of the grid rows above and below a band of `step` pixel rows, with a column
-    # past the end (label 0) so that every pixel reads four candidates
-    lab = np.zeros((2, gw + 1), np.int32)
-    zs = np.zeros((2, gw + 1), np.float32)
-    tol = np.zeros((2, gw + 1), np.float32)
-    per_px = np.zeros((2, gw + 1), np.float32)
-    one = np.zeros(gw, np.bool_)
+    wide = max(w + step, (gw + 1) * step)
+    lab_up = np.zeros(wide, np.int32)
+    z_up = np.zeros(wide, np.float32)
+    lab_dn = np.zeros(wide, np.int32)
+    z_dn = np.zeros(wide, np.float32)
+    # a pixel's distance (px) to the samples of its cell's left and right columns
+    dx_left = np.empty(w, np.float32)
+    dx_right = np.empty(w, np.float32)
+    for x in range(w):
+        dx_left[x] = np.float32(x % step)
+        dx_right[x] = np.float32(step - x % step)
     sums = np.zeros((n_labels + 1, N_COLUMNS), np.float64)
     # label.stats' boxes: each label's first row is set when its first run is added
     box = np.empty((n_labels + 1, 4), np.int32)
@@ -183,71 +188,241 @@ def _refine(
     box[:, 1] = h
     box[:, 2] = -1
     box[:, 3] = -1
+    # row y + 1's runs while row y is summed (_run_sums_two)
+    held_label = np.empty(w + 1, np.int32)
+    held_span = np.empty((w + 1, 2), np.int64)
+    held_sums = np.empty((w + 1, 3), np.float64)
+    _repeat_row(glab, gz, 0, step, lab_dn, z_dn)
     for i0 in range(gh):
-        for r in range(2):
-            i = i0 + r
-            for j in range(gw):
-                v = glab[i, j] if i < gh else 0
-                lab[r, j] = v
-                z = gz[i, j] if v else np.float32(0.0)
-                zs[r, j] = z
-                tol[r, j] = t0 + t2 * z * z
-                per_px[r, j] = sl * z
-        for j in range(gw):
-            a = lab[0, j]
-            one[j] = (
-                a != 0
-                and (lab[0, j + 1] == 0 or lab[0, j + 1] == a)
-                and (lab[1, j] == 0 or lab[1, j] == a)
-                and (lab[1, j + 1] == 0 or lab[1, j + 1] == a)
+        lab_up, lab_dn = lab_dn, lab_up
+        z_up, z_dn = z_dn, z_up
+        _repeat_row(glab, gz, i0 + 1, step, lab_dn, z_dn)
+        y0 = i0 * step
+        rows = min(step, h - y0)
+        for dy in range(rows):
+            y = y0 + dy
+            gaps = (np.float32(dy), np.float32(step - dy))
+            _choose_row(
+                out[y], depth[y], valid[y], lab_up, z_up, lab_dn, z_dn, dx_left, dx_right, step, t0, t2, sl, gaps
             )
-        for dy0 in range(min(step, h - i0 * step)):
-            y = i0 * step + dy0
-            gy = (np.float32(dy0), np.float32(step - dy0))
-            j0 = 0
-            dx0 = 0
-            run = 0  # the label of the run being summed, its start and sums
-            start = 0
-            c = sz = szz = sx = sxz = 0.0
-            for x in range(w + 1):
-                best = 0
-                if x < w and valid[y, x]:
-                    z = depth[y, x]
-                    best_d = np.float32(np.inf)
-                    for k in range(4):
-                        r = k >> 1
-                        j = j0 + (k & 1)
-                        cand = lab[r, j]
-                        if cand == 0:
-                            continue
-                        d = abs(zs[r, j] - z)
-                        gap = gy[r] + np.float32(dx0 if (k & 1) == 0 else step - dx0)
-                        if d < best_d and d <= tol[r, j] + gap * per_px[r, j]:
-                            best = cand
-                            best_d = d
-                            if one[j0]:
-                                break
-                    out[y, x] = best
-                if best != run:
-                    if run:
-                        if box[run, 3] < 0:
-                            box[run, 1] = y
-                        flush_run(sums, box, run, c, sz, szz, sx, sxz, y, start, x - 1, 0.0)
-                    run = best
-                    start = x
-                    c = sz = szz = sx = sxz = 0.0
-                if best:
-                    zf = np.float64(depth[y, x])
-                    c += 1.0
-                    sz += zf
-                    szz += zf * zf
-                    sx += x
-                    sxz += x * zf
-                dx0 += 1
-                if dx0 == step:
-                    j0 += 1
-                    dx0 = 0
+        dy = 0
+        while dy < rows:
+            y = y0 + dy
+            if dy + 1 < rows:
+                _run_sums_two(
+                    out[y], depth[y], out[y + 1], depth[y + 1], y, sums, box, held_label, held_span, held_sums
+                )
+                dy += 2
+            else:
+                _run_sums(out[y], depth[y], y, sums, box)
+                dy += 1
     return out, sums, box
+
+
+@njit(cache=True, inline="always")
+def _repeat_row(
+    glab: NDArray[np.int32], gz: NDArray[np.float32], i: int, step: int, lab: NDArray[np.int32], z: NDArray[np.float32]
+) -> None:
+    # grid row i's labels and depths (0 without a label), each repeated `step` times; 0 past
+    # the grid's last row and column
+    gh, gw = glab.shape
+    if i >= gh:
+        lab[:] = 0
+        z[:] = 0.0
+        return
+    for s in range(step):
+        for j in range(gw):
+            v = glab[i, j]
+            lab[j * step + s] = v
+            z[j * step + s] = gz[i, j] if v else np.float32(0.0)
+    for x in range(gw * step, lab.size):
+        lab[x] = 0
+        z[x] = 0.0
+
+
+@njit(cache=True, nogil=True)
+def _choose_row(
+    out: NDArray[np.int32],
+    depth: NDArray[np.float32],
+    valid: NDArray[np.bool_],
+    lab_up: NDArray[np.int32],
+    z_up: NDArray[np.float32],
+    lab_dn: NDArray[np.int32],
+    z_dn: NDArray[np.float32],
+    dx_left: NDArray[np.float32],
+    dx_right: NDArray[np.float32],
+    step: int,
+    t0: np.float32,
+    t2: np.float32,
+    sl: np.float32,
+    gaps: tuple[np.float32, np.float32],
+) -> None:
+    # One row: of the samples up left, up right, down left, down right (that order), the one
+    # of least depth difference (the first of equal ones) among those within reach, in the
+    # float32 operations of the surface labeller's rule (`tol_0 + tol_2 z**2`, then `gap *
+    # slope z`); 0 without a reading. Every test computed and selected, no branch, so the
+    # loop vectorises. The right-hand samples are read through views `step` on: an index
+    # x + step would be wrapped as a possibly negative one, which turned the loads into gathers.
+    inf = np.float32(np.inf)
+    g_up, g_dn = gaps
+    lab_upr = lab_up[step:]
+    z_upr = z_up[step:]
+    lab_dnr = lab_dn[step:]
+    z_dnr = z_dn[step:]
+    for x in range(out.size):
+        z = depth[x]
+        c = lab_up[x]
+        zs = z_up[x]
+        d = abs(zs - z)
+        ok = (c != 0) & (d <= (t0 + t2 * zs * zs) + (g_up + dx_left[x]) * (sl * zs))
+        best = c if ok else np.int32(0)
+        best_d = d if ok else inf
+        c = lab_upr[x]
+        zs = z_upr[x]
+        d = abs(zs - z)
+        ok = (c != 0) & (d <= (t0 + t2 * zs * zs) + (g_up + dx_right[x]) * (sl * zs)) & (d < best_d)
+        best = c if ok else best
+        best_d = d if ok else best_d
+        c = lab_dn[x]
+        zs = z_dn[x]
+        d = abs(zs - z)
+        ok = (c != 0) & (d <= (t0 + t2 * zs * zs) + (g_dn + dx_left[x]) * (sl * zs)) & (d < best_d)
+        best = c if ok else best
+        best_d = d if ok else best_d
+        c = lab_dnr[x]
+        zs = z_dnr[x]
+        d = abs(zs - z)
+        ok = (c != 0) & (d <= (t0 + t2 * zs * zs) + (g_dn + dx_right[x]) * (sl * zs)) & (d < best_d)
+        best = c if ok else best
+        out[x] = best if valid[x] else np.int32(0)
+
+
+@njit(cache=True, inline="always")
+def _add_run(
+    sums: NDArray[np.float64],
+    box: NDArray[np.int32],
+    i: int,
+    start: int,
+    stop: int,
+    sz: float,
+    szz: float,
+    sxz: float,
+    y: int,
+) -> None:
+    # the run's count and sum of x are whole numbers, exact in float64 whichever way they are
+    # added: taken from its ends
+    if box[i, 3] < 0:
+        box[i, 1] = y
+    n = stop - start
+    flush_run(
+        sums, box, i, np.float64(n), sz, szz, np.float64((start + stop - 1) * n // 2), sxz, y, start, stop - 1, 0.0
+    )
+
+
+@njit(cache=True, nogil=True)
+def _run_sums(
+    labels: NDArray[np.int32], depth: NDArray[np.float32], y: int, sums: NDArray[np.float64], box: NDArray[np.int32]
+) -> None:
+    # One row's runs added to the table, each run's sums added pixel by pixel from 0 in
+    # column order and then to its label's row. Every pixel is added: a run of label 0 is
+    # thrown away at its end, so no test per pixel.
+    run = 0
+    start = 0
+    sz = szz = sxz = 0.0
+    for x in range(labels.size):
+        a = labels[x]
+        if a != run:
+            if run:
+                _add_run(sums, box, run, start, x, sz, szz, sxz, y)
+            run = a
+            start = x
+            sz = szz = sxz = 0.0
+        z = np.float64(depth[x])
+        sz += z
+        szz += z * z
+        sxz += x * z
+    if run:
+        _add_run(sums, box, run, start, labels.size, sz, szz, sxz, y)
+
+
+@njit(cache=True, nogil=True)
+def _run_sums_two(
+    labels_a: NDArray[np.int32],
+    depth_a: NDArray[np.float32],
+    labels_b: NDArray[np.int32],
+    depth_b: NDArray[np.float32],
+    y: int,
+    sums: NDArray[np.float64],
+    box: NDArray[np.int32],
+    held_label: NDArray[np.int32],
+    held_span: NDArray[np.int64],
+    held_sums: NDArray[np.float64],
+) -> None:
+    # _run_sums of rows y and y + 1 in one loop: a run's additions are a chain, each waiting
+    # for the one before, and two rows make two chains that run side by side. Row y + 1's
+    # runs (label, start and stop, sums of Z, Z², xZ) are held and added after row y's, in
+    # the order _run_sums adds them (the same sums).
+    w = labels_a.size
+    ra = 0
+    sa = 0
+    sza = szza = sxza = 0.0
+    rb = 0
+    sb = 0
+    szb = szzb = sxzb = 0.0
+    k = 0
+    for x in range(w):
+        a = labels_a[x]
+        b = labels_b[x]
+        if a != ra:
+            if ra:
+                _add_run(sums, box, ra, sa, x, sza, szza, sxza, y)
+            ra = a
+            sa = x
+            sza = szza = sxza = 0.0
+        if b != rb:
+            if rb:
+                k = _hold(held_label, held_span, held_sums, k, rb, sb, x, szb, szzb, sxzb)
+            rb = b
+            sb = x
+            szb = szzb = sxzb = 0.0
+        za = np.float64(depth_a[x])
+        zb = np.float64(depth_b[x])
+        sza += za
+        szb += zb
+        szza += za * za
+        szzb += zb * zb
+        sxza += x * za
+        sxzb += x * zb
+    if ra:
+        _add_run(sums, box, ra, sa, w, sza, szza, sxza, y)
+    if rb:
+        k = _hold(held_label, held_span, held_sums, k, rb, sb, w, szb, szzb, sxzb)
+    for j in range(k):
+        s = held_sums[j]
+        _add_run(sums, box, held_label[j], held_span[j, 0], held_span[j, 1], s[0], s[1], s[2], y + 1)
+
+
+@njit(cache=True, inline="always")
+def _hold(
+    label: NDArray[np.int32],
+    span: NDArray[np.int64],
+    sums: NDArray[np.float64],
+    k: int,
+    i: int,
+    start: int,
+    stop: int,
+    sz: float,
+    szz: float,
+    sxz: float,
+) -> int:
+    # run k of the held row; returns the count of held runs
+    label[k] = i
+    span[k, 0] = start
+    span[k, 1] = stop
+    sums[k, 0] = sz
+    sums[k, 1] = szz
+    sums[k, 2] = sxz
+    return k + 1
 
 
 def _scaled_part(part: SceneObject, step: int, width: int, height: int) -> SceneObject:
