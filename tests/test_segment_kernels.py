@@ -1015,9 +1015,8 @@ def test_load_rare_kernels_loads_the_kernels_of_the_rare_branches() -> None:
         _assign,
         _coplanar_join,
         _dilate3,
-        _plane_pieces,
         _planes_from_sums,
-        _search_plane,
+        _search_planes,
     )
     from depthgram.segmentation.slices import _class_state, _drop_classes, _merge_rows
     from depthgram.sensor import simulate
@@ -1031,8 +1030,7 @@ def test_load_rare_kernels_loads_the_kernels_of_the_rare_branches() -> None:
         _merge_rows,
         _drop_classes,
         stats._stats,
-        _search_plane,
-        _plane_pieces,
+        _search_planes,
         _planes_from_sums,
         _coplanar_join,
         _dilate3,
