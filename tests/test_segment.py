@@ -270,3 +270,26 @@ def test_min_area_is_two_explicit_limits_and_the_old_spelling_still_works() -> N
         assert SegmentConfig(min_area=0.01).min_pixels(100 * 100) == 100
     with pytest.raises(InputError, match="min_area_px"):
         SegmentConfig(min_area_px=0)
+
+
+def test_new_object_is_the_dataclasss_own_object() -> None:
+    import copy
+    import dataclasses
+    import pickle
+
+    from depthgram.segmentation.objects import SceneObject, new_object
+
+    part = SceneObject(9, "part", 2, 1200.0, 3.5, 40, 0.01, (3.0, 4.0), (1, 2, 5, 6))
+    values = (3, "compound", 1, 1234.5, 7.25, 812, 0.035, (51.5, 60.25), (10, 20, 90, 100))
+    metric = ((-12.5, 40.0, 1234.5), 5.5e5, (part,))
+    for extra in ((None, None), metric):
+        got = new_object(*values, *extra)
+        want = SceneObject(*values, *extra)
+        # the same fields in the same order, so equality, hash, repr and pickling agree
+        assert list(vars(got).items()) == list(vars(want).items())
+        assert [f.name for f in dataclasses.fields(SceneObject)] == list(vars(got))
+        assert got == want and hash(got) == hash(want) and repr(got) == repr(want)
+        assert pickle.loads(pickle.dumps(got)) == want and copy.deepcopy(got) == want
+        assert dataclasses.replace(got, id=4) == dataclasses.replace(want, id=4)
+        with pytest.raises(dataclasses.FrozenInstanceError):
+            got.id = 5  # type: ignore[misc]

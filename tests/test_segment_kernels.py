@@ -619,7 +619,8 @@ def test_slice_parts_match_per_slice_numpy_sums() -> None:
         parts = slice_parts(
             labels,
             depth,
-            obj,
+            obj.id,
+            obj.bbox_xy,
             horizontal=horizontal,
             step_of=lambda extent: 4,
             depth_label=lambda z: 0,

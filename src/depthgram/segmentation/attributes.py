@@ -19,9 +19,9 @@ from scipy import ndimage
 from depthgram.frame import Intrinsics
 from depthgram.segmentation.label import label_stats_fused, relabel
 from depthgram.segmentation.label.stats import COUNT, KEY, SUM_X, SUM_XZ, SUM_Y, SUM_YZ, SUM_Z, SUM_ZZ
-from depthgram.segmentation.objects import SceneObject
+from depthgram.segmentation.objects import SceneObject, new_object
 
-__all__ = ["Stats", "fused_stats", "label_stats", "make_objects"]
+__all__ = ["Stats", "attribute_rows", "fused_stats", "label_stats", "make_objects"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -126,6 +126,27 @@ def _attribute_table(
     return out
 
 
+def attribute_rows(sums: NDArray[np.float64], intrinsics: Intrinsics) -> NDArray[np.float64]:
+    """Return the attributes :func:`make_objects` gives each label of a statistics table.
+
+    ``sums`` has the columns of :mod:`depthgram.segmentation.label.stats` (the first
+    :data:`~depthgram.segmentation.label.stats.N_SUMS` at least), row 0 unused. Row ``i - 1``
+    of the result is label ``i``'s pixel count, mean depth and its standard deviation (mm),
+    center x and y (px), centroid X and Y (mm) and metric area (mm²), the same numbers
+    make_objects puts in its objects (0 pixels: no object).
+    """
+    return _table_attributes(sums, intrinsics.fx, intrinsics.fy, intrinsics.cx, intrinsics.cy)
+
+
+@njit(cache=True, nogil=True)
+def _table_attributes(sums: NDArray[np.float64], fx: float, fy: float, cx: float, cy: float) -> NDArray[np.float64]:
+    # _attribute_table of the table's columns: one array to pass instead of seven
+    return _attribute_table(
+        sums[:, COUNT], sums[:, SUM_Z], sums[:, SUM_ZZ], sums[:, SUM_X], sums[:, SUM_Y],
+        sums[:, SUM_XZ], sums[:, SUM_YZ], fx, fy, cx, cy,
+    )  # fmt: skip
+
+
 def make_objects(
     labels: NDArray[np.int32],
     stats: Stats,
@@ -188,18 +209,18 @@ def make_objects(
             continue
         c, mean, std, cx, cy, gx, gy, amm = table[j]
         out.append(
-            SceneObject(
-                id=int(id_l[j]),
-                kind=kinds[j + 1] if kinds is not None else "object",
-                depth_label=int(lab_l[j]),
-                depth=mean,
-                depth_std=std,
-                area=int(c),
-                area_fraction=c / total,
-                center_xy=(cx, cy),
-                bbox_xy=(int(x0[j]), int(y0[j]), int(x1[j]), int(y1[j])),
-                centroid_mm=(gx, gy, mean) if metric else None,
-                area_mm2=amm if metric else None,
+            new_object(
+                int(id_l[j]),
+                kinds[j + 1] if kinds is not None else "object",
+                int(lab_l[j]),
+                mean,
+                std,
+                int(c),
+                c / total,
+                (cx, cy),
+                (int(x0[j]), int(y0[j]), int(x1[j]), int(y1[j])),
+                (gx, gy, mean) if metric else None,
+                amm if metric else None,
             )
         )
     return out

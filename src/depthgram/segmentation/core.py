@@ -10,14 +10,14 @@ import numpy as np
 from numpy.typing import NDArray
 
 from depthgram.frame import Frame, Intrinsics, check_array_units
-from depthgram.segmentation.attributes import Stats, make_objects
+from depthgram.segmentation.attributes import Stats, attribute_rows, make_objects
 from depthgram.segmentation.coarse import grid_frame, grid_step, to_full_resolution
 from depthgram.segmentation.config import SegmentConfig
 from depthgram.segmentation.contacts import front_faces, side_faces
 from depthgram.segmentation.histogram import Bands, bin_index, depth_bands, log_bin_counts
 from depthgram.segmentation.label import label_bands_stats, label_stats_fused, label_two_classes, relabel
 from depthgram.segmentation.label.stats import COUNT, KEY, N_COLUMNS, N_SUMS, SUM_Z
-from depthgram.segmentation.objects import Histogram, SceneObject, Segmentation
+from depthgram.segmentation.objects import Histogram, SceneObject, Segmentation, new_object
 from depthgram.segmentation.order_stats import percentile32
 from depthgram.segmentation.orientation import (
     FACING,
@@ -230,9 +230,9 @@ def _facing_objects(
     depth: NDArray[np.float32],
     ok: NDArray[np.bool_],
     include: NDArray[np.bool_] | None,
-    intrinsics: Intrinsics | None,
     cfg: SegmentConfig,
-) -> tuple[NDArray[np.int32], list[SceneObject], Bands, NDArray[np.float64], NDArray[np.int64]]:
+) -> tuple[NDArray[np.int32], Bands, NDArray[np.float64], NDArray[np.int64]]:
+    """Facing objects as depth bands: label map, bands, statistics table (``KEY``: the band) and boxes."""
     # the bands come from the histogram; labelling reads each pixel's band through the
     # bin -> band table and gathers the statistics in the same pass (no band image, no
     # separate statistics pass, no relabelling pass for the small components)
@@ -242,28 +242,25 @@ def _facing_objects(
     labels, _, sums, boxes = label_bands_stats(
         bins, bands.lut, ok, include, depth, bridge=cfg.fill_holes_px, min_px=cfg.min_pixels(depth.size)
     )
-    stats = Stats.from_sums(sums, boxes, metric=intrinsics is not None)
-    objects = make_objects(labels, stats, depth_labels=sums[:, KEY].astype(np.int64), intrinsics=intrinsics)
-    return labels, objects, bands, sums, boxes
+    return labels, bands, sums, boxes
 
 
 def _surface_objects(
     depth: NDArray[np.float32],
     ok: NDArray[np.bool_],
     include: NDArray[np.bool_],
-    intrinsics: Intrinsics | None,
     cam: Intrinsics,
     cfg: SegmentConfig,
     sensor: SensorModel,
     inverse: NDArray[np.float32] | None = None,
-) -> tuple[NDArray[np.int32], list[SceneObject], Bands, NDArray[np.float64], NDArray[np.int64]]:
+) -> tuple[NDArray[np.int32], Bands, NDArray[np.float64], NDArray[np.int64]]:
     """Facing objects as depth-continuous surfaces (:mod:`depthgram.segmentation.surfaces`).
 
     ``inverse``: the frame's 1000 / Z and readings, when the orientation field took them.
-    The same outputs as :func:`_facing_objects`; the histogram's bands give each object its
-    depth label only. Its bins follow the sensor: geometric, and at the far end of the frame
-    three resolutions wide, so that a structured-light camera's depth steps (which grow with the
-    square of depth) never make a comb of one-bin peaks.
+    The same outputs as :func:`_facing_objects` (the objects are built with the supports'); the
+    histogram's bands give each object its depth label only. Its bins follow the sensor:
+    geometric, and at the far end of the frame three resolutions wide, so that a structured-light
+    camera's depth steps (which grow with the square of depth) never make a comb of one-bin peaks.
     """
     facing = ok & include
     # the histogram only names depth labels here: every 2nd row and column give the same bands
@@ -307,15 +304,15 @@ def _surface_objects(
         sums, boxes = label_stats_fused(labels, n, depth, np.zeros(depth.shape, np.float32))
         mean = sums[:, SUM_Z] / np.maximum(sums[:, COUNT], 1.0)
     sums[:, KEY] = bands.depth_label(mean)
-    stats = Stats.from_sums(sums, boxes, metric=intrinsics is not None)
-    objects = make_objects(labels, stats, depth_labels=sums[:, KEY].astype(np.int64), intrinsics=intrinsics)
-    return labels, objects, bands, sums, boxes
+    return labels, bands, sums, boxes
 
 
 def _threshold(
     depth: NDArray[np.float32], ok: NDArray[np.bool_], intrinsics: Intrinsics | None, cfg: SegmentConfig
 ) -> Segmentation:
-    labels, objects, bands, _, _ = _facing_objects(depth, ok, None, intrinsics, cfg)
+    labels, bands, sums, boxes = _facing_objects(depth, ok, None, cfg)
+    stats = Stats.from_sums(sums, boxes, metric=intrinsics is not None)
+    objects = make_objects(labels, stats, depth_labels=sums[:, KEY].astype(np.int64), intrinsics=intrinsics)
     return Segmentation(labels, tuple(objects), bands.histogram, "threshold", bands_mm=bands.limits_mm())
 
 
@@ -344,17 +341,13 @@ def _slices(
     facing = classes == FACING
     if cfg.method == "surfaces":
         sensor = sensor or frame_sensor(depth, ok, cfg)
-        labels, objects, bands, fsums, fboxes = _surface_objects(
-            depth, ok, facing, intrinsics, cam, cfg, sensor, inverse=inverse
-        )
+        labels, bands, fsums, fboxes = _surface_objects(depth, ok, facing, cam, cfg, sensor, inverse=inverse)
     else:
-        labels, objects, bands, fsums, fboxes = _facing_objects(depth, ok, facing, intrinsics, cfg)
-    stack = _stack_supports(labels, objects, fsums, fboxes, support_maps, cam)
-    below, beneath = _below_camera(labels, stack.next_id - 1, depth, cam, stack.compounds)
-    fronts = _fold_faces(labels, depth, objects, stack, below, cfg)
-    labels, objects = _compound_objects(
-        labels, depth, objects, stack, fronts, below, beneath, bands, intrinsics, cam, cfg
-    )
+        labels, bands, fsums, fboxes = _facing_objects(depth, ok, facing, cfg)
+    stack = _stack_supports(labels, fsums, fboxes, support_maps, cam)
+    below, beneath = _below_camera(labels, depth, cam, stack)
+    fronts = _fold_faces(labels, depth, stack, below, cfg)
+    labels, objects = _compound_objects(labels, depth, stack, fronts, below, beneath, bands, intrinsics, cam, cfg)
     return Segmentation(
         labels, tuple(objects), bands.histogram, cfg.method, bands_mm=bands.limits_mm(), classes=classes
     )
@@ -386,30 +379,33 @@ def _pixel_classes(
 class _Stack:
     """Statistics of every id, facing objects first and then supports, stacked.
 
-    Later steps add rows instead of taking them again from the label map.
+    Later steps add rows instead of taking them again from the label map; the objects are
+    built once, at the end (:func:`_compound_objects`), from these rows.
     """
 
     sums: NDArray[np.float64]  # (next_id, N_SUMS): the statistics table's sums per id
     boxes: NDArray[np.int64]  # (next_id, 4) inclusive boxes per id
+    keys: NDArray[np.int64]  # (first_support,) each facing object's depth label
     first_support: int  # id of the first support
     next_id: int  # one past the last id
-    compounds: list[tuple[int, SceneObject]]  # (orientation class, support object) per support
+    supports: list[tuple[int, int]]  # (orientation class, id) per support with pixels
+    #: (next_id - 1, 8) the attributes of ids 1.. (attributes.attribute_rows), before faces fold
+    attrs: NDArray[np.float64]
 
 
 def _stack_supports(
     labels: NDArray[np.int32],
-    objects: list[SceneObject],
     fsums: NDArray[np.float64],
     fboxes: NDArray[np.int64],
     support_maps: list[_SupportMap],
     cam: Intrinsics,
 ) -> _Stack:
     """Add the supports' labels after the facing objects' (in place) and stack their statistics."""
-    next_id = len(objects) + 1
+    next_id = fsums.shape[0]
     first_support = next_id
     all_sums = [fsums[:, :N_SUMS]]
     all_boxes = [fboxes]
-    cls_of: dict[int, int] = {}
+    supports: list[tuple[int, int]] = []
     # one table per label map (the classes labelled together share one): map value -> id
     luts: dict[int, tuple[NDArray[np.int32], NDArray[np.int32], list[NDArray[np.int64]]]] = {}
     for sm in support_maps:
@@ -419,25 +415,24 @@ def _stack_supports(
         in_boxes.append(sm.boxes[1:])
         kept = sm.through[1:]
         lut[sm.base + 1 : sm.base + kept.size + 1] = np.where(kept > 0, kept + np.int32(next_id - 1), 0)
-        cls_of.update((i, sm.cls) for i in range(next_id, next_id + sm.n))
+        supports += [(sm.cls, i) for i in range(next_id, next_id + sm.n)]
         all_sums.append(sm.sums[1:, :N_SUMS])
         all_boxes.append(sm.boxes[1:])
         next_id += sm.n
     for lab, lut, in_boxes in luts.values():
-        add_through(labels, lab, lut, np.concatenate(in_boxes))
-    total = np.concatenate(all_sums)
-    total_boxes = np.concatenate(all_boxes)
-    rows = np.arange(first_support - 1, next_id)
-    rows[0] = 0
-    sup_stats = _stats_rows(total, total_boxes, rows)
-    compounds = [(cls_of[o.id], o) for o in make_objects(labels, sup_stats, intrinsics=cam, first_id=first_support)]
-    return _Stack(total, total_boxes, first_support, next_id, compounds)
+        add_through(labels, lab, lut, in_boxes[0] if len(in_boxes) == 1 else np.concatenate(in_boxes))
+    total = np.concatenate(all_sums) if len(all_sums) > 1 else all_sums[0].copy()
+    total_boxes = np.concatenate(all_boxes) if len(all_boxes) > 1 else all_boxes[0].copy()
+    attrs = attribute_rows(total, cam)
+    # a support without pixels is no object (make_objects leaves such rows out)
+    supports = [(c, i) for c, i in supports if attrs[i - 1, 0] > 0]
+    keys = fsums[:, KEY].astype(np.int64)
+    return _Stack(total, total_boxes, keys, first_support, next_id, supports, attrs)
 
 
 def _fold_faces(
     labels: NDArray[np.int32],
     depth: NDArray[np.float32],
-    objects: list[SceneObject],
     stack: _Stack,
     below: dict[int, float],
     cfg: SegmentConfig,
@@ -447,50 +442,51 @@ def _fold_faces(
     A front face stands below a support seen from above (a table's front under its top); a
     side face is a small vertical support beside a facing object (a box at an angle).
     """
-    compounds = stack.compounds
+    n_facing = stack.first_support - 1
+    boxes = stack.boxes
     # the supports' boxes (inclusive) hold all their pixels: the contacts are counted inside them
-    tops = [o for c, o in compounds if c == HORIZONTAL and below[o.id] > 0]
-    horizontal_ids = np.array([o.id for o in tops], np.int32)
-    widths = np.array([0] + [o.bbox_xy[2] - o.bbox_xy[0] for o in objects], np.float64)
+    tops = [i for c, i in stack.supports if c == HORIZONTAL and below[i] > 0]
+    widths = np.zeros(n_facing + 1, np.float64)
+    widths[1:] = boxes[1 : n_facing + 1, 2] - boxes[1 : n_facing + 1, 0] + 1
     fronts = front_faces(
-        labels, depth, widths, horizontal_ids, jump_rel=cfg.jump_rel, boxes=_inclusive(tops), n_ids=stack.next_id
-    )
-    sides = [o for c, o in compounds if c == VERTICAL and o.area < cfg.side_max_area * depth.size]
-    side_ids = np.array([o.id for o in sides], np.int32)
-    heights = np.array([0] + [o.bbox_xy[3] - o.bbox_xy[1] for o in objects], np.float64)
-    mean_depth = np.zeros(stack.next_id)
-    for o in (*objects, *(o for _, o in compounds)):
-        mean_depth[o.id] = o.depth
-    side = side_faces(
         labels,
         depth,
-        heights,
-        side_ids,
-        mean_depth,
+        widths,
+        np.array(tops, np.int32),
         jump_rel=cfg.jump_rel,
-        boxes=_inclusive(sides),
+        boxes=boxes[tops],
         n_ids=stack.next_id,
     )
-    for f, sup in side.items():
-        fronts.setdefault(f, sup)
+    area = stack.attrs[:, 0]
+    max_area = cfg.side_max_area * depth.size
+    sides = [i for c, i in stack.supports if c == VERTICAL and area[i - 1] < max_area]
+    if sides:
+        heights = np.zeros(n_facing + 1, np.float64)
+        heights[1:] = boxes[1 : n_facing + 1, 3] - boxes[1 : n_facing + 1, 1] + 1
+        mean_depth = np.zeros(stack.next_id)
+        mean_depth[1:] = stack.attrs[:, 1]
+        side = side_faces(
+            labels,
+            depth,
+            heights,
+            np.array(sides, np.int32),
+            mean_depth,
+            jump_rel=cfg.jump_rel,
+            boxes=boxes[sides],
+            n_ids=stack.next_id,
+        )
+        for f, sup in side.items():
+            fronts.setdefault(f, sup)
     for f, sup in fronts.items():
         stack.sums[sup] += stack.sums[f]
-        stack.boxes[sup, :2] = np.minimum(stack.boxes[sup, :2], stack.boxes[f, :2])
-        stack.boxes[sup, 2:] = np.maximum(stack.boxes[sup, 2:], stack.boxes[f, 2:])
+        boxes[sup, :2] = np.minimum(boxes[sup, :2], boxes[f, :2])
+        boxes[sup, 2:] = np.maximum(boxes[sup, 2:], boxes[f, 2:])
     return fronts
-
-
-def _inclusive(objects: list[SceneObject]) -> NDArray[np.int64]:
-    """Inclusive (x0, y0, x1, y1) boxes of ``objects``, shape (k, 4)."""
-    return np.array(
-        [(o.bbox_xy[0], o.bbox_xy[1], o.bbox_xy[2] - 1, o.bbox_xy[3] - 1) for o in objects], np.int64
-    ).reshape(-1, 4)
 
 
 def _compound_objects(
     labels: NDArray[np.int32],
     depth: NDArray[np.float32],
-    objects: list[SceneObject],
     stack: _Stack,
     fronts: dict[int, int],
     below: dict[int, float],
@@ -500,14 +496,17 @@ def _compound_objects(
     cam: Intrinsics,
     cfg: SegmentConfig,
 ) -> tuple[NDArray[np.int32], list[SceneObject]]:
-    """Return the label map and objects with ids 1..n again, supports with kinds and parts.
+    """Return the label map with ids 1..n again and the objects, supports with kinds and parts.
 
-    Facing objects come first; a folded face takes its support's id.
+    Facing objects come first; a folded face takes its support's id. Every object is built
+    here, once, from its stacked row.
     """
-    compounds = stack.compounds
+    supports = stack.supports
     with_front = set(fronts.values())
-    objects = [o for o in objects if o.id not in fronts]
-    old = [o.id for o in objects] + [o.id for _, o in compounds]
+    n_facing = stack.first_support - 1
+    before = stack.attrs
+    facing = [i for i in range(1, n_facing + 1) if before[i - 1, 0] > 0 and i not in fronts]
+    old = facing + [i for _, i in supports]
     remap = {oid: new for new, oid in enumerate(old, start=1)}
     # without a folded face or a missing id the ids stay 1..n: no pass over the label map
     if fronts or old != list(range(1, stack.next_id)):
@@ -517,39 +516,31 @@ def _compound_objects(
         for f, sup in fronts.items():
             fold[f] = sup
         labels = relabel(labels, renum[fold])
-    # ids change only after a folded face (a replace costs more than the comparison)
-    objects = [o if remap[o.id] == o.id else replace(o, id=remap[o.id]) for o in objects]
     # the floor is the lowest horizontal support with nothing seen beneath it: a table top
     # with the room's floor past its edge is a support of its own kind on every camera
-    floor_ids = {
-        o.id for c, o in compounds if c == HORIZONTAL and below[o.id] > 0 and beneath.get(o.id, 0.0) < _BENEATH_SHARE
-    }
-    lowest = max(
-        (o for c, o in compounds if o.id in floor_ids and o.id not in with_front),
-        key=lambda o: below[o.id],
-        default=None,
-    )
-    part_id = len(objects) + len(compounds) + 1
-    keep_metric = intrinsics is not None
-    if fronts:
-        # the supports' objects again from their stacked rows (a folded face's added): the
-        # facing objects are not built a second time
-        sup_old = [o.id for _, o in compounds]
-        recount = _stats_rows(stack.sums, stack.boxes, np.array([0, *sup_old]))
-        sup_new = np.array([0, *(remap[i] for i in sup_old)], np.int64)
-        merged = {o.id: o for o in make_objects(labels, recount, intrinsics=cam, ids=sup_new)}
-    else:
-        # no face folded: the rows and the ids are those the supports' objects were built from
-        merged = {o.id: o for _, o in compounds}
-    for cls, o in compounds:
-        whole = merged[remap[o.id]]
-        kind = support_kind(cls, below[o.id], lowest is not None and o.id == lowest.id)
-        if o.id in with_front:
+    floor_ids = {i for c, i in supports if c == HORIZONTAL and below[i] > 0 and beneath.get(i, 0.0) < _BENEATH_SHARE}
+    lowest = max((i for _, i in supports if i in floor_ids and i not in with_front), key=below.__getitem__, default=0)
+    # a folded face's statistics were added to its support's row: those rows' attributes again
+    after = attribute_rows(stack.sums, cam) if fronts else before
+    total = labels.size
+    metric = intrinsics is not None
+    rows = after.tolist()
+    boxes = stack.boxes.tolist()
+    keys = stack.keys.tolist()
+    objects = [_scene_object(remap[i], "object", keys[i], rows[i - 1], boxes[i], total, metric) for i in facing]
+    part_id = len(old) + 1
+    for cls, i in supports:
+        oid = remap[i]
+        box = boxes[i]
+        bbox = (box[0], box[1], box[2] + 1, box[3] + 1)
+        kind = support_kind(cls, below[i], i == lowest)
+        if i in with_front:
             kind = "compound"  # a top with a face below it, or a face with its side: a table, a box
         parts = slice_parts(
             labels,
             depth,
-            whole,
+            oid,
+            bbox,
             horizontal=cls == HORIZONTAL,
             step_of=cfg.slice_step,
             depth_label=bands.depth_label,
@@ -557,18 +548,38 @@ def _compound_objects(
             first_id=part_id,
         )
         part_id += len(parts)
-        label = min(p.depth_label for p in parts) if parts else int(bands.depth_label(o.depth))
-        objects.append(
-            replace(
-                whole,
-                kind=kind,
-                depth_label=label,
-                parts=parts,
-                centroid_mm=whole.centroid_mm if keep_metric else None,
-                area_mm2=whole.area_mm2 if keep_metric else None,
-            )
-        )
+        # the label of the support's mean depth before any face folded into it
+        label = min(p.depth_label for p in parts) if parts else int(bands.depth_label(before[i - 1, 1]))
+        objects.append(_scene_object(oid, kind, label, rows[i - 1], box, total, metric, parts))
     return labels, objects
+
+
+def _scene_object(
+    oid: int,
+    kind: str,
+    depth_label: int,
+    row: list[float],
+    box: list[int],
+    total: int,
+    metric: bool,
+    parts: tuple[SceneObject, ...] = (),
+) -> SceneObject:
+    """Build the object of one row of :func:`attribute_rows` and its inclusive box, as make_objects does."""
+    c, mean, std, cx, cy, gx, gy, amm = row
+    return new_object(
+        oid,
+        kind,
+        int(depth_label),
+        mean,
+        std,
+        int(c),
+        c / total,
+        (cx, cy),
+        (int(box[0]), int(box[1]), int(box[2]) + 1, int(box[3]) + 1),
+        (gx, gy, mean) if metric else None,
+        amm if metric else None,
+        parts,
+    )
 
 
 #: A horizontal support with more than this share of the frame's readings lying beneath its
@@ -578,13 +589,9 @@ _BENEATH_MM = 150.0
 
 
 def _below_camera(
-    labels: NDArray[np.int32],
-    n: int,
-    depth: NDArray[np.float32],
-    cam: Intrinsics,
-    compounds: list[tuple[int, SceneObject]],
+    labels: NDArray[np.int32], depth: NDArray[np.float32], cam: Intrinsics, stack: _Stack
 ) -> tuple[dict[int, float], dict[int, float]]:
-    """Return each horizontal support's height below the camera and the readings beneath it.
+    """Return each support's height below the camera and, for horizontal ones, the readings beneath it.
 
     The height is in mm (negative above the camera: a ceiling); the readings beneath are the
     share of the frame's readings seen beneath the support's plane.
@@ -594,26 +601,28 @@ def _below_camera(
     its normal turned toward the sensor points up (image -y) for a support seen from above, and
     the plane's offset is the camera's height over it. Walls keep their centroid's Y.
     """
-    out = {o.id: (o.centroid_mm[1] if o.centroid_mm else 0.0) for _, o in compounds}
+    gy = stack.attrs[:, 6]
+    out = {i: float(gy[i - 1]) for _, i in stack.supports}
     beneath: dict[int, float] = {}
-    if not any(c == HORIZONTAL for c, _ in compounds):
-        return out, beneath
     # the planes of the horizontal supports only: the others' sums and solves were thrown away
     # (each row's sums and solve are those of a plane fit on the whole map)
-    horizontal = [o for c, o in compounds if c == HORIZONTAL]
-    ids = np.array([o.id for o in horizontal], np.intp)
+    horizontal = [i for c, i in stack.supports if c == HORIZONTAL]
+    if not horizontal:
+        return out, beneath
+    ids = np.array(horizontal, np.intp)
     # each support's own box (inclusive) holds all its pixels: the frame outside is not read
-    sums = plane_sums_in_boxes(labels, n, ids, _inclusive(horizontal), depth, cam.fx, cam.fy, cam.cx, cam.cy)
+    n = stack.next_id - 1
+    sums = plane_sums_in_boxes(labels, n, ids, stack.boxes[ids], depth, cam.fx, cam.fy, cam.cx, cam.cy)
     normal, off, _ = planes_from_sums(sums[np.concatenate(([0], ids))])
-    for j, i in enumerate(ids, start=1):
-        out[int(i)] = float(off[j]) if normal[j, 1] < 0 else -float(off[j])
+    for j, i in enumerate(horizontal, start=1):
+        out[i] = float(off[j]) if normal[j, 1] < 0 else -float(off[j])
     # every 4th pixel in 3-D: enough to tell whether anything lies beneath a plane
     pts = sample_points(depth, 4, cam)
-    for j, i in enumerate(ids, start=1):
+    for j, i in enumerate(horizontal, start=1):
         # n . P + d is the signed distance from the plane, positive on the camera's side
         dist = normal[j] @ pts + off[j]
         # np.mean of the test: the count over the points, the same division
-        beneath[int(i)] = np.count_nonzero(dist < -_BENEATH_MM) / pts.shape[1] if pts.shape[1] else 0.0
+        beneath[i] = np.count_nonzero(dist < -_BENEATH_MM) / pts.shape[1] if pts.shape[1] else 0.0
     return out, beneath
 
 

@@ -24,7 +24,7 @@ from depthgram.frame import Intrinsics
 from depthgram.segmentation.attributes import _attribute_table
 from depthgram.segmentation.label import ACTIVE, BLOCK, HOLE, label_keyed_planes, relabel
 from depthgram.segmentation.label.stats import COUNT, KEY, N_SUMS, SUM_X, SUM_XZ, SUM_Y, SUM_YZ, SUM_Z, SUM_ZZ
-from depthgram.segmentation.objects import SceneObject
+from depthgram.segmentation.objects import SceneObject, new_object
 from depthgram.segmentation.orientation import HORIZONTAL, VERTICAL
 from depthgram.segmentation.planes import coplanar_groups, planes_from_sums
 
@@ -43,7 +43,8 @@ __all__ = [
 def slice_parts(
     labels: NDArray[np.int32],
     depth_mm: NDArray[np.float32],
-    obj: SceneObject,
+    oid: int,
+    bbox_xy: tuple[int, int, int, int],
     *,
     horizontal: bool,
     step_of: Callable[[int], int],
@@ -56,7 +57,13 @@ def slice_parts(
     Parameters
     ----------
     labels : ndarray of int32
-        Label map holding ``obj.id``.
+        Label map holding the object ``oid``.
+    depth_mm : ndarray of float32
+        Depth (mm).
+    oid : int
+        The object's id in ``labels``.
+    bbox_xy : tuple of int
+        Its half-open box (x0, y0, x1, y1), px, holding all its pixels.
     horizontal : bool
         Horizontal slices (rows; floor, ceiling, table tops) or vertical slices (columns; walls).
     step_of : callable
@@ -68,7 +75,7 @@ def slice_parts(
     first_id : int
         Id of the first part (parts are not in the label map; ids only name them).
     """
-    x0, y0, x1, y1 = obj.bbox_xy
+    x0, y0, x1, y1 = bbox_xy
     extent = (y1 - y0) if horizontal else (x1 - x0)
     step = step_of(extent)
     n_slices = (extent + step - 1) // step
@@ -80,7 +87,7 @@ def slice_parts(
     if intrinsics is not None:
         cam = (intrinsics.fx, intrinsics.fy, intrinsics.cx - x0, intrinsics.cy - y0)
     # the kernel takes the box's last column and row (inclusive bounds)
-    table = _part_table(labels, depth_mm, obj.id, x0, y0, x1 - 1, y1 - 1, step, horizontal, n_slices, *cam, metric)
+    table = _part_table(labels, depth_mm, oid, x0, y0, x1 - 1, y1 - 1, step, horizontal, n_slices, *cam, metric)
     fn = depth_label  # callable, typed loosely to keep this module free of Bands
     # every part's label in one call (one numpy call per part cost more on small frames); a
     # callable giving one label whatever the depth is broadcast
@@ -92,18 +99,18 @@ def slice_parts(
     for k, (c, mean, std, cx, cy, gx, gy, amm, bx0, by0, bx1, by1) in enumerate(table.tolist()):
         area = int(c)
         out.append(
-            SceneObject(
-                id=first_id + k,
-                kind="part",
-                depth_label=int(part_labels[k]),
-                depth=mean,
-                depth_std=std,
-                area=area,
-                area_fraction=area / total,
-                center_xy=(cx, cy),
-                bbox_xy=(int(bx0), int(by0), int(bx1), int(by1)),
-                centroid_mm=(gx, gy, mean) if metric else None,
-                area_mm2=amm if metric else None,
+            new_object(
+                first_id + k,
+                "part",
+                int(part_labels[k]),
+                mean,
+                std,
+                area,
+                area / total,
+                (cx, cy),
+                (int(bx0), int(by0), int(bx1), int(by1)),
+                (gx, gy, mean) if metric else None,
+                amm if metric else None,
             )
         )
     return tuple(out)
