@@ -28,6 +28,7 @@ from depthgram.segmentation.planes import (
 )
 
 __all__ = [
+    "grid_first_reading",
     "label_stats_bincount",
     "large_pieces_opencv",
     "merge_coplanar",
@@ -363,3 +364,25 @@ def refine_per_pixel(
                     j0 += 1
                     dx0 = 0
     return out, sums, box
+
+
+def grid_first_reading(
+    depth_mm: NDArray[np.float32], valid: NDArray[np.bool_], step: int
+) -> tuple[NDArray[np.float32], NDArray[np.bool_]]:
+    """:func:`depthgram.segmentation.coarse.grid_frame`'s samples cell by cell in numpy.
+
+    Each ``step`` x ``step`` cell's first pixel with a reading in raster order (its corner
+    first), 0 / False for a cell without one.
+    """
+    h, w = depth_mm.shape
+    gh, gw = -(-h // step), -(-w // step)
+    z = np.zeros((gh, gw), np.float32)
+    ok = np.zeros((gh, gw), np.bool_)
+    for i in range(gh):
+        for j in range(gw):
+            cell_ok = valid[i * step : (i + 1) * step, j * step : (j + 1) * step].ravel()
+            if cell_ok.any():
+                k = int(np.argmax(cell_ok))
+                z[i, j] = depth_mm[i * step : (i + 1) * step, j * step : (j + 1) * step].ravel()[k]
+                ok[i, j] = True
+    return z, ok

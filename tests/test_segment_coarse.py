@@ -11,7 +11,7 @@ from depthgram.errors import InputError
 from depthgram.segmentation import SegmentConfig, evaluate, segment
 from depthgram.segmentation.attributes import label_stats, make_objects
 from depthgram.segmentation.coarse import grid_frame, grid_step, refine_labels
-from depthgram.segmentation.orientation import default_intrinsics
+from depthgram.segmentation.orientation import default_intrinsics, upsample_classes
 
 
 def test_grid_step_brings_the_width_under_the_work_width() -> None:
@@ -78,12 +78,15 @@ def test_refined_labels_and_sums_are_those_of_the_pixel_by_pixel_kernel(step: in
     grid = np.where(gok, rng.integers(1, 5, size=gok.shape), 0).astype(np.int32)
     grid[rng.random(grid.shape) < 0.1] = 0
     args = (grid, gd, depth, valid, step, np.float32(2.0), np.float32(2e-6), np.float32(0.004), int(grid.max()))
+    grid_classes = rng.integers(0, 3, size=grid.shape).astype(np.int8)
     want = refine_per_pixel(*args)
-    got = _refine(*args)
+    got = _refine(*args, grid_classes)
     assert np.array_equal(got[0], want[0])
     assert np.array_equal(got[1], want[1])  # the same sums to the last bit (the same additions)
     assert np.array_equal(got[2], want[2])
     assert len(np.unique(got[0])) > 3  # the case is not trivial
+    # the classes repeated in the same pass are upsample_classes' map
+    assert np.array_equal(got[3], upsample_classes(grid_classes, valid, step))
 
 
 def test_pixels_without_a_reading_or_off_every_sampled_surface_get_no_label() -> None:
@@ -110,6 +113,21 @@ def test_a_grid_sample_without_a_reading_is_taken_from_its_own_cell() -> None:
     valid[22:24, 10:12] = False  # a whole cell without a reading stays a hole
     gd, gok, _ = grid_frame(np.where(valid, depth, 0), valid, cam, 2)
     assert not gok[11, 5] and gok.sum() == gok.size - 1
+
+
+@pytest.mark.parametrize(("step", "h", "w"), [(2, 40, 60), (2, 41, 59), (3, 31, 50), (4, 30, 45)])
+def test_grid_samples_are_each_cells_first_reading(step: int, h: int, w: int) -> None:
+    from reference import grid_first_reading
+
+    rng = np.random.default_rng(h * w)
+    depth = (rng.random((h, w)) * 3000 + 500).astype(np.float32)
+    valid = rng.random((h, w)) > 0.6  # many cells without a reading at their corner
+    valid[: step * 3] = rng.random((step * 3, w)) > 0.99  # and rows of cells without any
+    depth[~valid] = 0.0
+    gd, gok, _ = grid_frame(depth, valid, default_intrinsics((h, w)), step)
+    want_z, want_ok = grid_first_reading(depth, valid, step)
+    assert np.array_equal(gok, want_ok) and np.array_equal(gd, want_z)
+    assert 0 < gok.sum() < gok.size and not valid[::step, ::step].all()  # both kinds of cell occur
 
 
 def test_the_default_on_a_wide_frame_matches_every_pixel_on_the_truth() -> None:

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 from numba import njit
@@ -21,7 +21,7 @@ from depthgram.segmentation.label import label_stats_fused, relabel
 from depthgram.segmentation.label.stats import COUNT, KEY, SUM_X, SUM_XZ, SUM_Y, SUM_YZ, SUM_Z, SUM_ZZ
 from depthgram.segmentation.objects import SceneObject, new_object
 
-__all__ = ["Stats", "attribute_rows", "fused_stats", "label_stats", "make_objects"]
+__all__ = ["ObjectSpec", "Stats", "attribute_rows", "fused_stats", "label_stats", "make_objects", "objects_from_rows"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -145,6 +145,47 @@ def _table_attributes(sums: NDArray[np.float64], fx: float, fy: float, cx: float
         sums[:, COUNT], sums[:, SUM_Z], sums[:, SUM_ZZ], sums[:, SUM_X], sums[:, SUM_Y],
         sums[:, SUM_XZ], sums[:, SUM_YZ], fx, fy, cx, cy,
     )  # fmt: skip
+
+
+class ObjectSpec(NamedTuple):
+    """What an object is before its pixel attributes are measured: id, kind, depth label, parts."""
+
+    id: int
+    kind: str
+    depth_label: int
+    parts: tuple[SceneObject, ...]
+
+
+def objects_from_rows(
+    specs: list[ObjectSpec], rows: list[list[float]], boxes: list[list[int]], total: int, *, metric: bool
+) -> list[SceneObject]:
+    """Return the objects of ``specs``, their attributes from a table of :func:`attribute_rows`.
+
+    Object ``i`` takes row ``i - 1`` of ``rows`` (as lists, ``.tolist()``) and the inclusive
+    box ``boxes[i]``; ``total`` is the frame's pixel count, ``metric`` keeps the centroid and
+    metric area. The same objects as :func:`make_objects` builds from the same sums.
+    """
+    out = []
+    for oid, kind, label, parts in specs:
+        c, mean, std, cx, cy, gx, gy, amm = rows[oid - 1]
+        x0, y0, x1, y1 = boxes[oid]
+        out.append(
+            new_object(
+                oid,
+                kind,
+                label,
+                mean,
+                std,
+                int(c),
+                c / total,
+                (cx, cy),
+                (x0, y0, x1 + 1, y1 + 1),
+                (gx, gy, mean) if metric else None,
+                amm if metric else None,
+                parts,
+            )
+        )
+    return out
 
 
 def make_objects(

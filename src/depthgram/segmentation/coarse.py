@@ -20,17 +20,16 @@ scaled from the grid (``docs/design-notes.md``).
 from __future__ import annotations
 
 import math
-from dataclasses import replace
 
 import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
 from depthgram.frame import Intrinsics
-from depthgram.segmentation.attributes import Stats, make_objects
+from depthgram.segmentation.attributes import ObjectSpec, attribute_rows, objects_from_rows
 from depthgram.segmentation.label.stats import N_COLUMNS, flush_run
-from depthgram.segmentation.objects import SceneObject, Segmentation, new_object
-from depthgram.segmentation.orientation import upsample_classes
+from depthgram.segmentation.objects import SceneObject
+from depthgram.segmentation.orientation import FACING
 
 __all__ = ["grid_frame", "grid_step", "refine_labels", "to_full_resolution"]
 
@@ -67,25 +66,46 @@ def _grid(
     depth: NDArray[np.float32], valid: NDArray[np.bool_], step: int
 ) -> tuple[NDArray[np.float32], NDArray[np.bool_]]:
     # hand-written: a strided view plus a fill of the holes from their own cells (no library
-    # kernel picks the first valid pixel of each cell)
+    # kernel picks the first valid pixel of each cell). A grid row is first read from its
+    # cells' corners without a branch; only a row with holes searches their cells, each up
+    # to its first reading
     h, w = depth.shape
     gh = (h + step - 1) // step
     gw = (w + step - 1) // step
-    z = np.zeros((gh, gw), np.float32)
-    ok = np.zeros((gh, gw), np.bool_)
+    z = np.empty((gh, gw), np.float32)
+    ok = np.empty((gh, gw), np.bool_)
     for i in range(gh):
+        y0 = i * step
+        drow = depth[y0]
+        vrow = valid[y0]
+        zr = z[i]
+        okr = ok[i]
+        holes = 0
         for j in range(gw):
-            y0 = i * step
-            x0 = j * step
-            if valid[y0, x0]:
-                z[i, j] = depth[y0, x0]
-                ok[i, j] = True
+            v = vrow[j * step]
+            okr[j] = v
+            zr[j] = drow[j * step] if v else np.float32(0.0)
+            holes += not v
+        if holes == 0:
+            continue
+        y1 = min(y0 + step, h)
+        for j in range(gw):
+            if okr[j]:
                 continue
-            for y in range(y0, min(y0 + step, h)):
-                for x in range(x0, min(x0 + step, w)):
-                    if valid[y, x] and not ok[i, j]:
-                        z[i, j] = depth[y, x]
-                        ok[i, j] = True
+            x0 = j * step
+            x1 = min(x0 + step, w)
+            y = y0
+            x = x0 + 1  # the corner has no reading
+            while y < y1:
+                if x >= x1:
+                    y += 1
+                    x = x0
+                elif valid[y, x]:
+                    zr[j] = depth[y, x]
+                    okr[j] = True
+                    break
+                else:
+                    x += 1
     return z, ok
 
 
@@ -145,7 +165,8 @@ def refine_labels(
         np.float32(tol_2),
         np.float32(slope_per_px),
         int(grid_labels.max(initial=0)),
-    )
+        np.zeros(grid_labels.shape, np.int8),
+    )[:3]
 
 
 @njit(cache=True, nogil=True)
@@ -159,17 +180,21 @@ def _refine(
     t2: np.float32,
     sl: np.float32,
     n_labels: int,
-) -> tuple[NDArray[np.int32], NDArray[np.float64], NDArray[np.int32]]:
+    gcls: NDArray[np.int8],
+) -> tuple[NDArray[np.int32], NDArray[np.float64], NDArray[np.int32], NDArray[np.int8]]:
     # Hand-written: the choice among a pixel's four grid samples by depth and by the surface
     # labeller's own continuity rule has no library kernel (OpenCV's and scipy's upsampling
     # interpolate values, they do not pick a label). Per band of `step` pixel rows, the grid
     # rows above and below are repeated to pixel width once (a pixel's right-hand sample is
     # then `step` places on), so that the choice of each row is one branch-free loop over
     # plain arrays that vectorises; then the row's runs give the statistics table of the new
-    # map (label.stats' layout), two rows side by side (_run_sums_two).
+    # map (label.stats' layout), two rows side by side (_run_sums_two). The orientation
+    # classes `gcls` of the grid are repeated in the same loop (upsample_classes' map).
     h, w = depth.shape
     gh, gw = glab.shape
     out = np.zeros((h, w), np.int32)
+    classes = np.empty((h, w), np.int8)
+    cls_up = np.zeros(max(w + step, (gw + 1) * step), np.int8)
     wide = max(w + step, (gw + 1) * step)
     lab_up = np.zeros(wide, np.int32)
     z_up = np.zeros(wide, np.float32)
@@ -197,14 +222,18 @@ def _refine(
         lab_up, lab_dn = lab_dn, lab_up
         z_up, z_dn = z_dn, z_up
         _repeat_row(glab, gz, i0 + 1, step, lab_dn, z_dn)
+        for q in range(step):
+            for j in range(gw):
+                cls_up[j * step + q] = gcls[i0, j]
         y0 = i0 * step
         rows = min(step, h - y0)
         for dy in range(rows):
             y = y0 + dy
             gaps = (np.float32(dy), np.float32(step - dy))
             _choose_row(
-                out[y], depth[y], valid[y], lab_up, z_up, lab_dn, z_dn, dx_left, dx_right, step, t0, t2, sl, gaps
-            )
+                out[y], classes[y], depth[y], valid[y], lab_up, z_up, lab_dn, z_dn, cls_up, dx_left, dx_right, step,
+                t0, t2, sl, gaps,
+            )  # fmt: skip
         dy = 0
         while dy < rows:
             y = y0 + dy
@@ -216,7 +245,7 @@ def _refine(
             else:
                 _run_sums(out[y], depth[y], y, sums, box)
                 dy += 1
-    return out, sums, box
+    return out, sums, box, classes
 
 
 @njit(cache=True, inline="always")
@@ -243,12 +272,14 @@ def _repeat_row(
 @njit(cache=True, nogil=True)
 def _choose_row(
     out: NDArray[np.int32],
+    classes: NDArray[np.int8],
     depth: NDArray[np.float32],
     valid: NDArray[np.bool_],
     lab_up: NDArray[np.int32],
     z_up: NDArray[np.float32],
     lab_dn: NDArray[np.int32],
     z_dn: NDArray[np.float32],
+    cls_up: NDArray[np.int8],
     dx_left: NDArray[np.float32],
     dx_right: NDArray[np.float32],
     step: int,
@@ -263,7 +294,9 @@ def _choose_row(
     # slope z`); 0 without a reading. Every test computed and selected, no branch, so the
     # loop vectorises. The right-hand samples are read through views `step` on: an index
     # x + step would be wrapped as a possibly negative one, which turned the loads into gathers.
+    # The row's classes: the up left sample's, facing without a reading.
     inf = np.float32(np.inf)
+    facing = np.int8(FACING)
     g_up, g_dn = gaps
     lab_upr = lab_up[step:]
     z_upr = z_up[step:]
@@ -295,6 +328,7 @@ def _choose_row(
         ok = (c != 0) & (d <= (t0 + t2 * zs * zs) + (g_dn + dx_right[x]) * (sl * zs)) & (d < best_d)
         best = c if ok else best
         out[x] = best if valid[x] else np.int32(0)
+        classes[x] = cls_up[x] if valid[x] else facing
 
 
 @njit(cache=True, inline="always")
@@ -425,29 +459,10 @@ def _hold(
     return k + 1
 
 
-def _scaled_part(part: SceneObject, step: int, width: int, height: int) -> SceneObject:
-    # built anew, not by dataclasses.replace: some fifty parts a frame, and replace's field
-    # introspection cost 0.4 ms of a 7-Scenes frame
-    x0, y0, x1, y1 = part.bbox_xy
-    cx, cy = part.center_xy
-    return new_object(
-        part.id,
-        part.kind,
-        part.depth_label,
-        part.depth,
-        part.depth_std,
-        part.area * step * step,
-        part.area_fraction,
-        (cx * step, cy * step),
-        (x0 * step, y0 * step, min(x1 * step, width), min(y1 * step, height)),
-        part.centroid_mm,
-        part.area_mm2,
-        part.parts,
-    )
-
-
 def to_full_resolution(
-    grid_seg: Segmentation,
+    grid_labels: NDArray[np.int32],
+    grid_classes: NDArray[np.int8],
+    specs: list[ObjectSpec],
     grid_depth_mm: NDArray[np.float32],
     depth_mm: NDArray[np.float32],
     valid: NDArray[np.bool_],
@@ -457,41 +472,30 @@ def to_full_resolution(
     tol_0: float,
     tol_2: float,
     slope_per_px: float,
-) -> Segmentation:
+) -> tuple[NDArray[np.int32], NDArray[np.int8], list[SceneObject]]:
     """Carry the segmentation of the grid of :func:`grid_frame` to the full-resolution frame.
 
-    Labels by :func:`refine_labels`, orientation classes repeated from the grid; each object's
-    pixel attributes measured again on the full label map (ids, kinds and depth labels kept);
-    slice parts scaled by ``step``.
+    Returns the labels of :func:`refine_labels`, the orientation classes repeated from the
+    grid's (facing without a reading), and the objects of ``specs`` (ids 1..n in order, with
+    kinds, depth labels and the parts, already in the frame's pixels) with their pixel
+    attributes measured on the full label map.
     """
-    labels, sums, boxes = refine_labels(
-        grid_seg.labels,
-        grid_depth_mm,
-        depth_mm,
-        valid,
-        step,
-        tol_0=tol_0,
-        tol_2=tol_2,
-        slope_per_px=slope_per_px,
+    labels, sums, boxes, classes = _refine(
+        np.ascontiguousarray(grid_labels, np.int32),
+        np.ascontiguousarray(grid_depth_mm, np.float32),
+        np.ascontiguousarray(depth_mm, np.float32),
+        np.ascontiguousarray(valid, np.bool_),
+        int(step),
+        np.float32(tol_0),
+        np.float32(tol_2),
+        np.float32(slope_per_px),
+        int(grid_labels.max(initial=0)),
+        np.ascontiguousarray(grid_classes, np.int8),
     )
-    # the classes only describe pixels (views, users); the labels carry the decisions
-    classes = None if grid_seg.classes is None else upsample_classes(grid_seg.classes, valid, step)
-    objs = grid_seg.objects
-    n = max((o.id for o in objs), default=0)
-    if n:
-        stats = Stats.from_sums(sums[: n + 1], boxes[: n + 1], metric=intrinsics is not None)
-        kinds = ["object"] * (n + 1)
-        depth_labels = np.zeros(n + 1, np.int64)
-        for o in objs:
-            kinds[o.id] = o.kind
-            depth_labels[o.id] = o.depth_label
-        full = {
-            o.id: o for o in make_objects(labels, stats, kinds=kinds, depth_labels=depth_labels, intrinsics=intrinsics)
-        }
-        h, w = depth_mm.shape
-        # only compounds have parts to scale; the others are the full-resolution objects as made
-        objs = tuple(
-            replace(full[o.id], parts=tuple(_scaled_part(p, step, w, h) for p in o.parts)) if o.parts else full[o.id]
-            for o in objs
-        )
-    return replace(grid_seg, labels=labels, objects=objs, classes=classes)
+    n = len(specs)
+    if not n:
+        return labels, classes, []
+    cam = intrinsics or Intrinsics(1.0, 1.0, 0.0, 0.0)
+    rows = attribute_rows(sums[: n + 1], cam).tolist()
+    objects = objects_from_rows(specs, rows, boxes.tolist(), labels.size, metric=intrinsics is not None)
+    return labels, classes, objects

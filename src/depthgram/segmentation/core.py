@@ -10,14 +10,14 @@ import numpy as np
 from numpy.typing import NDArray
 
 from depthgram.frame import Frame, Intrinsics, check_array_units
-from depthgram.segmentation.attributes import Stats, attribute_rows, make_objects
+from depthgram.segmentation.attributes import ObjectSpec, Stats, attribute_rows, make_objects, objects_from_rows
 from depthgram.segmentation.coarse import grid_frame, grid_step, to_full_resolution
 from depthgram.segmentation.config import SegmentConfig
 from depthgram.segmentation.contacts import front_faces, side_faces
 from depthgram.segmentation.histogram import Bands, bin_index, depth_bands, log_bin_counts
 from depthgram.segmentation.label import label_bands_stats, label_stats_fused, label_two_classes, relabel
 from depthgram.segmentation.label.stats import COUNT, KEY, N_COLUMNS, N_SUMS, SUM_Z
-from depthgram.segmentation.objects import Histogram, SceneObject, Segmentation, new_object
+from depthgram.segmentation.objects import Histogram, SceneObject, Segmentation
 from depthgram.segmentation.order_stats import percentile32
 from depthgram.segmentation.orientation import (
     FACING,
@@ -196,15 +196,21 @@ def _segment(
         return paper_slices(depth, ok, intrinsics, cfg)
     step = grid_step(depth.shape[1], cfg.work_width_px) if cfg.method == "surfaces" else 1
     if step == 1:
-        return _slices(depth, ok, intrinsics, cfg, sensor)
+        seg = _slices(depth, ok, intrinsics, cfg, sensor)
+        objects = objects_from_rows(seg.specs, seg.rows, seg.boxes, depth.size, metric=intrinsics is not None)
+        return seg.segmentation(seg.labels, seg.classes, objects, cfg)
     # one sensor model for the grid and the refinement, estimated on every pixel
     sensor = sensor or frame_sensor(depth, ok, cfg)
     cam = intrinsics or default_intrinsics(depth.shape)
     gd, gok, gcam = grid_frame(depth, ok, cam, step)
     gcfg = cfg.with_overrides(min_area_px=max(1, cfg.min_area_px // (step * step)))
-    grid = _slices(gd, gok, gcam if intrinsics is not None else None, gcfg, sensor)
+    # the objects are built once, at full resolution; the parts are the grid's, in the frame's pixels
+    grid = _slices(gd, gok, gcam if intrinsics is not None else None, gcfg, sensor, (step, *depth.shape[::-1]))
     t0, t2, slope = _join_rule(sensor, cfg, cam.fx)
-    return to_full_resolution(grid, gd, depth, ok, intrinsics, step, tol_0=t0, tol_2=t2, slope_per_px=slope)
+    labels, classes, objects = to_full_resolution(
+        grid.labels, grid.classes, grid.specs, gd, depth, ok, intrinsics, step, tol_0=t0, tol_2=t2, slope_per_px=slope
+    )
+    return grid.segmentation(labels, classes, objects, cfg)
 
 
 def _join_rule(sensor: SensorModel, cfg: SegmentConfig, focal_px: float) -> tuple[float, float, float]:
@@ -316,13 +322,35 @@ def _threshold(
     return Segmentation(labels, tuple(objects), bands.histogram, "threshold", bands_mm=bands.limits_mm())
 
 
+@dataclass
+class _Sliced:
+    """A segmentation with supports before its objects are built (:func:`_slices`)."""
+
+    labels: NDArray[np.int32]
+    classes: NDArray[np.int8]
+    bands: Bands
+    specs: list[ObjectSpec]  # the objects 1..n in id order
+    rows: list[list[float]]  # attribute_rows of ids 1..n on this label map
+    boxes: list[list[int]]  # inclusive boxes of ids 0..n
+
+    def segmentation(
+        self, labels: NDArray[np.int32], classes: NDArray[np.int8], objects: list[SceneObject], cfg: SegmentConfig
+    ) -> Segmentation:
+        """Return the segmentation of these bands with the given label map, classes and objects."""
+        bands = self.bands
+        return Segmentation(
+            labels, tuple(objects), bands.histogram, cfg.method, bands_mm=bands.limits_mm(), classes=classes
+        )
+
+
 def _slices(
     depth: NDArray[np.float32],
     ok: NDArray[np.bool_],
     intrinsics: Intrinsics | None,
     cfg: SegmentConfig,
     sensor: SensorModel | None = None,
-) -> Segmentation:
+    part_scale: tuple[int, int, int] | None = None,
+) -> _Sliced:
     """Segment with supports (``slices`` and ``surfaces``), in five named steps.
 
     1. :func:`_pixel_classes`: each pixel facing the sensor, on a horizontal or on a vertical
@@ -332,6 +360,10 @@ def _slices(
     4. :func:`_stack_supports` and :func:`_fold_faces`: supports join the label map after the
        objects, and a box's front or side face joins the support it belongs to.
     5. :func:`_compound_objects`: ids 1..n again, each support's kind and its slice parts.
+
+    The objects are described, not built: the caller builds them from these statistics or,
+    for a frame's sampling grid, from the full-resolution ones (``part_scale``: ``(step,
+    width, height)`` of that frame, in whose pixels the parts are given).
     """
     cam = intrinsics or default_intrinsics(depth.shape)
     classes, wanted, inverse = _pixel_classes(depth, ok, cam, cfg)
@@ -347,10 +379,10 @@ def _slices(
     stack = _stack_supports(labels, fsums, fboxes, support_maps, cam)
     below, beneath = _below_camera(labels, depth, cam, stack)
     fronts = _fold_faces(labels, depth, stack, below, cfg)
-    labels, objects = _compound_objects(labels, depth, stack, fronts, below, beneath, bands, intrinsics, cam, cfg)
-    return Segmentation(
-        labels, tuple(objects), bands.histogram, cfg.method, bands_mm=bands.limits_mm(), classes=classes
+    labels, specs, rows, boxes = _compound_objects(
+        labels, depth, stack, fronts, below, beneath, bands, intrinsics, cam, cfg, part_scale
     )
+    return _Sliced(labels, classes, bands, specs, rows, boxes)
 
 
 def _pixel_classes(
@@ -495,11 +527,14 @@ def _compound_objects(
     intrinsics: Intrinsics | None,
     cam: Intrinsics,
     cfg: SegmentConfig,
-) -> tuple[NDArray[np.int32], list[SceneObject]]:
-    """Return the label map with ids 1..n again and the objects, supports with kinds and parts.
+    part_scale: tuple[int, int, int] | None = None,
+) -> tuple[NDArray[np.int32], list[ObjectSpec], list[list[float]], list[list[int]]]:
+    """Return the label map with ids 1..n again and its objects, supports with kinds and parts.
 
-    Facing objects come first; a folded face takes its support's id. Every object is built
-    here, once, from its stacked row.
+    Facing objects come first; a folded face takes its support's id. The objects are
+    described (id, kind, depth label, parts), with their attribute rows and inclusive boxes
+    (indexed as :func:`~depthgram.segmentation.attributes.objects_from_rows` reads them), to
+    be built once by the caller. ``part_scale``: see :func:`_slices`.
     """
     supports = stack.supports
     with_front = set(fronts.values())
@@ -522,12 +557,10 @@ def _compound_objects(
     lowest = max((i for _, i in supports if i in floor_ids and i not in with_front), key=below.__getitem__, default=0)
     # a folded face's statistics were added to its support's row: those rows' attributes again
     after = attribute_rows(stack.sums, cam) if fronts else before
-    total = labels.size
-    metric = intrinsics is not None
     rows = after.tolist()
     boxes = stack.boxes.tolist()
     keys = stack.keys.tolist()
-    objects = [_scene_object(remap[i], "object", keys[i], rows[i - 1], boxes[i], total, metric) for i in facing]
+    specs = [ObjectSpec(remap[i], "object", keys[i], ()) for i in facing]
     part_id = len(old) + 1
     for cls, i in supports:
         oid = remap[i]
@@ -546,40 +579,14 @@ def _compound_objects(
             depth_label=bands.depth_label,
             intrinsics=intrinsics,
             first_id=part_id,
+            scale=part_scale,
         )
         part_id += len(parts)
         # the label of the support's mean depth before any face folded into it
         label = min(p.depth_label for p in parts) if parts else int(bands.depth_label(before[i - 1, 1]))
-        objects.append(_scene_object(oid, kind, label, rows[i - 1], box, total, metric, parts))
-    return labels, objects
-
-
-def _scene_object(
-    oid: int,
-    kind: str,
-    depth_label: int,
-    row: list[float],
-    box: list[int],
-    total: int,
-    metric: bool,
-    parts: tuple[SceneObject, ...] = (),
-) -> SceneObject:
-    """Build the object of one row of :func:`attribute_rows` and its inclusive box, as make_objects does."""
-    c, mean, std, cx, cy, gx, gy, amm = row
-    return new_object(
-        oid,
-        kind,
-        int(depth_label),
-        mean,
-        std,
-        int(c),
-        c / total,
-        (cx, cy),
-        (int(box[0]), int(box[1]), int(box[2]) + 1, int(box[3]) + 1),
-        (gx, gy, mean) if metric else None,
-        amm if metric else None,
-        parts,
-    )
+        specs.append(ObjectSpec(oid, kind, label, parts))
+    # rows and boxes by the new ids
+    return labels, specs, [rows[i - 1] for i in old], [boxes[0], *(boxes[i] for i in old)]
 
 
 #: A horizontal support with more than this share of the frame's readings lying beneath its

@@ -51,6 +51,7 @@ def slice_parts(
     depth_label: object,
     intrinsics: Intrinsics | None,
     first_id: int,
+    scale: tuple[int, int, int] | None = None,
 ) -> tuple[SceneObject, ...]:
     """Return the slice segments of one compound object, nearest first, as ``part`` objects.
 
@@ -74,6 +75,12 @@ def slice_parts(
         :meth:`depthgram.segmentation.histogram.Bands.depth_label`).
     first_id : int
         Id of the first part (parts are not in the label map; ids only name them).
+    scale : tuple of int, optional
+        ``(step, width, height)`` when ``labels`` is the sampling grid of a frame ``width`` x
+        ``height`` px (:func:`depthgram.segmentation.coarse.grid_frame`): the parts' area,
+        center and box are given in the frame's pixels (area times ``step`` squared, boxes
+        clipped to the frame; the share of the frame, depths and metric attributes are the
+        grid's).
     """
     x0, y0, x1, y1 = bbox_xy
     extent = (y1 - y0) if horizontal else (x1 - x0)
@@ -96,19 +103,27 @@ def slice_parts(
     part_labels = (found if found.shape == depths.shape else np.broadcast_to(found, depths.shape)).tolist()
     total = labels.size
     out = []
-    for k, (c, mean, std, cx, cy, gx, gy, amm, bx0, by0, bx1, by1) in enumerate(table.tolist()):
+    k, w, h = scale if scale is not None else (1, 0, 0)
+    for j, (c, mean, std, cx, cy, gx, gy, amm, bx0, by0, bx1, by1) in enumerate(table.tolist()):
         area = int(c)
+        box = (int(bx0), int(by0), int(bx1), int(by1))
+        center = (cx, cy)
+        if scale is not None:
+            # the grid's part in the frame's pixels
+            px0, py0, px1, py1 = box
+            box = (px0 * k, py0 * k, min(px1 * k, w), min(py1 * k, h))
+            center = (cx * k, cy * k)
         out.append(
             new_object(
-                first_id + k,
+                first_id + j,
                 "part",
-                int(part_labels[k]),
+                int(part_labels[j]),
                 mean,
                 std,
-                area,
+                area * k * k,
                 area / total,
-                (cx, cy),
-                (int(bx0), int(by0), int(bx1), int(by1)),
+                center,
+                box,
                 (gx, gy, mean) if metric else None,
                 amm if metric else None,
             )
