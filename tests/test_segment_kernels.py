@@ -339,10 +339,10 @@ def test_one_sided_rows_match_numpy_at_every_border(shape: tuple[int, int]) -> N
         np.testing.assert_array_equal(_one_sided(inv, valid, step), _one_sided_numpy(inv, valid, step))
 
 
-def test_orientation_classes_and_kept_slopes_match_numpy() -> None:
-    # the per-pixel class from the window-mean slopes, and the slopes kept under 80 degrees,
-    # against the float32 numpy expressions they replaced
-    from depthgram.segmentation.orientation import FACING, HORIZONTAL, VERTICAL, _classify, _kept_slopes
+def test_orientation_classes_match_numpy() -> None:
+    # the per-pixel class from the window-mean slopes against the float32 numpy expression it
+    # replaced
+    from depthgram.segmentation.orientation import FACING, HORIZONTAL, VERTICAL, _classify
 
     rng = np.random.default_rng(4)
     h, w = 37, 53
@@ -364,25 +364,72 @@ def test_orientation_classes_and_kept_slopes_match_numpy() -> None:
     ref = np.where(np.abs(a) >= t, VERTICAL, np.where(np.abs(b) >= t, HORIZONTAL, FACING)).astype(np.int8)
     ref[jump | ~valid] = FACING
     # the window counts as the box filter gives them (0 where no slope was kept): _classify
-    # takes them at least 1e-6 as np.maximum did; the row and column jumps joined
+    # takes them at least 1e-6 as np.maximum did; the row and column jumps come joined
     raw = np.where(den > 1e-3, den, f32(0.0))
-    across = jump & (rng.random((h, w)) < 0.5)
     # the window sums come as the channels of one image
     sums = np.stack([raw, sgx, sgy], axis=-1)
-    got = _classify(sums, inv3, valid, jump & ~across, across, fx, fy, cx, cy, cos_t)
+    got = _classify(sums, inv3, valid, jump, fx, fy, cx, cy, cos_t)
     np.testing.assert_array_equal(got, ref)
     assert len(np.unique(got)) == 3
+
+
+def test_slopes_match_the_passes_they_replaced() -> None:
+    # one compiled call for the 3 x 3 mean (OpenCV's box filter and numpy's division), both
+    # one-sided slopes, the slopes kept under 80 degrees (numpy's float32 expression) and the
+    # occlusion edges along rows or columns
+    import cv2
+
+    from depthgram.segmentation.orientation import _slopes
+    from depthgram.segmentation.surfaces import _inverse
+
+    f32 = np.float32
+    fx, fy = f32(60.0), f32(58.0)
     steep = f32(math.tan(math.radians(80.0)))
-    has = rng.random((h, w)) < 0.9
-    gx, gy = sgx * f32(40.0), sgy * f32(40.0)
-    lim = steep * inv3
-    keep = has & (np.abs(fx * gx) <= lim) & (np.abs(fy * gy) <= lim)
-    kept = _kept_slopes(gx, gy, has, inv3, fx, fy, steep)
-    assert kept.shape == (h, w, 3) and kept.dtype == f32
-    np.testing.assert_array_equal(kept[:, :, 0], keep.astype(f32))
-    np.testing.assert_array_equal(kept[:, :, 1], np.where(keep, gx, f32(0.0)))
-    np.testing.assert_array_equal(kept[:, :, 2], np.where(keep, gy, f32(0.0)))
-    assert 0 < keep.sum() < keep.size
+    for seed, shape in enumerate([(37, 53), (1, 9), (9, 1), (2, 2), (6, 40)]):
+        rng = np.random.default_rng(seed)
+        z = (1500 + np.cumsum(rng.normal(0, 30, shape), axis=1)).astype(f32)
+        z[rng.random(shape) < 0.15] += 400  # occlusion steps
+        valid = rng.random(shape) < 0.8
+        z[~valid] = 0
+        inverse = _inverse(z, valid)
+        for step in (1, 3):
+            inv3, kept, edge = _slopes(inverse, z, valid, step, fx, fy, steep, f32(0.05))
+            box = cv2.boxFilter(inverse, -1, (3, 3), normalize=False, borderType=cv2.BORDER_REPLICATE)
+            den3 = np.maximum(box[:, :, 1], f32(1e-6))
+            np.testing.assert_array_equal(inv3, np.asarray(box[:, :, 0] / den3, f32))
+            has = den3 > 0.5
+            gx, gy = _one_sided(inv3, has, step), _one_sided_cols(inv3, has, step)
+            lim = steep * inv3
+            keep = has & (np.abs(fx * gx) <= lim) & (np.abs(fy * gy) <= lim)
+            assert kept.shape == (*shape, 3) and kept.dtype == f32
+            np.testing.assert_array_equal(kept[:, :, 0], keep.astype(f32))
+            np.testing.assert_array_equal(kept[:, :, 1], np.where(keep, gx, f32(0.0)))
+            np.testing.assert_array_equal(kept[:, :, 2], np.where(keep, gy, f32(0.0)))
+            np.testing.assert_array_equal(edge, _jumps(z, valid, 0.05) | _jumps_cols(z, valid, f32(0.05)))
+            if shape == (37, 53):
+                assert 0 < keep.sum() < keep.size and 0 < edge.sum() < edge.size
+
+
+def test_box3_mean_equals_opencvs_box_filter() -> None:
+    # the 3 x 3 sums computed as OpenCV computes a float32 image (float64 running sums): the
+    # same values to the last bit, also where float64 rounds (values over 40 decades)
+    import cv2
+
+    from depthgram.segmentation.orientation import _box3_mean
+
+    rng = np.random.default_rng(5)
+    for t in range(150):
+        h, w = (int(v) for v in rng.integers(1, 70, 2))
+        if t % 3 == 0:
+            img = (10.0 ** rng.uniform(-20, 20, (h, w, 2))).astype(np.float32)
+        else:
+            img = (rng.normal(0, 1, (h, w, 2)) * float(rng.choice([1e-3, 1.0, 1e3]))).astype(np.float32)
+        img[rng.random((h, w, 2)) < 0.3] = 0.0
+        box = cv2.boxFilter(img, -1, (3, 3), normalize=False, borderType=cv2.BORDER_REPLICATE)
+        den = np.maximum(box[:, :, 1], np.float32(1e-6))
+        inv3, has = _box3_mean(img)
+        np.testing.assert_array_equal(inv3, np.asarray(box[:, :, 0] / den, np.float32))
+        np.testing.assert_array_equal(has, den > 0.5)
 
 
 def test_box_filter_of_channels_equals_one_filter_per_channel() -> None:
@@ -406,11 +453,11 @@ def test_box_filter_of_channels_equals_one_filter_per_channel() -> None:
 
 
 def test_orientation_inverse_and_mean_match_numpy() -> None:
-    # 1000 / Z with the readings as 1 / 0, and the 3 x 3 mean from the window sums, against the
-    # float32 numpy expressions they replaced
+    # 1000 / Z with the readings as 1 / 0, and the 3 x 3 mean, against OpenCV's window sums and
+    # the float32 numpy expressions they replaced
     import cv2
 
-    from depthgram.segmentation.orientation import _mean3
+    from depthgram.segmentation.orientation import _box3_mean
     from depthgram.segmentation.surfaces import _inverse
 
     rng = np.random.default_rng(16)
@@ -427,7 +474,7 @@ def test_orientation_inverse_and_mean_match_numpy() -> None:
     box = {"ddepth": -1, "ksize": (3, 3), "normalize": False, "borderType": cv2.BORDER_REPLICATE}
     s_inv, s_m = cv2.boxFilter(np.ascontiguousarray(inv), **box), cv2.boxFilter(np.ascontiguousarray(m), **box)
     den3 = np.maximum(s_m, 1e-6)
-    inv3, has = _mean3(np.stack([s_inv, s_m], axis=-1))
+    inv3, has = _box3_mean(both)
     np.testing.assert_array_equal(inv3, np.asarray(s_inv / den3, np.float32))
     np.testing.assert_array_equal(has, den3 > 0.5)
     assert 0 < has.sum() < has.size
@@ -989,9 +1036,8 @@ def test_load_rare_kernels_loads_the_kernels_of_the_rare_branches() -> None:
         _assign,
         _coplanar_join,
         _dilate3,
-        _plane_pieces,
         _planes_from_sums,
-        _search_plane,
+        _search_planes,
     )
     from depthgram.segmentation.slices import _class_state, _drop_classes, _merge_rows
     from depthgram.sensor import simulate
@@ -1005,8 +1051,7 @@ def test_load_rare_kernels_loads_the_kernels_of_the_rare_branches() -> None:
         _merge_rows,
         _drop_classes,
         stats._stats,
-        _search_plane,
-        _plane_pieces,
+        _search_planes,
         _planes_from_sums,
         _coplanar_join,
         _dilate3,

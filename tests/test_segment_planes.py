@@ -204,14 +204,30 @@ def test_config_rejects_absurd_plane_options(field: str, value: float) -> None:
         SegmentConfig(**{field: value})
 
 
-def test_the_seeded_generator_draws_default_rngs_numbers_on_every_call() -> None:
-    # the plane search's generator is set back to its seeded state at each call instead of
-    # seeded again: every call draws what np.random.default_rng(seed) draws
-    from depthgram.segmentation.planes import _seeded_rng
+def test_the_compiled_draws_are_default_rngs_numbers_on_every_call() -> None:
+    # the plane search draws numpy's bounded integers from the seeded bit generator's numbers,
+    # read from one table per seed: every call draws what np.random.default_rng(seed) draws,
+    # for ranges whose rejection threshold is large and small, and the numbers run out cleanly
+    from numba import njit
+
+    from depthgram.segmentation.planes import _bounded, _raw32
+
+    @njit(cache=False)
+    def draws(raw: np.ndarray, n: int, size: int, pos: int) -> tuple[np.ndarray, int]:
+        out = np.empty(size, np.int64)
+        for i in range(size):
+            out[i], pos = _bounded(raw, pos, n)
+            if pos < 0:
+                break
+        return out, pos
 
     for seed in (0, 5, 0):
-        for _ in range(3):
-            got = _seeded_rng(seed)
+        for _ in range(2):
+            raw = _raw32(seed, 20000)
             want = np.random.default_rng(seed)
-            np.testing.assert_array_equal(got.integers(0, 3000, 384), want.integers(0, 3000, 384))
-            np.testing.assert_array_equal(got.integers(0, 7, 2000), want.integers(0, 7, 2000))
+            pos = 0
+            for n in (3000, 7, 1544, 2**31 + 11, 3 * 2**30, 752):
+                got, pos = draws(raw, n, 384, pos)
+                assert pos > 0
+                np.testing.assert_array_equal(got, want.integers(0, n, 384))
+    assert draws(_raw32(1, 10), 2**31 + 11, 40, 0)[1] == -1

@@ -22,10 +22,9 @@ support's plane near it are found (:func:`near_planes`).
 from __future__ import annotations
 
 import math
-import threading
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, cast
+from typing import cast
 
 import numpy as np
 from llvmlite import ir
@@ -172,51 +171,34 @@ def find_planes(
     # about 3000 grid points whatever the frame size: the search costs the same at 176 x 132
     # and 640 x 480, and only the final inlier test runs at full resolution
     s = sample_step or max(1, round(math.sqrt(h * w / 3000.0)))
-    rng = _seeded_rng(seed)
     z_sub = np.ascontiguousarray(depth_mm[::s, ::s], dtype=np.float32)
-    # the grid's own pixels only, not a full-frame `valid & search`
-    left = np.ascontiguousarray(valid[::s, ::s] if search is None else valid[::s, ::s] & search[::s, ::s])
     min_sub = min_px / (s * s)
     t_mm, t_rel = np.float32(tol_mm), np.float32(tol_rel)
-    found: list[tuple[tuple[float, float, float], NDArray[np.bool_], float]] = []
-    # each search is two compiled calls around numpy's random draws (numpy's calls on a few
-    # thousand points cost more than their arithmetic); the draws are numpy's and the solves
-    # and the refit LAPACK's numbers, so the planes are those of the numpy route
-    # (docs/design-notes.md, "RANSAC")
+    # the searches are one compiled call (_search_planes): the draws are numpy's (its
+    # bounded integers from the seeded bit generator's numbers), the solves and the refit
+    # LAPACK's numbers, so the planes are those of the numpy route (docs/design-notes.md, "RANSAC")
     rcond = float(np.finfo(np.float64).eps)
-    for _ in range(max_planes * 2):
-        if len(found) >= max_planes:
+    raw = _raw32(seed, max(max_planes, 0) * 2 * (3 * hypotheses + 2000) + 64)
+    while True:
+        # the grid's own pixels only, not a full-frame `valid & search` (the search takes them out)
+        left = np.ascontiguousarray(valid[::s, ::s] if search is None else valid[::s, ::s] & search[::s, ::s])
+        k, coefs, pieces, spreads = _search_planes(
+            z_sub, left, s, t_mm, t_rel, min_sub, hypotheses, max_planes, min_spread, raw, rcond
+        )
+        if k >= 0:
             break
-        u, v, z, tz = _grid_points(z_sub, left, s, t_mm, t_rel)
-        n = u.size
-        if n < max(min_sub, 3):
-            break
-        pick = rng.integers(0, n, size=(hypotheses, 3))
-        # the scoring points are drawn after the samples, as the numpy route draws them (it
-        # draws none when no sample is solvable, and then stops searching: no later draw differs)
-        m = min(n, 2000)
-        ev = rng.integers(0, n, size=m) if n > m else np.arange(n)
-        status, a, b, c, on_img = _search_plane(u, v, z, tz, pick, ev, min_sub, rcond, z_sub, left, t_mm, t_rel, s)
-        if status < _FOUND:
-            break
-        coef = (a, b, c)
-        pieces, n_on, p5, p50, p95 = _plane_pieces(on_img, max(int(min_sub) // 4, 1), z_sub, min_sub)
-        if n_on < min_sub:
-            continue
-        spread = float((p95 - p5) / max(p50, 1e-6))
-        if spread < min_spread:
-            continue  # a fronto-parallel plane (a back wall) is a facing object, not a support
-        found.append((coef, pieces, spread))
-    if not found:
+        # rejected draws (each about n / 2**32 likely) used up the numbers: more, and again
+        raw = _raw32(seed, 2 * raw.size)
+    if not k:
         return []
-    coefs = np.array([c for c, _, _ in found], np.float64)
+    found = [((float(c[0]), float(c[1]), float(c[2])), float(sp)) for c, sp in zip(coefs[:k], spreads[:k], strict=True)]
     # a full-resolution pixel may join a plane when its grid cell or a neighbouring one did:
     # the contact rows at the foot of an object are kept, far pixels on the plane's extension not
-    allowed = _dilate3(np.stack([m for _, m, _ in found]))
-    which = _assign(depth_mm, valid, coefs, allowed, s, float(tol_mm), float(tol_rel))
+    allowed = _dilate3(pieces[:k])
+    which = _assign(depth_mm, valid, np.ascontiguousarray(coefs[:k]), allowed, s, float(tol_mm), float(tol_rel))
     planes: list[Plane] = []
-    for k, (coef, _, spread) in enumerate(found, start=1):
-        mask = which == k
+    for j, (coef, spread) in enumerate(found, start=1):
+        mask = which == j
         area = int(np.count_nonzero(mask))
         if area >= min_px:
             planes.append(Plane(coef, mask, area, spread))
@@ -278,25 +260,126 @@ def _assign(
     return out
 
 
-#: Per thread: seed -> (its PCG64 bit generator, the state it was seeded with).
-_RNGS = threading.local()
+#: Per seed: the first 32-bit numbers of ``np.random.default_rng(seed)``'s bit generator.
+_RAW32: dict[int, NDArray[np.uint32]] = {}
 
 
-def _seeded_rng(seed: int) -> np.random.Generator:
-    """Return ``np.random.default_rng(seed)``: the same numbers, without seeding it again.
+def _raw32(seed: int, count: int) -> NDArray[np.uint32]:
+    """Return at least ``count`` of the 32-bit numbers PCG64(``seed``) gives ``Generator.integers``.
 
-    Seeding (numpy's ``SeedSequence`` hashing) cost 8 us per frame; the bit generator seeded
-    once per thread and seed is set back to its first state instead (1 us).
+    numpy's PCG64 hands out each 64-bit output as two 32-bit numbers, the low half first. The
+    plane search draws from the seeded state at every call (the same numbers each frame), so
+    they are made once per seed and read by :func:`_bounded` in compiled code: numpy's calls
+    for the draws, and seeding or setting back the generator, cost 10-20 us a frame.
     """
-    cache: dict[int, tuple[np.random.PCG64, Any]] | None = getattr(_RNGS, "by_seed", None)
-    if cache is None:
-        cache = _RNGS.by_seed = {}
-    if seed not in cache:
-        bits = np.random.PCG64(seed)
-        cache[seed] = (bits, bits.state)
-    bits, first = cache[seed]
-    bits.state = first
-    return np.random.Generator(bits)
+    raw = _RAW32.get(seed)
+    if raw is None or raw.size < count:
+        r64 = np.random.PCG64(seed).random_raw(-(-count // 2))
+        raw = np.empty(2 * r64.size, np.uint32)
+        raw[0::2] = (r64 & np.uint64(0xFFFFFFFF)).astype(np.uint32)
+        raw[1::2] = (r64 >> np.uint64(32)).astype(np.uint32)
+        _RAW32[seed] = raw
+    return raw
+
+
+@njit(cache=True, inline="always")
+def _bounded(raw: NDArray[np.uint32], pos: int, n: int) -> tuple[int, int]:
+    """Return an integer in ``[0, n)`` drawn from ``raw[pos:]`` as numpy draws it, and the next position.
+
+    ``Generator.integers(0, n)``'s bounded draw for a range under 2**32 (Lemire's multiply-and-reject on 32-bit
+    numbers, ``buffered_bounded_lemire_uint32``), so the same numbers from the same stream.
+    The position is -1 when ``raw`` ran out.
+    """
+    excl = np.uint64(n)
+    low = np.uint64(0xFFFFFFFF)
+    if pos >= raw.size:
+        return 0, -1
+    m = np.uint64(raw[pos]) * excl
+    pos += 1
+    left = m & low
+    if left < excl:
+        threshold = (low - (excl - np.uint64(1))) % excl
+        while left < threshold:
+            if pos >= raw.size:
+                return 0, -1
+            m = np.uint64(raw[pos]) * excl
+            pos += 1
+            left = m & low
+    return int(m >> np.uint64(32)), pos
+
+
+@njit(cache=True, nogil=True)
+def _search_planes(
+    z_sub: NDArray[np.float32],
+    left: NDArray[np.bool_],
+    step: int,
+    tol_mm: np.float32,
+    tol_rel: np.float32,
+    min_sub: float,
+    hypotheses: int,
+    max_planes: int,
+    min_spread: float,
+    raw: NDArray[np.uint32],
+    eps: float,
+) -> tuple[int, NDArray[np.float64], NDArray[np.bool_], NDArray[np.float64]]:
+    """Run the RANSAC searches of :func:`find_planes` on the grid, in one compiled call.
+
+    Each search draws its three-point samples and (beyond 2000 points) its scoring points as
+    ``np.random.default_rng(seed).integers`` would, from the numbers ``raw`` of the seed
+    (:func:`_raw32`, :func:`_bounded`), then runs :func:`_search_plane` and
+    :func:`_plane_pieces`; a plane too small or too flat is dropped and the search goes on, as
+    the numpy route does. ``left`` (the grid points still searched) is taken in place.
+
+    Returns the number of planes found (-1 when ``raw`` ran out), their coefficients, their
+    large pieces on the grid and their depth spreads (the first rows).
+    """
+    hs, ws = z_sub.shape
+    rows = max(max_planes, 1)
+    coefs = np.zeros((rows, 3), np.float64)
+    masks = np.zeros((rows, hs, ws), np.bool_)
+    spreads = np.zeros(rows, np.float64)
+    k = 0
+    pos = 0
+    for _ in range(max_planes * 2):
+        if k >= max_planes:
+            break
+        u, v, z, tz = _grid_points(z_sub, left, step, tol_mm, tol_rel)
+        n = u.size
+        if n < max(min_sub, 3.0):
+            break
+        pick = np.empty((hypotheses, 3), np.int64)
+        flat = pick.reshape(hypotheses * 3)
+        for i in range(flat.size):
+            flat[i], pos = _bounded(raw, pos, n)
+            if pos < 0:
+                return -1, coefs, masks, spreads
+        # the scoring points are drawn after the samples, as the numpy route draws them (it
+        # draws none when no sample is solvable, and then stops searching: no later draw differs)
+        m = min(n, 2000)
+        if n > m:
+            ev = np.empty(m, np.int64)
+            for i in range(m):
+                ev[i], pos = _bounded(raw, pos, n)
+                if pos < 0:
+                    return -1, coefs, masks, spreads
+        else:
+            ev = np.arange(n)
+        status, a, b, c, on_img = _search_plane(u, v, z, tz, pick, ev, min_sub, eps, z_sub, left, tol_mm, tol_rel, step)
+        if status < _FOUND:
+            break
+        pieces, n_on, p5, p50, p95 = _plane_pieces(on_img, max(int(min_sub) // 4, 1), z_sub, min_sub)
+        if n_on < min_sub:
+            continue
+        spread = (p95 - p5) / max(p50, 1e-6)
+        if spread < min_spread:
+            continue  # a fronto-parallel plane (a back wall) is a facing object, not a support
+        coefs[k, 0] = a
+        coefs[k, 1] = b
+        coefs[k, 2] = c
+        masks[k] = pieces
+        spreads[k] = spread
+        k += 1
+    return k, coefs, masks, spreads
 
 
 #: :func:`_search_plane`'s outcome: no solvable sample, too few inliers, a plane found.
