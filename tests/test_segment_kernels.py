@@ -555,6 +555,26 @@ def test_contacts_inside_the_supports_boxes_equal_the_whole_frame(seed: int) -> 
         assert ref.sum() > 0
 
 
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_the_best_support_of_each_face_is_numpys_argmax(seed: int) -> None:
+    from depthgram.segmentation.contacts import _as_pairs, _best_faces
+    from reference import best_contact_numpy
+
+    rng = np.random.default_rng(seed)
+    n_facing, n_ids = 7, 12
+    # small counts, so that rows have ties (the first support wins) and contacts just at the need
+    contact = rng.integers(0, 4, (n_facing + 1, n_ids)).astype(np.int64)
+    contact[0] = 0  # no face 0
+    contact[:, : n_facing + 1] = 0  # supports have the ids after the faces
+    widths = np.concatenate(([0.0], rng.integers(1, 9, n_facing).astype(np.float64)))
+    mean_depth = rng.choice(np.array([900.0, 1000.0, 1100.0]), n_ids)
+    for behind in (False, True):
+        kept = np.where(mean_depth[None, :] > mean_depth[: n_facing + 1, None], contact, 0) if behind else contact
+        want = best_contact_numpy(kept, 0.5 * widths)
+        assert _as_pairs(_best_faces(contact, 0.5, widths, mean_depth, behind)) == want
+        assert want  # some faces are kept
+
+
 def _floor_scene() -> tuple[np.ndarray, np.ndarray, Intrinsics]:
     # a floor plane 1 m below the camera (y down), seen from row 20 of 40; a box in front of it
     cam = Intrinsics(40.0, 40.0, 19.5, 19.5)

@@ -44,14 +44,18 @@ def front_faces(
         return {}
     n_ids = int(labels.max(initial=0)) + 1 if n_ids is None else n_ids
     rel = np.float32(jump_rel)
+    widths = np.asarray(widths, np.float64)
     if boxes is not None:
         ids = np.asarray(horizontal_ids, np.intp)
-        contact = _contacts_in_boxes(labels, depth_mm, ids, np.asarray(boxes, np.int64), n_ids, n_facing, rel, False)
-        return _best_contact(contact, min_contact * widths)
+        best = _faces_in_boxes(
+            labels, depth_mm, ids, np.asarray(boxes, np.int64), n_ids, n_facing, rel, False,
+            float(min_contact), widths, widths,
+        )  # fmt: skip
+        return _as_pairs(best)
     is_support = np.zeros(n_ids, np.bool_)
     is_support[horizontal_ids] = True
     contact = _contacts(labels, depth_mm, is_support, n_facing, rel, False)
-    return _best_contact(contact, min_contact * widths)
+    return _as_pairs(_best_faces(contact, float(min_contact), widths, widths, False))
 
 
 def side_faces(
@@ -82,30 +86,72 @@ def side_faces(
         return {}
     n_ids = int(labels.max(initial=0)) + 1 if n_ids is None else n_ids
     rel = np.float32(jump_rel)
+    heights = np.asarray(heights, np.float64)
+    mean_depth = np.asarray(mean_depth, np.float64)
     if boxes is not None:
         ids = np.asarray(vertical_ids, np.intp)
-        contact = _contacts_in_boxes(labels, depth_mm, ids, np.asarray(boxes, np.int64), n_ids, n_facing, rel, True)
-    else:
-        is_side = np.zeros(n_ids, np.bool_)
-        is_side[vertical_ids] = True
-        contact = _contacts(labels, depth_mm, is_side, n_facing, rel, True)
-    behind = mean_depth[None, : contact.shape[1]] > mean_depth[: contact.shape[0], None]
-    return _best_contact(np.where(behind, contact, 0), min_contact * heights)
+        best = _faces_in_boxes(
+            labels, depth_mm, ids, np.asarray(boxes, np.int64), n_ids, n_facing, rel, True,
+            float(min_contact), heights, mean_depth,
+        )  # fmt: skip
+        return _as_pairs(best)
+    is_side = np.zeros(n_ids, np.bool_)
+    is_side[vertical_ids] = True
+    contact = _contacts(labels, depth_mm, is_side, n_facing, rel, True)
+    return _as_pairs(_best_faces(contact, float(min_contact), heights, mean_depth, True))
 
 
-def _best_contact(contact: NDArray[np.int64], needed: NDArray[np.float64]) -> dict[int, int]:
-    """Return ``{facing id: support id}``, the support each facing row touches most.
+def _as_pairs(best: NDArray[np.int64]) -> dict[int, int]:
+    """``{facing id: support id}`` of the facing ids with a support in ``best``."""
+    return {f: s for f, s in enumerate(best.tolist()) if s}
 
-    A pair is kept only when that contact (px) reaches ``needed[facing id]``.
-    """
-    out: dict[int, int] = {}
-    if contact.size == 0:
-        return out
-    best = contact.argmax(axis=1)
-    most = contact[np.arange(contact.shape[0]), best]
-    for f in np.flatnonzero((most > 0) & (most >= needed)):
-        out[int(f)] = int(best[f])
+
+@njit(cache=True, nogil=True)
+def _best_faces(
+    contact: NDArray[np.int64],
+    min_contact: float,
+    extent: NDArray[np.float64],
+    mean_depth: NDArray[np.float64],
+    behind: bool,
+) -> NDArray[np.int64]:
+    # The support each facing row touches most (the first of equal ones, numpy's argmax), kept
+    # when that contact (px) reaches min_contact times the face's extent (0: none). With
+    # `behind`, only supports whose mean depth lies behind the face's count. Compiled: the
+    # half-dozen numpy calls on a few rows cost more than the counting pass.
+    n_f, n_s = contact.shape
+    out = np.zeros(n_f, np.int64)
+    for f in range(n_f):
+        best = 0
+        most = -1
+        for s in range(n_s):
+            v = contact[f, s]
+            if behind and not mean_depth[s] > mean_depth[f]:
+                v = 0
+            if v > most:
+                most = v
+                best = s
+        if most > 0 and most >= min_contact * extent[f]:
+            out[f] = best
     return out
+
+
+@njit(cache=True, nogil=True)
+def _faces_in_boxes(
+    labels: NDArray[np.int32],
+    depth: NDArray[np.float32],
+    ids: NDArray[np.intp],
+    boxes: NDArray[np.int64],
+    n_ids: int,
+    n_facing: int,
+    rel: np.float32,
+    side_by_side: bool,
+    min_contact: float,
+    extent: NDArray[np.float64],
+    mean_depth: NDArray[np.float64],
+) -> NDArray[np.int64]:
+    # the contacts in the supports' boxes and the best support of each face, in one call
+    contact = _contacts_in_boxes(labels, depth, ids, boxes, n_ids, n_facing, rel, side_by_side)
+    return _best_faces(contact, min_contact, extent, mean_depth, side_by_side)
 
 
 @njit(cache=True, nogil=True)

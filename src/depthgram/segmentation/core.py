@@ -16,7 +16,7 @@ from depthgram.segmentation.config import SegmentConfig
 from depthgram.segmentation.contacts import front_faces, side_faces
 from depthgram.segmentation.histogram import Bands, bin_index, depth_bands, log_bin_counts
 from depthgram.segmentation.label import label_bands_stats, label_stats_fused, label_two_classes, relabel
-from depthgram.segmentation.label.stats import COUNT, KEY, N_COLUMNS, N_SUMS, SUM_Z
+from depthgram.segmentation.label.stats import COUNT, KEY, N_COLUMNS, N_SUMS, SUM_Z, add_rows
 from depthgram.segmentation.objects import Histogram, SceneObject, Segmentation
 from depthgram.segmentation.order_stats import percentile32
 from depthgram.segmentation.orientation import (
@@ -148,8 +148,9 @@ def load_rare_kernels() -> None:
 
     The first frame of a stream loads the kernels its own branches take; one taking a branch
     the first frames did not (a support labelled again after pixels near its plane joined it,
-    coplanar pieces joined, small pieces dropped, the statistics after merged openings) loaded or compiled its
-    kernels in the middle of the stream (470 ms on a fresh install). A real-time caller runs
+    coplanar pieces joined, small pieces dropped, the statistics after merged openings, a face
+    folded into its support) loaded or compiled its kernels in the middle of the stream
+    (470 ms on a fresh install). A real-time caller runs
     this before the stream, after a first frame (``Pipeline.warm_up``).
     """
     z = np.full((2, 2), 1000.0, np.float32)
@@ -168,6 +169,12 @@ def load_rare_kernels() -> None:
     _merge_rows(np.array([0, 1, 1], np.int32), 1, rows, np.zeros((3, 9), np.float64), np.zeros((3, 4), np.int64))
     # merged openings: the statistics of the joined surfaces
     label_stats_fused(np.zeros((2, 2), np.int32), 0, z, np.zeros((2, 2), np.float32))
+    # a front or side face of a support: the contacts, and its row added to the support's
+    front_faces(
+        np.array([[2, 2], [1, 1]], np.int32), z, np.ones(2), np.array([2], np.int32), jump_rel=0.05,
+        boxes=np.array([[0, 0, 1, 0]], np.int64), n_ids=3,
+    )  # fmt: skip
+    add_rows(np.zeros((3, N_SUMS)), np.zeros((3, 4), np.int64), np.array([1], np.intp), np.array([2], np.intp))
     # a plane search that finds a plane (its pieces' percentiles), planes from their sums, and
     # large pieces compared for one plane
     find_planes(z, ok, min_area=0.0, min_spread=0.0)
@@ -509,10 +516,8 @@ def _fold_faces(
         )
         for f, sup in side.items():
             fronts.setdefault(f, sup)
-    for f, sup in fronts.items():
-        stack.sums[sup] += stack.sums[f]
-        boxes[sup, :2] = np.minimum(boxes[sup, :2], boxes[f, :2])
-        boxes[sup, 2:] = np.maximum(boxes[sup, 2:], boxes[f, 2:])
+    if fronts:
+        add_rows(stack.sums, boxes, np.array(list(fronts), np.intp), np.array(list(fronts.values()), np.intp))
     return fronts
 
 
