@@ -720,7 +720,7 @@ def flush_plane_run(
     out[i, 8] += sq
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def _plane_sums(
     labels: NDArray[np.int32],
     n: int,
@@ -833,7 +833,7 @@ def plane_sums_in_boxes(
     )
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def _plane_sums_boxes(
     labels: NDArray[np.int32],
     n: int,

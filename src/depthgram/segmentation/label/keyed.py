@@ -244,7 +244,7 @@ def label_keyed_stats(
     return labels, int(n), sums, boxes
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def _relabel_planes(
     lab: NDArray[np.int32],
     final: NDArray[np.int32],
