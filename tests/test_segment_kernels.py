@@ -1064,7 +1064,6 @@ def test_load_rare_kernels_loads_the_kernels_of_the_rare_branches() -> None:
     from depthgram.segmentation import segment
     from depthgram.segmentation.core import load_rare_kernels
     from depthgram.segmentation.label import keyed, stats
-    from depthgram.segmentation.label.unionfind import resolve_tables
     from depthgram.segmentation.planes import (
         _assign,
         _coplanar_join,
@@ -1077,9 +1076,7 @@ def test_load_rare_kernels_loads_the_kernels_of_the_rare_branches() -> None:
 
     load_rare_kernels()
     kernels = (
-        keyed._label_runs,
-        keyed._relabel_planes,
-        resolve_tables,
+        keyed._label_planes,
         _class_state,
         _merge_rows,
         _drop_classes,
