@@ -192,10 +192,10 @@ def _refine(
     # classes `gcls` of the grid are repeated in the same loop (upsample_classes' map).
     h, w = depth.shape
     gh, gw = glab.shape
-    out = np.zeros((h, w), np.int32)
+    out = np.empty((h, w), np.int32)  # every pixel is written (_choose_row)
     classes = np.empty((h, w), np.int8)
-    cls_up = np.zeros(max(w + step, (gw + 1) * step), np.int8)
     wide = max(w + step, (gw + 1) * step)
+    cls_up = np.zeros(wide, np.int8)
     lab_up = np.zeros(wide, np.int32)
     z_up = np.zeros(wide, np.float32)
     lab_dn = np.zeros(wide, np.int32)

@@ -550,12 +550,13 @@ def _compound_objects(
     remap = {oid: new for new, oid in enumerate(old, start=1)}
     # without a folded face or a missing id the ids stay 1..n: no pass over the label map
     if fronts or old != list(range(1, stack.next_id)):
-        renum = np.zeros(stack.next_id, np.int32)
-        renum[old] = np.arange(1, len(old) + 1, dtype=np.int32)
-        fold = np.arange(stack.next_id, dtype=np.int32)
+        # old id -> new id, a folded face -> its support's new id (a list: a few dozen ids)
+        lut = [0] * stack.next_id
+        for oid, new in remap.items():
+            lut[oid] = new
         for f, sup in fronts.items():
-            fold[f] = sup
-        labels = relabel(labels, renum[fold])
+            lut[f] = remap[sup]
+        labels = relabel(labels, np.array(lut, np.int32))
     # the floor is the lowest horizontal support with nothing seen beneath it: a table top
     # with the room's floor past its edge is a support of its own kind on every camera
     floor_ids = {i for c, i in supports if c == HORIZONTAL and below[i] > 0 and beneath.get(i, 0.0) < _BENEATH_SHARE}
