@@ -7,6 +7,7 @@ blocking pixels and bridges, and to values worked out by hand on tiny images.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -659,6 +660,38 @@ def test_slice_parts_match_per_slice_numpy_sums() -> None:
             assert p.area == area
             assert p.depth == pytest.approx(mean, rel=1e-12)
             assert p.center_xy == pytest.approx((cx, cy), rel=1e-12)
+
+
+def test_parts_of_several_compounds_in_one_call_and_scaled_from_a_grid() -> None:
+    from depthgram.segmentation.slices import compound_parts
+
+    rng = np.random.default_rng(5)
+    labels = np.zeros((30, 40), np.int32)
+    labels[2:14, 3:37] = 4  # a floor, sliced in rows
+    labels[16:29, 5:20] = 6  # a wall, sliced in columns
+    labels[rng.random(labels.shape) < 0.2] = 0
+    depth = (rng.random(labels.shape) * 500 + 1000).astype(np.float32)
+    cam = Intrinsics(50.0, 50.0, 19.5, 14.5)
+    objs = [(4, (3, 2, 37, 14), True), (6, (5, 16, 20, 29), False)]
+    kw = {"step_of": lambda extent: 3, "depth_label": lambda z: (z > 1250).astype(int), "intrinsics": cam}
+    both = compound_parts(labels, depth, objs, first_id=10, **kw)
+    first = slice_parts(labels, depth, 4, (3, 2, 37, 14), horizontal=True, first_id=10, **kw)
+    second = slice_parts(labels, depth, 6, (5, 16, 20, 29), horizontal=False, first_id=10 + len(first), **kw)
+    assert both == [first, second] and len(first) == 4 and len(second) == 5
+    # on the grid of a 2x wider frame (73 x 57 px: the last column and row clipped): the parts
+    # as they were scaled after being built, area times 4, center and box times 2
+    scaled = compound_parts(labels, depth, objs, first_id=10, scale=(2, 73, 57), **kw)
+    for grid_part, part in zip(first + second, scaled[0] + scaled[1], strict=True):
+        x0, y0, x1, y1 = grid_part.bbox_xy
+        cx, cy = grid_part.center_xy
+        want = dataclasses.replace(
+            grid_part,
+            area=grid_part.area * 4,
+            center_xy=(cx * 2, cy * 2),
+            bbox_xy=(x0 * 2, y0 * 2, min(x1 * 2, 73), min(y1 * 2, 57)),
+        )
+        assert part == want
+    assert max(p.bbox_xy[2] for p in scaled[0]) == 73 and max(p.bbox_xy[3] for p in scaled[1]) == 57
 
 
 def test_relabel_equals_numpy_fancy_indexing() -> None:

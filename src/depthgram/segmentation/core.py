@@ -44,9 +44,9 @@ from depthgram.segmentation.sensor import SensorModel, _median, estimate_sensor,
 from depthgram.segmentation.slices import (
     _merge_rows,
     add_through,
+    compound_parts,
     drop_classes,
     join_pieces,
-    slice_parts,
     small_supports,
     support_kind,
     support_pieces_lazy,
@@ -566,27 +566,21 @@ def _compound_objects(
     boxes = stack.boxes.tolist()
     keys = stack.keys.tolist()
     specs = [ObjectSpec(remap[i], "object", keys[i], ()) for i in facing]
-    part_id = len(old) + 1
+    kinds = []
+    compounds = []
     for cls, i in supports:
-        oid = remap[i]
-        box = boxes[i]
-        bbox = (box[0], box[1], box[2] + 1, box[3] + 1)
         kind = support_kind(cls, below[i], i == lowest)
         if i in with_front:
             kind = "compound"  # a top with a face below it, or a face with its side: a table, a box
-        parts = slice_parts(
-            labels,
-            depth,
-            oid,
-            bbox,
-            horizontal=cls == HORIZONTAL,
-            step_of=cfg.slice_step,
-            depth_label=bands.depth_label,
-            intrinsics=intrinsics,
-            first_id=part_id,
-            scale=part_scale,
-        )
-        part_id += len(parts)
+        kinds.append(kind)
+        box = boxes[i]
+        compounds.append((remap[i], (box[0], box[1], box[2] + 1, box[3] + 1), cls == HORIZONTAL))
+    # every support's slice parts in one call, numbered after the objects
+    all_parts = compound_parts(
+        labels, depth, compounds, step_of=cfg.slice_step, depth_label=bands.depth_label, intrinsics=intrinsics,
+        first_id=len(old) + 1, scale=part_scale,
+    )  # fmt: skip
+    for (_, i), kind, (oid, _, _), parts in zip(supports, kinds, compounds, all_parts, strict=True):
         # the label of the support's mean depth before any face folded into it
         label = min(p.depth_label for p in parts) if parts else int(bands.depth_label(before[i - 1, 1]))
         specs.append(ObjectSpec(oid, kind, label, parts))

@@ -30,6 +30,7 @@ from depthgram.segmentation.planes import coplanar_groups, planes_from_sums
 
 __all__ = [
     "add_through",
+    "compound_parts",
     "drop_classes",
     "join_pieces",
     "slice_parts",
@@ -82,19 +83,40 @@ def slice_parts(
         clipped to the frame; the share of the frame, depths and metric attributes are the
         grid's).
     """
-    x0, y0, x1, y1 = bbox_xy
-    extent = (y1 - y0) if horizontal else (x1 - x0)
-    step = step_of(extent)
-    n_slices = (extent + step - 1) // step
-    # the attributes as make_objects takes them in the box's coordinates (the principal point
-    # shifted by the box's corner), each part built once in frame coordinates (building the
-    # box's objects and then the frame's cost twice the objects on small frames)
+    return compound_parts(
+        labels, depth_mm, [(oid, bbox_xy, horizontal)], step_of=step_of, depth_label=depth_label,
+        intrinsics=intrinsics, first_id=first_id, scale=scale,
+    )[0]  # fmt: skip
+
+
+def compound_parts(
+    labels: NDArray[np.int32],
+    depth_mm: NDArray[np.float32],
+    compounds: list[tuple[int, tuple[int, int, int, int], bool]],
+    *,
+    step_of: Callable[[int], int],
+    depth_label: object,
+    intrinsics: Intrinsics | None,
+    first_id: int,
+    scale: tuple[int, int, int] | None = None,
+) -> list[tuple[SceneObject, ...]]:
+    """:func:`slice_parts` of several compound objects ``(id, half-open box, horizontal)``, in one pass.
+
+    The parts are numbered on from ``first_id`` in the objects' order; the same parts as one
+    :func:`slice_parts` call per object with the ids following on.
+    """
+    objs = np.empty((len(compounds), 8), np.int64)
+    for c, (oid, (x0, y0, x1, y1), horizontal) in enumerate(compounds):
+        extent = (y1 - y0) if horizontal else (x1 - x0)
+        step = step_of(extent)
+        # the kernel takes the box's last column and row (inclusive bounds)
+        objs[c] = (oid, x0, y0, x1 - 1, y1 - 1, step, horizontal, (extent + step - 1) // step)
     metric = intrinsics is not None
-    cam = (1.0, 1.0, 0.0, 0.0)
-    if intrinsics is not None:
-        cam = (intrinsics.fx, intrinsics.fy, intrinsics.cx - x0, intrinsics.cy - y0)
-    # the kernel takes the box's last column and row (inclusive bounds)
-    table = _part_table(labels, depth_mm, oid, x0, y0, x1 - 1, y1 - 1, step, horizontal, n_slices, *cam, metric)
+    cam = (
+        (intrinsics.fx, intrinsics.fy, intrinsics.cx, intrinsics.cy) if intrinsics is not None else (1.0, 1.0, 0.0, 0.0)
+    )
+    k, w, h = scale if scale is not None else (1, labels.shape[1], labels.shape[0])
+    table, ints, owner = _parts_tables(labels, depth_mm, objs, *cam, metric, k, w, h)
     fn = depth_label  # callable, typed loosely to keep this module free of Bands
     # every part's label in one call (one numpy call per part cost more on small frames); a
     # callable giving one label whatever the depth is broadcast
@@ -102,33 +124,82 @@ def slice_parts(
     found = np.asarray(fn(depths))  # type: ignore[operator]
     part_labels = (found if found.shape == depths.shape else np.broadcast_to(found, depths.shape)).tolist()
     total = labels.size
-    out = []
-    k, w, h = scale if scale is not None else (1, 0, 0)
-    for j, (c, mean, std, cx, cy, gx, gy, amm, bx0, by0, bx1, by1) in enumerate(table.tolist()):
-        area = int(c)
-        box = (int(bx0), int(by0), int(bx1), int(by1))
-        center = (cx, cy)
-        if scale is not None:
-            # the grid's part in the frame's pixels
-            px0, py0, px1, py1 = box
-            box = (px0 * k, py0 * k, min(px1 * k, w), min(py1 * k, h))
-            center = (cx * k, cy * k)
-        out.append(
+    kk = k * k
+    out: list[list[SceneObject]] = [[] for _ in compounds]
+    rows = zip(table.tolist(), ints.tolist(), owner.tolist(), part_labels, strict=True)
+    for pid, ((c, mean, std, cx, cy, gx, gy, amm), (area, bx0, by0, bx1, by1), o, label) in enumerate(rows, first_id):
+        out[o].append(
             new_object(
-                first_id + j,
+                pid,
                 "part",
-                int(part_labels[j]),
+                int(label),
                 mean,
                 std,
-                area * k * k,
-                area / total,
-                center,
-                box,
+                area * kk,
+                c / total,
+                (cx, cy),
+                (bx0, by0, bx1, by1),
                 (gx, gy, mean) if metric else None,
                 amm if metric else None,
             )
         )
-    return tuple(out)
+    return [tuple(p) for p in out]
+
+
+@njit(cache=True, nogil=True)
+def _parts_tables(
+    labels: NDArray[np.int32],
+    depth: NDArray[np.float32],
+    objs: NDArray[np.int64],
+    fx: float,
+    fy: float,
+    cx: float,
+    cy: float,
+    metric: bool,
+    k: int,
+    w: int,
+    h: int,
+) -> tuple[NDArray[np.float64], NDArray[np.int64], NDArray[np.int64]]:
+    """Return the parts of every object of ``objs`` (:func:`_part_table`'s rows, in their order).
+
+    ``objs`` rows: id, inclusive box x0, y0, x1, y1, slice step, horizontal (1 / 0), slices.
+    Returns the float attributes (count, mean depth, std, center x, y, centroid X, Y, area
+    mm²), the whole numbers (pixel count, half-open box) and the row of ``objs`` of each part;
+    centers and boxes times ``k`` (boxes clipped to ``w`` x ``h``), as the frame's pixels of
+    a grid of step ``k``. One call for all the compounds of a frame.
+    """
+    m = 0
+    for c in range(objs.shape[0]):
+        m += objs[c, 7]
+    table = np.empty((m, 8), np.float64)
+    ints = np.empty((m, 5), np.int64)
+    owner = np.empty(m, np.int64)
+    r = 0
+    for c in range(objs.shape[0]):
+        x0 = objs[c, 1]
+        y0 = objs[c, 2]
+        # make_objects' attributes in the box's coordinates: the principal point shifted by its corner
+        px = cx - x0 if metric else cx
+        py = cy - y0 if metric else cy
+        t = _part_table(
+            labels, depth, objs[c, 0], x0, y0, objs[c, 3], objs[c, 4], objs[c, 5], objs[c, 6] != 0, objs[c, 7],
+            fx, fy, px, py, metric,
+        )  # fmt: skip
+        for q in range(t.shape[0]):
+            for j in range(8):
+                table[r, j] = t[q, j]
+            table[r, 3] = t[q, 3] * k
+            table[r, 4] = t[q, 4] * k
+            ints[r, 0] = np.int64(t[q, 0])
+            ints[r, 1] = np.int64(t[q, 8]) * k
+            ints[r, 2] = np.int64(t[q, 9]) * k
+            right = np.int64(t[q, 10]) * k
+            bottom = np.int64(t[q, 11]) * k
+            ints[r, 3] = right if right < w else w
+            ints[r, 4] = bottom if bottom < h else h
+            owner[r] = c
+            r += 1
+    return table[:r], ints[:r], owner[:r]
 
 
 @njit(cache=True, nogil=True)
