@@ -178,7 +178,9 @@ def build(quick: bool = False) -> str:
         "",
         "Simulated `table` scene, one core, thread CPU time, best of repeated runs; `x bincount` is the",
         "time as a multiple of one `np.bincount` over the frame (no method can read every pixel faster).",
-        "Re-measure: `python benchmarks/bench_segmentation.py --cpu`.",
+        "`in stream` is the default (`surfaces`) given the sensor model, as `Pipeline` passes it to every",
+        "frame of a recording (it estimates the model once every 30 frames); `surfaces` estimates it in",
+        "every call, as `segment` alone does. Re-measure: `python benchmarks/bench_segmentation.py --cpu`.",
         "",
         _table(
             ["size", "method", "ms", "frames/s", "target frames/s", "x bincount"],

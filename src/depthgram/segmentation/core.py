@@ -776,14 +776,6 @@ def _support_class(
     return _SupportMap(cls, lab, base, size, through, rows.size - 1, sums[rows], boxes[rows])
 
 
-def _stats_rows(sums: NDArray[np.float64], boxes: NDArray[np.int64], rows: NDArray[np.intp]) -> Stats:
-    """Metric :class:`Stats` of the given rows of stacked sums (count, Z, Z², x, y, xZ, yZ)."""
-    s = sums[rows]
-    s[0] = 0.0
-    b = boxes[rows]
-    return Stats.from_sums(s, b, metric=True)
-
-
 def _orientation(
     depth: NDArray[np.float32], ok: NDArray[np.bool_], cam: Intrinsics, cfg: SegmentConfig
 ) -> tuple[NDArray[np.int8], NDArray[np.float32] | None]:
