@@ -694,6 +694,24 @@ def test_parts_of_several_compounds_in_one_call_and_scaled_from_a_grid() -> None
     assert max(p.bbox_xy[2] for p in scaled[0]) == 73 and max(p.bbox_xy[3] for p in scaled[1]) == 57
 
 
+@pytest.mark.parametrize(("h", "w"), [(132, 176), (31, 45), (1, 1), (6, 3)])
+def test_facing_halves_are_numpys_slices_and_percentile(h: int, w: int) -> None:
+    from depthgram.segmentation.surfaces import facing_halves
+
+    rng = np.random.default_rng(h * w)
+    depth = (rng.random((h, w)) * 4000 + 300).astype(np.float32)
+    valid = rng.random((h, w)) > 0.2
+    include = rng.random((h, w)) > 0.3
+    facing, d2, m2, far = facing_halves(depth, valid, include, 2500.0)
+    want_facing = valid & include
+    sample = depth[::2, ::2][::2, ::2][want_facing[::2, ::2][::2, ::2]]
+    assert np.array_equal(facing, want_facing)
+    assert np.array_equal(d2, depth[::2, ::2]) and np.array_equal(m2, want_facing[::2, ::2])
+    assert far == (float(np.percentile(sample, 95.0)) if sample.size else 2500.0)
+    # no facing reading among the samples: the given depth
+    assert facing_halves(depth, valid, np.zeros_like(include), 2500.0)[3] == 2500.0
+
+
 def test_relabel_equals_numpy_fancy_indexing() -> None:
     from depthgram.segmentation.label import relabel
 

@@ -67,26 +67,30 @@ def _grid(
 ) -> tuple[NDArray[np.float32], NDArray[np.bool_]]:
     # hand-written: a strided view plus a fill of the holes from their own cells (no library
     # kernel picks the first valid pixel of each cell). A grid row is first read from its
-    # cells' corners without a branch; only a row with holes searches their cells, each up
-    # to its first reading
+    # cells' corners without a branch (unsigned indices: a signed one is wrapped as possibly
+    # negative, 50 against 77 us at 640 x 480); only a row with holes searches their cells,
+    # each up to its first reading
     h, w = depth.shape
     gh = (h + step - 1) // step
     gw = (w + step - 1) // step
     z = np.empty((gh, gw), np.float32)
     ok = np.empty((gh, gw), np.bool_)
+    ustep = np.uint64(step)
     for i in range(gh):
         y0 = i * step
         drow = depth[y0]
         vrow = valid[y0]
         zr = z[i]
         okr = ok[i]
-        holes = 0
+        for uj in range(np.uint64(gw)):
+            ux = uj * ustep
+            v = vrow[ux]
+            okr[uj] = v
+            zr[uj] = drow[ux] if v else np.float32(0.0)
+        holes = False
         for j in range(gw):
-            v = vrow[j * step]
-            okr[j] = v
-            zr[j] = drow[j * step] if v else np.float32(0.0)
-            holes += not v
-        if holes == 0:
+            holes |= not okr[j]
+        if not holes:
             continue
         y1 = min(y0 + step, h)
         for j in range(gw):

@@ -18,7 +18,6 @@ from depthgram.segmentation.histogram import Bands, bin_index, depth_bands, log_
 from depthgram.segmentation.label import label_bands_stats, label_stats_fused, label_two_classes, relabel
 from depthgram.segmentation.label.stats import COUNT, KEY, N_COLUMNS, N_SUMS, SUM_Z, add_rows
 from depthgram.segmentation.objects import Histogram, SceneObject, Segmentation
-from depthgram.segmentation.order_stats import percentile32
 from depthgram.segmentation.orientation import (
     FACING,
     HORIZONTAL,
@@ -55,6 +54,7 @@ from depthgram.segmentation.surfaces import (
     _inverse,
     concave_creases,
     crease_scale_px,
+    facing_halves,
     merge_openings,
     surface_state,
     surfaces_kept,
@@ -275,14 +275,10 @@ def _surface_objects(
     geometric, and at the far end of the frame three resolutions wide, so that a structured-light
     camera's depth steps (which grow with the square of depth) never make a comb of one-bin peaks.
     """
-    facing = ok & include
     # the histogram only names depth labels here: every 2nd row and column give the same bands
-    # at a quarter of the cost
-    d2 = np.ascontiguousarray(depth[::2, ::2])
-    m2 = np.ascontiguousarray(facing[::2, ::2])
-    sample = d2[::2, ::2][m2[::2, ::2]]
-    # np.percentile's value, compiled (a numpy call costs more than the selection here)
-    far = percentile32(sample, 95.0, True) if sample.size else cfg.ref_depth_mm
+    # at a quarter of the cost; its far end is np.percentile's value, compiled (a numpy call
+    # costs more than the selection here)
+    facing, d2, m2, far = facing_halves(depth, ok, include, float(cfg.ref_depth_mm))
     bin_far = max(cfg.bin_mm * far / cfg.ref_depth_mm, 3.0 * float(sensor.resolution(far)))
     # within the config's own bounds, so that a frame of absurd depths is binned, not refused here
     ref = min(max(far, 1.0), 1e6)
