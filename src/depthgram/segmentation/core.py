@@ -149,9 +149,9 @@ def load_rare_kernels() -> None:
     The first frame of a stream loads the kernels its own branches take; one taking a branch
     the first frames did not (a support labelled again after pixels near its plane joined it,
     coplanar pieces joined, small pieces dropped, the statistics after merged openings, a face
-    folded into its support) loaded or compiled its kernels in the middle of the stream
-    (470 ms on a fresh install). A real-time caller runs
-    this before the stream, after a first frame (``Pipeline.warm_up``).
+    folded into its support, the first supports) loaded or compiled its kernels in the middle
+    of the stream (470 ms on a fresh install). A real-time caller runs this before the stream,
+    after a first frame (``Pipeline.warm_up``).
     """
     z = np.full((2, 2), 1000.0, np.float32)
     ok = np.ones((2, 2), np.bool_)
@@ -175,6 +175,12 @@ def load_rare_kernels() -> None:
         boxes=np.array([[0, 0, 1, 0]], np.int64), n_ids=3,
     )  # fmt: skip
     add_rows(np.zeros((3, N_SUMS)), np.zeros((3, 4), np.int64), np.array([1], np.intp), np.array([2], np.intp))
+    # ids renumbered after a fold; the slice parts of supports (a frame without any has none)
+    relabel(np.zeros((2, 2), np.int32), np.zeros(1, np.int32))
+    compound_parts(
+        np.ones((2, 2), np.int32), z, [(1, (0, 0, 2, 2), True)], step_of=lambda extent: 1,
+        depth_label=lambda depths: np.zeros(depths.shape, np.intp), intrinsics=cam, first_id=2,
+    )  # fmt: skip
     # a plane search that finds a plane (its pieces' percentiles), planes from their sums, and
     # large pieces compared for one plane
     find_planes(z, ok, min_area=0.0, min_spread=0.0)
