@@ -209,9 +209,9 @@ def threshold_stages(size: tuple[int, int], seed: int = 0) -> dict[str, float]:
 STAGES = (
     "check_depth_far", "_orientation", "_add_support_planes", "find_planes", "_supports", "label_two_classes",
     "_support_class", "support_pieces_lazy", "join_near", "drop_classes", "frame_sensor",
-    "_surface_objects", "log_bin_counts", "depth_bands", "concave_creases", "surfaces_kept",
-    "relabel", "label_stats_fused", "merge_openings", "make_objects", "add_through", "_below_camera",
-    "front_faces", "side_faces", "slice_parts", "grid_frame", "_slices", "to_full_resolution",
+    "_surface_objects", "facing_halves", "log_bin_counts", "depth_bands", "concave_creases", "surfaces_kept",
+    "merge_openings", "relabel", "label_stats_fused", "add_through", "_below_camera",
+    "front_faces", "side_faces", "compound_parts", "grid_frame", "_slices", "to_full_resolution",
     "_stack_supports", "_fold_faces", "_compound_objects",
 )  # fmt: skip
 
@@ -222,12 +222,12 @@ def surfaces_stages(size: tuple[int, int], runs: int = 20, frame: Any = None) ->
     CPU time of this thread (``time.thread_time``), not wall time: on a shared machine a
     descheduled thread does not count, so the steps add up the same whatever the load. Each
     step's figure is its median over ``runs`` calls; steps nest (``_surface_objects`` holds
-    ``surfaces_kept`` and the others listed after it up to ``make_objects``,
+    ``facing_halves`` and the others listed after it up to ``label_stats_fused``,
     ``_add_support_planes`` holds ``find_planes``, ``_supports`` holds ``label_two_classes`` (both
     classes' first labelling) and ``_support_class``, which holds ``support_pieces_lazy`` (a
     class labelled again after ``join_near`` gave it pixels) and ``drop_classes``;
     ``_stack_supports`` holds the supports' ``add_through``, ``_fold_faces`` the faces and
-    ``_compound_objects`` the ``slice_parts``). The time inside
+    ``_compound_objects`` the ``compound_parts``). The time inside
     compiled kernels is that of every numba function called from Python in the segmentation
     package; the rest of the call is numpy, OpenCV and the Python around them.
     """

@@ -219,7 +219,7 @@ def build(quick: bool = False) -> str:
         *split,
         "",
         "Thread CPU time of each step, median over the runs. Steps nest (`_surface_objects` holds the",
-        "steps after it up to `make_objects`); at 640 x 480 `_slices` runs on the 320 x 240 grid and",
+        "steps after it up to `label_stats_fused`); at 640 x 480 `_slices` runs on the 320 x 240 grid and",
         "`to_full_resolution` brings its labels back to every pixel.",
         "Re-measure: `python benchmarks/bench_segmentation.py --surfaces-stages --quick`.",
         "",

@@ -1365,3 +1365,45 @@ def test_statistics_pass_adds_in_raster_order(seed: int) -> None:
     for i in range(1, 6):  # the key column: the last pixel's key in raster order
         if (labels == i).any():
             assert sums[i, 7] == key[labels == i][-1]
+
+
+def test_sensor_ranges_in_one_call_equal_the_steps_one_by_one() -> None:
+    # _range_fit (samples with their depth span, order, range estimates in one call) against
+    # _triples, the stable order and the range estimates called one by one: whole-millimetre
+    # depths (counting route), tenths of a millimetre (radix route), holes, too few samples
+    from depthgram.segmentation.sensor import (
+        _range_estimates,
+        _range_estimates_whole,
+        _range_fit,
+        _triples,
+        _triples_span,
+        stable_order,
+    )
+    from depthgram.sensor import simulate
+
+    f = next(iter(simulate("table", 1, size=(176, 132), seed=0))).frame
+    rng = np.random.default_rng(3)
+    tenths = f.depth * np.float32(1.0) + rng.integers(0, 10, f.depth.shape).astype(np.float32) / np.float32(10.0)
+    holes = f.valid & (rng.random(f.depth.shape) > 0.2)
+    for depth, valid, rows in (
+        (f.depth, f.valid, 1),
+        (f.depth, f.valid, 3),
+        (f.depth, holes, 1),
+        (np.where(f.valid, tenths, 0).astype(np.float32), f.valid, 2),
+        (f.depth[:3], f.valid[:3], 1),
+    ):
+        z, d1, d2 = _triples(depth, valid, rows)
+        zs, d1s, d2s, lo, hi = _triples_span(depth, valid, rows)
+        np.testing.assert_array_equal(zs, z)
+        np.testing.assert_array_equal(d1s, d1)
+        np.testing.assert_array_equal(d2s, d2)
+        assert (lo, hi) == ((z.min(), z.max()) if z.size else (0.0, 0.0))
+        got = _range_fit(depth, valid, rows)
+        if z.size < 200:
+            assert got is None
+            continue
+        k = int(min(12, max(2, z.size // 400)))
+        order = stable_order(z)
+        whole = bool(np.all(z == np.round(z)))
+        want = (_range_estimates_whole if whole else _range_estimates)(z, d1, d2, order, k)
+        np.testing.assert_array_equal(got, want)

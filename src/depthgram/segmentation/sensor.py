@@ -155,22 +155,10 @@ def estimate_sensor(
     if w < 3 or not valid.any():
         return PROFILES["tof"]
     rows = max(1, h * (w - 2) // max_samples)
-    z, d1, d2 = _triples(depth_mm, valid, rows)
-    if z.size < 200:
+    # the samples, their order and each depth range's estimates in one compiled call
+    fit = _range_fit(depth_mm, valid, rows)
+    if fit is None:
         return PROFILES["tof"]
-    # depth ranges of equal pixel count, so each fit point has the same weight of evidence
-    n_bins = int(min(12, max(2, z.size // 400)))
-    # which of the pixels tied at a range boundary fall on each side changes the estimate, so
-    # ties keep raster order (a stable sort): numpy's default sort left it to the CPU's SIMD
-    # level (docs/design-notes.md, "The sensor estimate's order")
-    order: NDArray[np.intp] = _counting_order(z)
-    if order.size == z.size:
-        # whole-millimetre depths (what most cameras give): their differences are whole too,
-        # and each range's order statistics are read from counts, without sorting copies
-        fit = _range_estimates_whole(z, d1, d2, order, n_bins)
-    else:
-        order = _radix_order(z.astype(np.float32).view(np.uint32))
-        fit = _range_estimates(z, d1, d2, order, n_bins)
     fit = fit[fit[:, 3] > 0]
     if not fit.shape[0]:
         return PROFILES["tof"]
@@ -206,6 +194,59 @@ def _triples(
     return z[:k], d1[:k], d2[:k]
 
 
+@njit(cache=True, nogil=True)
+def _range_fit(depth: NDArray[np.float32], valid: NDArray[np.bool_], rows: int) -> NDArray[np.float64] | None:
+    # the steps of estimate_sensor from the samples to each depth range's row (median depth,
+    # step, sigma, enough differences), or None below 200 samples: _triples, the stable order
+    # (_counting_order with the smallest and largest depth taken in the samples' own pass, so
+    # no pass of its own) and the range estimates, one call instead of three
+    z, d1, d2, lo, hi = _triples_span(depth, valid, rows)
+    if z.size < 200:
+        return None
+    # depth ranges of equal pixel count, so each fit point has the same weight of evidence
+    n_bins = min(12, max(2, z.size // 400))
+    # which of the pixels tied at a range boundary fall on each side changes the estimate, so
+    # ties keep raster order (a stable sort): numpy's default sort left it to the CPU's SIMD
+    # level (docs/design-notes.md, "The sensor estimate's order")
+    order = _counting_order_span(z, lo, hi)
+    if order.size == z.size:
+        # whole-millimetre depths (what most cameras give): their differences are whole too,
+        # and each range's order statistics are read from counts, without sorting copies
+        return _range_estimates_whole(z, d1, d2, order, n_bins)
+    order = _radix_order(z.astype(np.float32).view(np.uint32))
+    return _range_estimates(z, d1, d2, order, n_bins)
+
+
+@njit(cache=True, nogil=True)
+def _triples_span(
+    depth: NDArray[np.float32], valid: NDArray[np.bool_], rows: int
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], float, float]:
+    # _triples with the smallest and largest depth of the samples (0 and 0 when none)
+    h, w = depth.shape
+    n_rows = (h + rows - 1) // rows
+    cap = n_rows * max(w - 2, 0)
+    z = np.empty(cap, np.float64)
+    d1 = np.empty(cap, np.float64)
+    d2 = np.empty(cap, np.float64)
+    k = 0
+    lo = 0.0
+    hi = 0.0
+    for y in range(0, h, rows):
+        for x in range(1, w - 1):
+            if valid[y, x - 1] and valid[y, x] and valid[y, x + 1]:
+                a = np.float64(depth[y, x - 1])
+                b = np.float64(depth[y, x])
+                c = np.float64(depth[y, x + 1])
+                z[k] = b
+                d1[k] = abs(c - b)
+                d2[k] = (a - 2.0 * b) + c
+                # as _counting_order takes them: from the first depth on
+                lo = b if k == 0 else min(lo, b)
+                hi = b if k == 0 else max(hi, b)
+                k += 1
+    return z[:k], d1[:k], d2[:k], lo, hi
+
+
 def stable_order(z: NDArray[np.float64]) -> NDArray[np.intp]:
     """Return the indices that sort the positive depths ``z`` (mm), equal values in index order.
 
@@ -232,6 +273,15 @@ def _counting_order(z: NDArray[np.float64]) -> NDArray[np.intp]:
     for i in range(1, n):
         lo = min(lo, z[i])
         hi = max(hi, z[i])
+    return _counting_order_span(z, lo, hi)
+
+
+@njit(cache=True, nogil=True)
+def _counting_order_span(z: NDArray[np.float64], lo: float, hi: float) -> NDArray[np.intp]:
+    # _counting_order given the smallest (lo) and largest (hi) of the depths
+    n = z.size
+    if n == 0:
+        return np.empty(0, np.intp)
     if hi - lo >= 1 << 20:
         return np.empty(0, np.intp)
     span = int(hi - lo) + 1
