@@ -155,15 +155,13 @@ def estimate_sensor(
     if w < 3 or not valid.any():
         return PROFILES["tof"]
     rows = max(1, h * (w - 2) // max_samples)
-    # the samples, their order and each depth range's estimates in one compiled call
-    fit = _range_fit(depth_mm, valid, rows)
-    if fit is None:
-        return PROFILES["tof"]
-    fit = fit[fit[:, 3] > 0]
+    # the samples, their order, each depth range's estimates and both least squares in one
+    # compiled call
+    fit, sol = _range_fit(depth_mm, valid, rows)
     if not fit.shape[0]:
         return PROFILES["tof"]
-    s0, s2 = _fit_a_bz2(fit[:, 0], fit[:, 1])
-    n0, n2 = _fit_a_bz2(fit[:, 0], fit[:, 2])
+    s0, s2 = _non_negative(fit[:, 0], fit[:, 1], sol[0], sol[1])
+    n0, n2 = _non_negative(fit[:, 0], fit[:, 2], sol[2], sol[3])
     return SensorModel("auto", s0, s2, n0, n2)
 
 
@@ -195,14 +193,41 @@ def _triples(
 
 
 @njit(cache=True, nogil=True)
-def _range_fit(depth: NDArray[np.float32], valid: NDArray[np.bool_], rows: int) -> NDArray[np.float64] | None:
-    # the steps of estimate_sensor from the samples to each depth range's row (median depth,
-    # step, sigma, enough differences), or None below 200 samples: _triples, the stable order
+def _range_fit(
+    depth: NDArray[np.float32], valid: NDArray[np.bool_], rows: int
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    # the steps of estimate_sensor from the samples to the fit: _triples, the stable order
     # (_counting_order with the smallest and largest depth taken in the samples' own pass, so
-    # no pass of its own) and the range estimates, one call instead of three
+    # no pass of its own), the range estimates, and with two ranges or more _lstsq_a_bz2 of
+    # step and sigma against depth squared, one call instead of five. Returns the rows of the
+    # ranges with enough differences (median depth, step, sigma, 1; none below 200 samples)
+    # and (a, b) of the step's and the sigma's least squares (zeros with fewer than two rows).
+    est = _range_estimates_all(depth, valid, rows)
+    m = 0
+    for i in range(est.shape[0]):
+        if est[i, 3] > 0:
+            m += 1
+    fit = np.empty((m, 4), np.float64)
+    m = 0
+    for i in range(est.shape[0]):
+        if est[i, 3] > 0:
+            fit[m] = est[i]
+            m += 1
+    sol = np.zeros(4, np.float64)
+    if m > 1:
+        # numpy's z * z of the fit's depths, then the same solve as _fit_a_bz2
+        x = fit[:, 0] * fit[:, 0]
+        sol[0], sol[1] = _lstsq_a_bz2(x, fit[:, 1].copy())
+        sol[2], sol[3] = _lstsq_a_bz2(x, fit[:, 2].copy())
+    return fit, sol
+
+
+@njit(cache=True, nogil=True)
+def _range_estimates_all(depth: NDArray[np.float32], valid: NDArray[np.bool_], rows: int) -> NDArray[np.float64]:
+    # each depth range's row of the estimate (no rows below 200 samples)
     z, d1, d2, lo, hi = _triples_span(depth, valid, rows)
     if z.size < 200:
-        return None
+        return np.zeros((0, 4), np.float64)
     # depth ranges of equal pixel count, so each fit point has the same weight of evidence
     n_bins = min(12, max(2, z.size // 400))
     # which of the pixels tied at a range boundary fall on each side changes the estimate, so
@@ -509,7 +534,15 @@ def _fit_a_bz2(z: NDArray[np.float64], y: NDArray[np.float64]) -> tuple[float, f
         return float(y[0]), 0.0
     x = z * z
     a, b = _lstsq_a_bz2(np.ascontiguousarray(x), np.ascontiguousarray(y))
+    return _non_negative(z, y, a, b)
+
+
+def _non_negative(z: NDArray[np.float64], y: NDArray[np.float64], a: float, b: float) -> tuple[float, float]:
+    """:func:`_fit_a_bz2` given the least squares ``(a, b)`` of ``y = a + b z**2`` (unread for one point)."""
+    if z.size == 1:
+        return float(y[0]), 0.0
     if a < 0:  # all of it grows with depth
+        x = z * z
         return 0.0, float(max(np.dot(x, y) / np.dot(x, x), 0.0))
     if b < 0:  # none of it does
         return float(np.mean(y)), 0.0

@@ -46,7 +46,7 @@ def _label_runs(
     y1: int,
     x0: int,
     x1: int,
-) -> tuple[NDArray[np.int32], NDArray[np.int32], int, NDArray[np.float64], NDArray[np.int32]]:
+) -> tuple[NDArray[np.int32], NDArray[np.int32], int, NDArray[np.float64], NDArray[np.int32], NDArray[np.int64]]:
     # First pass of a two-pass labeller with provisional labels. Each column remembers its last
     # pixel with a reading (row, label, key) and the row scan its last one, so the neighbour
     # across a bridged hole is found in O(1) instead of by walking back over the holes. A pixel
@@ -57,8 +57,12 @@ def _label_runs(
     # Only the window rows y0..y1 - 1, columns x0..x1 - 1 are read, in frame coordinates (the
     # sums and boxes too); labels are 0 outside it. A window holding every active pixel gives
     # the labels and tables of the whole frame: no join reaches across a pixel outside it.
+    # With `stats`, `spans` holds each row's first labelled column and the one after its last
+    # (frame columns; 0, 0 for a row without labels), from the runs' ends: the relabelling
+    # pass reads only these.
     h, w = state.shape
     lab = np.zeros((h, w), np.int32)
+    spans = np.zeros((h, 2), np.int64)
     # one provisional label per pixel at most; np.empty only reserves the memory, the pages
     # of labels never used are never touched (growing the tables inside the loop instead makes
     # numba count references on every pixel)
@@ -93,6 +97,7 @@ def _label_runs(
         rx1 = 0
         rk = np.float32(0.0)
         merged_up = 0
+        first = 0
         for j in range(nw):
             s = sr[j]
             if s == HOLE:
@@ -147,6 +152,9 @@ def _label_runs(
                 if lab_here != run:
                     if run != 0:
                         flush_run(sums, boxes, run, c, sz, szz, sx, sxz, y, rx0, rx1, rk)
+                    else:
+                        # the row's first labelled pixel (a run is never 0 again in a row)
+                        first = x
                     run = lab_here
                     c = 0.0
                     sz = 0.0
@@ -164,7 +172,9 @@ def _label_runs(
                 rx1 = x
         if stats and run != 0:
             flush_run(sums, boxes, run, c, sz, szz, sx, sxz, y, rx0, rx1, rk)
-    return lab, parent, nxt, sums, boxes
+            spans[y, 0] = first
+            spans[y, 1] = rx1 + 1
+    return lab, parent, nxt, sums, boxes, spans
 
 
 def label_keyed(
@@ -199,7 +209,7 @@ def label_keyed(
     """
     k = np.ascontiguousarray(key, dtype=np.float32)
     s = np.ascontiguousarray(state, dtype=np.int8)
-    lab, parent, nxt, ps, pb = _label_runs(
+    lab, parent, nxt, ps, pb, _ = _label_runs(
         k, s, float(tol), float(rel), int(bridge), _NO_DEPTH, False, 0, s.shape[0], 0, s.shape[1]
     )
     labels, n, _, _ = resolve(lab, parent, nxt, ps, pb, 0, False)
@@ -237,7 +247,7 @@ def label_keyed_stats(
     k = np.ascontiguousarray(key, dtype=np.float32)
     s = np.ascontiguousarray(state, dtype=np.int8)
     z = np.ascontiguousarray(depth_mm, dtype=np.float32)
-    lab, parent, nxt, ps, pb = _label_runs(
+    lab, parent, nxt, ps, pb, _ = _label_runs(
         k, s, float(tol), float(rel), int(bridge), z, True, 0, k.shape[0], 0, k.shape[1]
     )
     labels, n, sums, boxes = resolve(lab, parent, nxt, ps, pb, int(min_px), True)
@@ -258,29 +268,37 @@ def _relabel_planes(
     y1: int,
     x0: int,
     x1: int,
+    spans: NDArray[np.int64],
 ) -> NDArray[np.float64]:
     # The relabelling pass of resolve, gathering on the way the plane sums that
     # planes._plane_sums takes from the final labels: the same runs of one final label along a
     # row, the same float64 operations in the same order, hence the same numbers, without a
     # second pass over the image. Each run is added by planes.flush_plane_run, as there; the
     # per-pixel sums below must stay those of planes._plane_sums (tests/test_segment_kernels.py
-    # compares the two). Only the window rows y0..y1 - 1, columns x0..x1 - 1 of _label_runs.
+    # compares the two). Only the window rows y0..y1 - 1, columns x0..x1 - 1 of _label_runs,
+    # and of each row only its labelled span (`spans`, from the labeller): the pixels outside
+    # it are 0 and stay 0 (final[0] is 0), and a run of 0 adds nothing.
     out = np.zeros((n + 1, 9), np.float64)
-    # the window's rows as slices read from 0, as in _label_runs
     ucol = np.empty(x1 - x0, np.float64)
     for x in range(x0, x1):
         ucol[x - x0] = (x - cx) / fx
     for y in range(y0, y1):
+        a = spans[y, 0]
+        b = spans[y, 1]
+        if a >= b:
+            continue
         v = (y - cy) / fy
-        row = lab[y, x0:x1]
-        zr = depth[y, x0:x1]
+        # the span's rows as slices read from 0, as in _label_runs
+        row = lab[y, a:b]
+        zr = depth[y, a:b]
+        uc = ucol[a - x0 : b - x0]
         run = 0
         c = 0.0
         su = 0.0
         suu = 0.0
         sq = 0.0
         suq = 0.0
-        for x in range(x1 - x0):
+        for x in range(b - a):
             i = final[row[x]]
             row[x] = i
             if i != run:
@@ -293,7 +311,7 @@ def _relabel_planes(
                 sq = 0.0
                 suq = 0.0
             if i != 0:
-                u = ucol[x]
+                u = uc[x]
                 q = 1.0 / zr[x]
                 c += 1.0
                 su += u
@@ -364,9 +382,9 @@ def _label_planes(
     # label_keyed_planes' three passes (labelling, the tables, the relabelling with the plane
     # sums) in one compiled call: three calls from Python cost more than their joins on a
     # small frame
-    lab, parent, nxt, ps, pb = _label_runs(key, state, tol, rel, bridge, depth, True, y0, y1, x0, x1)
+    lab, parent, nxt, ps, pb, spans = _label_runs(key, state, tol, rel, bridge, depth, True, y0, y1, x0, x1)
     final, n, sums, boxes = resolve_tables(lab, parent, nxt, ps, pb, min_px, True)
-    planes = _relabel_planes(lab, final, n, depth, fx, fy, cx, cy, y0, y1, x0, x1)
+    planes = _relabel_planes(lab, final, n, depth, fx, fy, cx, cy, y0, y1, x0, x1, spans)
     return lab, n, sums, boxes, planes
 
 
@@ -379,7 +397,15 @@ def _label_runs_two(
     cb: np.int8,
     rel: float,
     bridge: int,
-) -> tuple[NDArray[np.int32], NDArray[np.int32], NDArray[np.int8], int, NDArray[np.float64], NDArray[np.int32]]:
+) -> tuple[
+    NDArray[np.int32],
+    NDArray[np.int32],
+    NDArray[np.int8],
+    int,
+    NDArray[np.float64],
+    NDArray[np.int32],
+    NDArray[np.int64],
+]:
     # _label_runs with key = depth and statistics, for the pixels of two classes at once: what
     # two calls with the states ACTIVE for one class, BLOCK for the other readings and HOLE
     # elsewhere give, in one pass over the frame. A pixel of one class is a blocking reading to
@@ -391,6 +417,8 @@ def _label_runs_two(
     # so every label's sums are added in the same order as by _label_runs.
     h, w = depth.shape
     lab = np.zeros((h, w), np.int32)
+    # each row's labelled span, as _label_runs gives it
+    spans = np.zeros((h, 2), np.int64)
     cap = h * w + 1
     parent = np.empty(cap, np.int32)
     pcls = np.empty(cap, np.int8)
@@ -427,6 +455,7 @@ def _label_runs_two(
         cb_x0 = 0
         cb_x1 = 0
         cb_k = np.float32(0.0)
+        first = w
         for x in range(w):
             if not valid[y, x]:
                 continue
@@ -481,6 +510,9 @@ def _label_runs_two(
                 if lab_here != run_a:
                     if run_a != 0:
                         flush_run(sums, boxes, run_a, ca_c, ca_sz, ca_szz, ca_sx, ca_sxz, y, ca_x0, ca_x1, ca_k)
+                    else:
+                        # the class's first labelled pixel in the row
+                        first = min(first, x)
                     run_a = lab_here
                     ca_c = 0.0
                     ca_sz = 0.0
@@ -499,6 +531,8 @@ def _label_runs_two(
                 if lab_here != run_b:
                     if run_b != 0:
                         flush_run(sums, boxes, run_b, cb_c, cb_sz, cb_szz, cb_sx, cb_sxz, y, cb_x0, cb_x1, cb_k)
+                    else:
+                        first = min(first, x)
                     run_b = lab_here
                     cb_c = 0.0
                     cb_sz = 0.0
@@ -513,11 +547,18 @@ def _label_runs_two(
                 cb_sx += x
                 cb_sxz += x * z
                 cb_x1 = x
+        # the row's labelled span: from its first run's start to its last run's end
+        last = -1
         if run_a != 0:
             flush_run(sums, boxes, run_a, ca_c, ca_sz, ca_szz, ca_sx, ca_sxz, y, ca_x0, ca_x1, ca_k)
+            last = ca_x1
         if run_b != 0:
             flush_run(sums, boxes, run_b, cb_c, cb_sz, cb_szz, cb_sx, cb_sxz, y, cb_x0, cb_x1, cb_k)
-    return lab, parent, pcls, nxt, sums, boxes
+            last = max(last, cb_x1)
+        if last >= 0:
+            spans[y, 0] = first
+            spans[y, 1] = last + 1
+    return lab, parent, pcls, nxt, sums, boxes, spans
 
 
 @njit(cache=True, nogil=True)
@@ -616,10 +657,10 @@ def _two_classes(
     cy: float,
 ) -> tuple[NDArray[np.int32], int, int, NDArray[np.float64], NDArray[np.int64], NDArray[np.float64]]:
     # label_two_classes' three passes in one compiled call (as _label_planes)
-    lab, parent, pcls, nxt, ps, pb = _label_runs_two(z, valid, classes, ca, cb, rel, bridge)
+    lab, parent, pcls, nxt, ps, pb, spans = _label_runs_two(z, valid, classes, ca, cb, rel, bridge)
     final, na, nb, sums, boxes = _resolve_two(lab, parent, pcls, ca, nxt, ps, pb)
     h, w = z.shape
-    planes = _relabel_planes(lab, final, na + nb, z, fx, fy, cx, cy, 0, h, 0, w)
+    planes = _relabel_planes(lab, final, na + nb, z, fx, fy, cx, cy, 0, h, 0, w, spans)
     return lab, na, nb, sums, boxes, planes
 
 
