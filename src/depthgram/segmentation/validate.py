@@ -78,7 +78,7 @@ def _valid_pixels(
     v8 = valid.view(np.uint8)
     f = _far_bound(far)
     one = np.uint8(1)
-    dirty = 0
+    dirty = np.uint8(0)
     n_far = 0
     for y in range(h):
         zr = depth[y]
@@ -91,17 +91,17 @@ def _valid_pixels(
                 z = zr[x]
                 seen = np.uint8(z > 0) & vr[x]
                 good = seen & np.uint8(z < f)
-                nf += seen & np.uint8(z >= f)
+                nf += int(seen & np.uint8(z >= f))
                 orow[x] = good
                 dr |= (good ^ one) & np.uint8(z != 0)  # NaN != 0 as well
         else:
             for x in range(w):
                 z = zr[x]
-                seen = np.uint8(z > 0)
-                good = seen & np.uint8(z < f)
-                nf += seen & np.uint8(z >= f)
-                orow[x] = good
-                dr |= (good ^ one) & np.uint8(z != 0)
+                pos = np.uint8(z > 0)
+                near = pos & np.uint8(z < f)
+                nf += int(pos & np.uint8(z >= f))
+                orow[x] = near
+                dr |= (near ^ one) & np.uint8(z != 0)
         n_far += nf
         dirty |= dr
     return ok, dirty != 0, n_far
