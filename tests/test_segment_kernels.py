@@ -1311,6 +1311,62 @@ def test_dilate3_is_opencvs_3x3_dilation() -> None:
         np.testing.assert_array_equal(_dilate3(masks), want)
 
 
+def _raster_sums(labels: np.ndarray, n: int, depth: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The statistics table's sums (key 0) and inclusive boxes, each pixel added in raster order.
+
+    ``np.add.at`` adds one element after the other in index order: the float64 additions, in
+    the order the statistics pass promises, without its runs.
+    """
+    h, w = labels.shape
+    ys, xs = np.mgrid[0:h, 0:w]
+    lab = labels.ravel()
+    z = depth.ravel().astype(np.float64)
+    x = xs.ravel().astype(np.float64)
+    y = ys.ravel().astype(np.float64)
+    sums = np.zeros((n + 1, 8), np.float64)
+    for col, v in enumerate((np.ones_like(z), z, z * z, x, y, x * z, y * z)):
+        np.add.at(sums[:, col], lab, v)
+    sums[0] = 0.0
+    boxes = np.empty((n + 1, 4), np.int64)
+    boxes[:] = (w, h, -1, -1)
+    for i in range(1, n + 1):
+        r, c = np.nonzero(labels == i)
+        if r.size:
+            boxes[i] = (c.min(), r.min(), c.max(), r.max())
+    return sums, boxes
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_statistics_pass_adds_in_raster_order(seed: int) -> None:
+    # the runs' counts and sums of x and y are taken from their ends: the same numbers to the
+    # last bit as adding every pixel in raster order (depths of very different magnitudes, so
+    # that the order of the other sums shows)
+    from depthgram.segmentation.label import label_stats_fused
+    from depthgram.segmentation.label.stats import relabel_stats
+
+    rng = np.random.default_rng(seed)
+    h, w = (int(v) for v in rng.integers(1, 60, 2))
+    cell = int(rng.integers(1, 6))
+    labels = rng.integers(0, 6, (h // cell + 1, w // cell + 1)).repeat(cell, 0).repeat(cell, 1)[:h, :w]
+    labels = labels.astype(np.int32)
+    depth = (rng.random((h, w)) * 10.0 ** rng.integers(-2, 5, (h, w))).astype(np.float32)
+    lut = rng.integers(0, 4, 6).astype(np.int32)
+    lut[0] = 0
+    want = _raster_sums(lut[labels], 3, depth)
+    got_labels, sums, boxes = relabel_stats(labels, lut, 3, depth)
+    np.testing.assert_array_equal(got_labels, lut[labels])
+    np.testing.assert_array_equal(sums, want[0])
+    np.testing.assert_array_equal(boxes, want[1])
+    key = rng.integers(0, 9, (h, w)).astype(np.float32)
+    sums, boxes = label_stats_fused(labels, 5, depth, key)
+    want = _raster_sums(labels, 5, depth)
+    np.testing.assert_array_equal(sums[:, :7], want[0][:, :7])
+    np.testing.assert_array_equal(boxes, want[1])
+    for i in range(1, 6):  # the key column: the last pixel's key in raster order
+        if (labels == i).any():
+            assert sums[i, 7] == key[labels == i][-1]
+
+
 def test_sensor_ranges_in_one_call_equal_the_steps_one_by_one() -> None:
     # _range_fit (samples with their depth span, order, range estimates in one call) against
     # _triples, the stable order and the range estimates called one by one: whole-millimetre

@@ -540,7 +540,9 @@ def _loosen_grow(
 def _keep_through(
     lab: NDArray[np.int32], table: NDArray[np.int32], count: NDArray[np.int64], min_px: int, depth: NDArray[np.float32]
 ) -> tuple[NDArray[np.int32], int, NDArray[np.float64], NDArray[np.int64]]:
-    # keep_large of the labels table[lab], in the one relabelling pass of relabel_stats
+    # keep_large of the labels table[lab], in the one relabelling pass of relabel_stats (numba's
+    # cache of this function holds relabel_stats' code as it was compiled: a change there
+    # reaches it when this file changes too)
     n = count.size - 1
     lut = np.zeros(n + 1, np.int32)
     m = 0

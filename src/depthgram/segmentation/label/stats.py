@@ -133,7 +133,10 @@ def _gather(
     # route needs seven passes plus find_objects). With `use_lut` each pixel's label goes
     # through `lut` first and the renumbered map is written too (relabel fused with the
     # statistics); with `use_key` the KEY column is filled. Inlined into its two callers with
-    # the flags constant, so neither pays for the other's tests.
+    # the flags constant, so neither pays for the other's tests. Rows are read as row slices
+    # with unsigned indices (a signed index is tested for wrapping, a 2-D one recomputes its
+    # address: 122 -> 101 us at 320 x 240), and a run's count and sums of x and y are whole
+    # numbers, exact in float64 in any order, added once from the run's ends (-> 84 us).
     h, w = labels.shape
     oh = h if use_lut else 1
     ow = w if use_lut else 1
@@ -144,59 +147,62 @@ def _gather(
     box[:, 1] = h
     box[:, 2] = -1
     box[:, 3] = -1
+    uw = np.uint64(w)
+    one = np.uint64(1)
     for y in range(h):
-        x = 0
-        while x < w:
-            i = labels[y, x]
+        lr = labels[y]
+        dr = depth[y]
+        orow = out[y] if use_lut else out[0]
+        fy = np.float64(y)
+        ux = np.uint64(0)
+        while ux < uw:
+            i = lr[ux]
             if use_lut:
-                i = lut[i]
+                i = lut[np.uint64(i)]
             if i == 0:
-                x += 1
+                ux += one
                 continue
             # a run of one label: its sums stay in registers, added to pixel by pixel in the same
             # order (the same numbers), and are stored once at the run's end
-            x_start = x
-            c = sums[i, COUNT]
+            start = ux
             sz = sums[i, SUM_Z]
             szz = sums[i, SUM_ZZ]
-            sx = sums[i, SUM_X]
-            sy = sums[i, SUM_Y]
             sxz = sums[i, SUM_XZ]
             syz = sums[i, SUM_YZ]
             while True:
                 if use_lut:
-                    out[y, x] = i
-                z = np.float64(depth[y, x])
-                c += 1.0
+                    orow[ux] = i
+                z = np.float64(dr[ux])
                 sz += z
                 szz += z * z
-                sx += x
-                sy += y
-                sxz += x * z
-                syz += y * z
-                x += 1
-                if x == w:
+                sxz += np.float64(ux) * z
+                syz += fy * z
+                ux += one
+                if ux == uw:
                     break
-                j = labels[y, x]
+                j = lr[ux]
                 if use_lut:
-                    j = lut[j]
+                    j = lut[np.uint64(j)]
                 if j != i:
                     break
-            sums[i, COUNT] = c
+            x0 = np.int64(start)
+            x1 = np.int64(ux) - 1
+            k = x1 - x0 + 1
+            sums[i, COUNT] += np.float64(k)
             sums[i, SUM_Z] = sz
             sums[i, SUM_ZZ] = szz
-            sums[i, SUM_X] = sx
-            sums[i, SUM_Y] = sy
+            sums[i, SUM_X] += np.float64((x0 + x1) * k // 2)
+            sums[i, SUM_Y] += np.float64(y * k)
             sums[i, SUM_XZ] = sxz
             sums[i, SUM_YZ] = syz
             if use_key:
-                sums[i, KEY] = key[y, x - 1]
-            if x_start < box[i, 0]:
-                box[i, 0] = x_start
+                sums[i, KEY] = key[y, x1]
+            if x0 < box[i, 0]:
+                box[i, 0] = x0
             if y < box[i, 1]:
                 box[i, 1] = y
-            if x - 1 > box[i, 2]:
-                box[i, 2] = x - 1
+            if x1 > box[i, 2]:
+                box[i, 2] = x1
             if y > box[i, 3]:
                 box[i, 3] = y
     return out, sums, box
