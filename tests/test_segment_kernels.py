@@ -1471,3 +1471,46 @@ def test_slice_sums_are_the_runs_added_pixel_by_pixel(seed: int) -> None:
         want_sums, want_boxes = _part_sums_by_pixel(labels, depth, 1, (x0, y0, x1, y1), step, horizontal, n)
         np.testing.assert_array_equal(sums, want_sums)
         np.testing.assert_array_equal(boxes, want_boxes)
+
+
+def test_valid_pixels_equal_the_float64_tests() -> None:
+    # the validity pass compares float32 depths with a float32 bound for the far limit: the
+    # same mask, "dirty" flag and far count as the float64 comparisons, for limits between two
+    # float32 values, on one, beyond float32's range, and depths of every kind
+    from depthgram.segmentation.validate import _valid_pixels
+
+    rng = np.random.default_rng(5)
+    special = np.array([0.0, -0.0, -1.0, np.nan, np.inf, -np.inf, 1e-45, 3.4e38], np.float32)
+    for t in range(120):
+        h, w = (int(v) for v in rng.integers(1, 40, 2))
+        depth = (rng.random((h, w)) * 4000).astype(np.float32)
+        if t % 2:
+            depth = np.round(depth)
+        depth[rng.random((h, w)) < 0.2] = 0.0  # holes
+        pick = rng.random((h, w)) < 0.15
+        depth[pick] = rng.choice(special, int(pick.sum()))
+        valid = rng.random((h, w)) > 0.1
+        z = float(rng.choice(depth.ravel()))
+        far = float(
+            rng.choice(
+                [
+                    2000.0,
+                    np.nextafter(np.float32(1234.5), np.float32(0)) + 1e-5,  # between two float32 values
+                    z if np.isfinite(z) else 1000.0,  # on a depth
+                    z + 1e-9 if np.isfinite(z) else 1000.0,
+                    1e39,  # beyond float32
+                    np.inf,
+                ]
+            )
+        )
+        for use_valid in (True, False):
+            seen = depth > 0
+            if use_valid:
+                seen &= valid
+            z64 = depth.astype(np.float64)
+            good = seen & (z64 < far)
+            want_far = int((seen & (z64 >= far)).sum())
+            want_dirty = bool(((~good) & (depth != 0)).any())
+            ok, dirty, n_far = _valid_pixels(depth, valid if use_valid else np.zeros((1, 1), np.bool_), use_valid, far)
+            np.testing.assert_array_equal(ok, good)
+            assert dirty == want_dirty and n_far == want_far
