@@ -1514,3 +1514,18 @@ def test_valid_pixels_equal_the_float64_tests() -> None:
             ok, dirty, n_far = _valid_pixels(depth, valid if use_valid else np.zeros((1, 1), np.bool_), use_valid, far)
             np.testing.assert_array_equal(ok, good)
             assert dirty == want_dirty and n_far == want_far
+
+
+def test_sensor_model_holds_python_floats_whatever_it_is_given() -> None:
+    # estimate_sensor's least squares come out of a compiled call as numpy float64; the
+    # creases' compiled route takes Python numbers only, and numpy promotes a float32 frame
+    # by a numpy float64 scalar but not by a Python float
+    from depthgram.segmentation.sensor import SensorModel, estimate_sensor
+    from depthgram.sensor import simulate
+
+    m = SensorModel("x", np.float64(1.5), np.float64(2e-6), 3, np.float64(1e-6))
+    assert [type(v) for v in (m.step_0, m.step_2, m.sigma_0, m.sigma_2)] == [float] * 4
+    assert (m.step_0, m.step_2, m.sigma_0, m.sigma_2) == (1.5, 2e-6, 3.0, 1e-6)
+    f = next(iter(simulate("table", 1, size=(176, 132), seed=0))).frame
+    est = estimate_sensor(f.depth, f.valid)
+    assert all(type(v) is float for v in (est.step_0, est.step_2, est.sigma_0, est.sigma_2))
