@@ -1418,6 +1418,61 @@ def test_sensor_ranges_in_one_call_equal_the_steps_one_by_one() -> None:
         assert tuple(sol) == want_sol
 
 
+def _part_sums_by_pixel(
+    labels: np.ndarray, depth: np.ndarray, oid: int, box: tuple[int, int, int, int], step: int, horizontal: bool, n: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """The slices' sums as the kernel promises them, pixel by pixel in plain Python.
+
+    Each run of the object inside one slice summed from 0 in column order (count, Z, Z², x, xZ),
+    then added to its slice's row, runs in raster order; inclusive boxes in box coordinates.
+    """
+    x0, y0, x1, y1 = box
+    sums = np.zeros((n + 1, 7), np.float64)
+    boxes = np.array([[x1 - x0 + 1, y1 - y0 + 1, -1, -1]] * (n + 1), np.int64)
+    for y in range(y0, y1 + 1):
+        yy = y - y0
+        x = x0
+        while x <= x1:
+            if labels[y, x] != oid:
+                x += 1
+                continue
+            start = x - x0
+            j = (yy // step if horizontal else start // step) + 1
+            stop = x1 if horizontal else min(x1, x0 + j * step - 1)
+            c = sz = szz = sx = sxz = 0.0
+            while x <= stop and labels[y, x] == oid:
+                z = float(depth[y, x])
+                c += 1.0
+                sz += z
+                szz += z * z
+                sx += x - x0
+                sxz += (x - x0) * z
+                x += 1
+            sums[j] += (c, sz, szz, sx, c * yy, sxz, sz * yy)
+            boxes[j] = (min(boxes[j, 0], start), min(boxes[j, 1], yy), max(boxes[j, 2], x - 1 - x0), yy)
+    return sums, boxes
+
+
+@pytest.mark.parametrize("seed", range(8))
+def test_slice_sums_are_the_runs_added_pixel_by_pixel(seed: int) -> None:
+    # the runs' counts and sums of x come from their ends: the same numbers to the last bit
+    from depthgram.segmentation.slices import _part_sums
+
+    rng = np.random.default_rng(seed)
+    h, w = (int(v) for v in rng.integers(1, 40, 2))
+    labels = np.where(rng.random((h, w)) < 0.15, 2, 1).astype(np.int32)
+    depth = (rng.random((h, w)) * 10.0 ** rng.integers(-2, 5, (h, w))).astype(np.float32)
+    x0, x1 = sorted(int(v) for v in rng.integers(0, w, 2))
+    y0, y1 = sorted(int(v) for v in rng.integers(0, h, 2))
+    step = int(rng.integers(1, 6))
+    for horizontal in (True, False):
+        n = ((y1 - y0 + 1) if horizontal else (x1 - x0 + 1)) // step + 1
+        sums, boxes = _part_sums(labels, depth, 1, x0, y0, x1, y1, step, horizontal, n)
+        want_sums, want_boxes = _part_sums_by_pixel(labels, depth, 1, (x0, y0, x1, y1), step, horizontal, n)
+        np.testing.assert_array_equal(sums, want_sums)
+        np.testing.assert_array_equal(boxes, want_boxes)
+
+
 def test_valid_pixels_equal_the_float64_tests() -> None:
     # the validity pass compares float32 depths with a float32 bound for the far limit: the
     # same mask, "dirty" flag and far count as the float64 comparisons, for limits between two

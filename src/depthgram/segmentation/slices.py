@@ -266,48 +266,53 @@ def _part_sums(
 ) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
     # the statistics of every slice of one object in one pass over its box, in box
     # coordinates and in raster order (the sums of label_stats on a slice-index map, without
-    # building the map: three box-sized temporaries per compound before)
+    # building the map: three box-sized temporaries per compound before). Row slices with
+    # unsigned indices, and each run's count and sum of x (whole numbers, exact in float64 in
+    # any order) from its ends: 64 -> 50 us for the two supports of the 320 x 240 grid
     sums = np.zeros((n + 1, N_SUMS), np.float64)
     boxes = np.empty((n + 1, 4), np.int64)
     boxes[:, 0] = x1 - x0 + 1
     boxes[:, 1] = y1 - y0 + 1
     boxes[:, 2] = -1
     boxes[:, 3] = -1
+    ubw = np.uint64(x1 - x0 + 1)
+    one = np.uint64(1)
+    ustep = np.uint64(step)
     for y in range(y0, y1 + 1):
         yy = y - y0
-        x = x0
-        while x <= x1:
-            if labels[y, x] != oid:
-                x += 1
+        lr = labels[y, x0 : x1 + 1]
+        dr = depth[y, x0 : x1 + 1]
+        ux = np.uint64(0)
+        while ux < ubw:
+            if lr[ux] != oid:
+                ux += one
                 continue
             # a run of the object inside one slice: sums kept in registers, added once
-            xx0 = x - x0
+            xx0 = np.int64(ux)
             j = (yy // step if horizontal else xx0 // step) + 1
-            stop = x1 if horizontal else min(x1, x0 + j * step - 1)
-            c = 0.0
+            stop = ubw if horizontal else min(ubw, np.uint64(j) * ustep)
             sz = 0.0
             szz = 0.0
-            sx = 0.0
             sxz = 0.0
-            while x <= stop and labels[y, x] == oid:
-                xx = x - x0
-                z = np.float64(depth[y, x])
-                c += 1.0
+            while ux < stop and lr[ux] == oid:
+                z = np.float64(dr[ux])
                 sz += z
                 szz += z * z
-                sx += xx
-                sxz += xx * z
-                x += 1
+                sxz += np.float64(ux) * z
+                ux += one
+            xe = np.int64(ux)
+            k = xe - xx0
+            c = np.float64(k)
             sums[j, COUNT] += c
             sums[j, SUM_Z] += sz
             sums[j, SUM_ZZ] += szz
-            sums[j, SUM_X] += sx
+            sums[j, SUM_X] += np.float64((xx0 + xe - 1) * k // 2)
             sums[j, SUM_Y] += c * yy
             sums[j, SUM_XZ] += sxz
             sums[j, SUM_YZ] += sz * yy
             boxes[j, 0] = min(boxes[j, 0], xx0)
             boxes[j, 1] = min(boxes[j, 1], yy)
-            boxes[j, 2] = max(boxes[j, 2], x - 1 - x0)
+            boxes[j, 2] = max(boxes[j, 2], xe - 1)
             boxes[j, 3] = max(boxes[j, 3], yy)
     return sums, boxes
 

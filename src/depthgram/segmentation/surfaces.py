@@ -863,9 +863,9 @@ def _opening_parents(
             # ring pixels at R's own depth that are not A's: R would continue into something else
             elif abs(np.float64(ring_z[i]) - zr) <= jump:
                 n_level += 1
-        if best / n_ring < min_share or _median32(on_a) >= zr:
-            continue
-        if n_level / n_ring > 0.15:
+        # the median of A's ring depths (a selection) last: the other tests are a few
+        # operations and reject most candidates (58 -> 45 us on the 320 x 240 grid)
+        if best / n_ring < min_share or n_level / n_ring > 0.15:
             continue
         ax0, ax1 = objs[a, 0], objs[a, 2]
         margin = 0.15 * (ax1 - ax0 + 1)
@@ -873,6 +873,8 @@ def _opening_parents(
             continue
         width_mm = (ax1 - ax0 + 1) * z_mean[a] / focal_px
         if zr - z_mean[a] > width_mm:
+            continue
+        if _median32(on_a) >= zr:
             continue
         parent[r] = a
 
