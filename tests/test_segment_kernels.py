@@ -1517,9 +1517,9 @@ def test_valid_pixels_equal_the_float64_tests() -> None:
 
 
 def test_sensor_estimate_holds_python_floats() -> None:
-    # the estimated model's coefficients are Python floats, as the compiled creases take them
-    # (a numpy scalar sends surfaces.concave_creases to its numpy route: the same numbers,
-    # 0.15 ms slower at 176 x 132)
+    # the estimated model's coefficients are Python floats, as the compiled solve returned
+    # them before the fit moved into one call (numpy scalars once sent the creases to their
+    # numpy route: the same numbers, 0.35 ms slower at 176 x 132)
     from depthgram.segmentation.sensor import estimate_sensor
     from depthgram.sensor import simulate
 
@@ -1527,3 +1527,34 @@ def test_sensor_estimate_holds_python_floats() -> None:
     m = estimate_sensor(f.depth, f.valid)
     assert m.name == "auto"
     assert all(type(v) is float for v in (m.step_0, m.step_2, m.sigma_0, m.sigma_2))
+
+
+def test_creases_of_an_estimated_model_take_the_compiled_route(monkeypatch: pytest.MonkeyPatch) -> None:
+    # estimate_sensor's coefficients are numpy float64 scalars: the compiled route must take
+    # them as the floats they hold (the numpy route, about 0.5 ms at 176 x 132, was taken for
+    # every frame of the default method when the estimate began returning numpy scalars)
+    import depthgram.segmentation.surfaces as surfaces
+    from depthgram.segmentation.sensor import SensorModel, estimate_sensor
+    from depthgram.sensor import simulate
+
+    frame = next(iter(simulate("table", 1, size=(176, 132), seed=0))).frame
+    est = estimate_sensor(frame.depth, frame.valid)
+    coefs = (est.step_0, est.step_2, est.sigma_0, est.sigma_2)
+    as_floats = SensorModel("auto", *(float(c) for c in coefs))
+    numpy64 = SensorModel("auto", *(np.float64(c) for c in coefs))
+    kw = {"scale_px": 2, "min_angle_deg": 10.0, "focal_px": 150.0}
+    want = surfaces.concave_creases(frame.depth, frame.valid, as_floats, **kw)
+    k = 3
+    geom = np.float32(2 * math.tan(math.radians(10.0)) / 150.0)
+    ref = surfaces._creases_numpy(
+        frame.depth, frame.valid, as_floats, 2, k, geom, np.float32(math.sqrt(6.0) / (0.7 * k))
+    )
+    assert want.any()
+    assert np.array_equal(want, ref)
+
+    def refused(*args: object) -> None:
+        raise AssertionError("numpy route taken")
+
+    monkeypatch.setattr(surfaces, "_creases_numpy", refused)
+    for sensor in (est, numpy64):
+        assert np.array_equal(surfaces.concave_creases(frame.depth, frame.valid, sensor, **kw), want)

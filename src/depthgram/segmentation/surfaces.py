@@ -156,15 +156,21 @@ def concave_creases(
     geom = np.float32(scale_px * math.tan(math.radians(min_angle_deg)) / focal_px)
     noise_scale = np.float32(math.sqrt(6.0) / (0.7 * k))
     coefs = (sensor.step_0, sensor.step_2, sensor.sigma_0, sensor.sigma_2)
-    if type(sensor).resolution is not SensorModel.resolution or any(type(c) not in (int, float) for c in coefs):
+    # a model's coefficients are float values: numpy float scalars (an estimated model's) are
+    # taken as the floats they hold, whose float32 arithmetic the compiled route repeats (the
+    # numpy route would compute in float64 with them: strong scalars). Only another model's
+    # arithmetic, or coefficients of another kind, go the numpy way
+    plain = all(type(c) in (int, float, np.float64, np.float32) for c in coefs)
+    if type(sensor).resolution is not SensorModel.resolution or not plain:
         return _creases_numpy(depth_mm, valid, sensor, scale_px, k, geom, noise_scale)
     z = np.ascontiguousarray(depth_mm, np.float32)
     ok = np.ascontiguousarray(valid, np.bool_)
     im = inverse if inverse is not None else _inverse(z, ok)
     # both window sums from one two-channel filter (the same sums as one filter each, a test)
     sums = np.asarray(cv2.boxFilter(im, -1, (k, k), normalize=False, borderType=cv2.BORDER_CONSTANT), np.float32)
-    # the sensor's coefficients as float32, as numpy's scalar rules make them in _creases_numpy
-    c32 = np.array(coefs, np.float32)
+    # the sensor's coefficients as float32, as numpy's scalar rules make Python floats in
+    # _creases_numpy
+    c32 = np.array([float(c) for c in coefs], np.float32)
     return _creases(sums, ok, c32, np.float32(0.5 * k * k), int(scale_px), geom, noise_scale)
 
 
