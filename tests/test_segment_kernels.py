@@ -1558,3 +1558,29 @@ def test_creases_of_an_estimated_model_take_the_compiled_route(monkeypatch: pyte
     monkeypatch.setattr(surfaces, "_creases_numpy", refused)
     for sensor in (est, numpy64):
         assert np.array_equal(surfaces.concave_creases(frame.depth, frame.valid, sensor, **kw), want)
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_crease_state_is_surface_state_of_the_creases(seed: int) -> None:
+    # the fused call against the two it replaced, on frames narrow and wide (the wide one
+    # takes the half-resolution route), spans 1-4 and frames narrower than the span
+    from depthgram.segmentation.sensor import PROFILES
+    from depthgram.segmentation.surfaces import _inverse, concave_creases, crease_state, surface_state
+
+    rng = np.random.default_rng(seed)
+    for h, w, r in ((60, 80, 2), (61, 79, 3), (40, 400, 4), (5, 3, 2), (3, 9, 4), (30, 50, 1)):
+        x = np.arange(w)[None, :]
+        y = np.arange(h)[:, None]
+        depth = 900.0 + 4.0 * np.abs(x - w // 2) + 2.0 * y + 150.0 * (x > 3 * w // 4) + rng.normal(0, 1.5, (h, w))
+        depth = depth.astype(np.float32)
+        valid = rng.random((h, w)) > 0.1
+        depth[~valid] = 0.0
+        facing = valid & (rng.random((h, w)) > 0.2)
+        for sensor in (PROFILES["kinect-v1"], PROFILES["tof"]):
+            kw = {"scale_px": r, "min_angle_deg": 10.0, "focal_px": 500.0}
+            creases = concave_creases(depth, valid, sensor, **kw)
+            want = surface_state(valid, facing, creases)
+            np.testing.assert_array_equal(crease_state(depth, valid, facing, sensor, **kw), want)
+            inverse = _inverse(depth, valid)
+            got = crease_state(depth, valid, facing, sensor, inverse=inverse, **kw)
+            np.testing.assert_array_equal(got, want)

@@ -52,11 +52,10 @@ from depthgram.segmentation.slices import (
 )
 from depthgram.segmentation.surfaces import (
     _inverse,
-    concave_creases,
     crease_scale_px,
+    crease_state,
     facing_halves,
     merge_openings,
-    surface_state,
     surfaces_kept,
 )
 from depthgram.segmentation.validate import check_depth_far
@@ -291,11 +290,11 @@ def _surface_objects(
     edges, counts = log_bin_counts(d2, m2, min(max(bin_far, 0.01), 10_000.0), ref)
     bands = depth_bands(counts, edges, cfg)
     r = crease_scale_px(depth.shape[1])
-    creases = concave_creases(
-        depth, ok, sensor, scale_px=r, min_angle_deg=cfg.crease_deg, focal_px=cam.fx, inverse=inverse
+    # the labeller's state with the concave creases blocking, in one call
+    state = crease_state(
+        depth, ok, facing, sensor, scale_px=r, min_angle_deg=cfg.crease_deg, focal_px=cam.fx, inverse=inverse
     )
     t0, t2, slope = _join_rule(sensor, cfg, cam.fx)
-    state = surface_state(ok, facing, creases)
     # crease pixels and pieces too small to keep (the inside of a cup cut off by the crease of
     # its bottom) go to the surface they continue, then what is still too small is dropped
     labels, n, sums, boxes = surfaces_kept(

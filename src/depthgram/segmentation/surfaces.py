@@ -36,6 +36,7 @@ from depthgram.segmentation.sensor import SensorModel
 __all__ = [
     "concave_creases",
     "crease_scale_px",
+    "crease_state",
     "facing_halves",
     "keep_large",
     "label_surfaces",
@@ -163,6 +164,21 @@ def concave_creases(
     plain = all(type(c) in (int, float, np.float64, np.float32) for c in coefs)
     if type(sensor).resolution is not SensorModel.resolution or not plain:
         return _creases_numpy(depth_mm, valid, sensor, scale_px, k, geom, noise_scale)
+    return _creases(*_crease_inputs(depth_mm, valid, coefs, scale_px, k, geom, noise_scale, inverse))
+
+
+def _crease_inputs(
+    depth_mm: NDArray[np.float32],
+    valid: NDArray[np.bool_],
+    coefs: tuple[float, float, float, float],
+    scale_px: int,
+    k: int,
+    geom: np.float32,
+    noise_scale: np.float32,
+    inverse: NDArray[np.float32] | None,
+) -> tuple[Any, ...]:
+    # the compiled route's arguments after the readings: window sums, readings, coefficients,
+    # the least count of readings, span, geometric and noise factors
     z = np.ascontiguousarray(depth_mm, np.float32)
     ok = np.ascontiguousarray(valid, np.bool_)
     im = inverse if inverse is not None else _inverse(z, ok)
@@ -171,7 +187,41 @@ def concave_creases(
     # the sensor's coefficients as float32, as numpy's scalar rules make Python floats in
     # _creases_numpy
     c32 = np.array([float(c) for c in coefs], np.float32)
-    return _creases(sums, ok, c32, np.float32(0.5 * k * k), int(scale_px), geom, noise_scale)
+    return sums, ok, c32, np.float32(0.5 * k * k), int(scale_px), geom, noise_scale
+
+
+def crease_state(
+    depth_mm: NDArray[np.float32],
+    valid: NDArray[np.bool_],
+    facing: NDArray[np.bool_],
+    sensor: SensorModel,
+    *,
+    scale_px: int,
+    min_angle_deg: float,
+    focal_px: float,
+    inverse: NDArray[np.float32] | None = None,
+) -> NDArray[np.int8]:
+    """Labeller state of :func:`label_surfaces` with the frame's concave creases blocking.
+
+    ``surface_state(valid, facing, concave_creases(...))`` (the same arguments), in one
+    compiled call where :func:`concave_creases` takes its compiled route: the creases go to
+    the state row by row, without a crease map.
+    """
+    coefs = (sensor.step_0, sensor.step_2, sensor.sigma_0, sensor.sigma_2)
+    plain = all(type(c) in (int, float, np.float64, np.float32) for c in coefs)
+    wide = depth_mm.shape[1] > 320 and scale_px >= 4
+    if wide or type(sensor).resolution is not SensorModel.resolution or not plain:
+        creases = concave_creases(
+            depth_mm, valid, sensor, scale_px=scale_px, min_angle_deg=min_angle_deg, focal_px=focal_px, inverse=inverse
+        )
+        return surface_state(np.ascontiguousarray(valid, np.bool_), np.ascontiguousarray(facing, np.bool_), creases)
+    k = 2 * (scale_px // 2) + 1
+    geom = np.float32(scale_px * math.tan(math.radians(min_angle_deg)) / focal_px)
+    noise_scale = np.float32(math.sqrt(6.0) / (0.7 * k))
+    sums, ok, c32, min_den, r, geom, noise_scale = _crease_inputs(
+        depth_mm, valid, coefs, scale_px, k, geom, noise_scale, inverse
+    )
+    return _crease_state(sums, ok, np.ascontiguousarray(facing, np.bool_), c32, min_den, r, geom, noise_scale)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -212,18 +262,69 @@ def _creases(
     geom: np.float32,
     noise_scale: np.float32,
 ) -> NDArray[np.bool_]:
-    # _creases_numpy in five passes instead of about 60 full-frame temporaries: the window
-    # means and the threshold of each pixel, then one branch-free pass per direction (they
-    # vectorise; a per-pixel loop with the four tests behind branches took 3x as long). Every
-    # operation is the float32 one numpy does there, in the same order (no fast-math, no
-    # contraction), so the same creases (a test compares the two). `sums` (H, W, 2): the
-    # window sums of 1000 / z and of the readings, read back per row into buffers.
+    # _creases_numpy in two passes instead of about 60 full-frame temporaries: the window
+    # means and the threshold of each pixel (_crease_means), then each row's four directions
+    # (_crease_row). Every operation is the float32 one numpy does there, in the same order (no
+    # fast-math, no contraction), so the same creases (a test compares the two). `sums`
+    # (H, W, 2): the window sums of 1000 / z and of the readings.
+    h, w = valid.shape
+    ws, has, bend = _crease_means(sums, valid, c, min_den, geom, noise_scale)
+    out = np.empty((h, w), np.bool_)
+    for y in range(h):
+        _crease_row(ws, has, bend, y, r, out[y])
+    return out
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _crease_state(
+    sums: NDArray[np.float32],
+    valid: NDArray[np.bool_],
+    facing: NDArray[np.bool_],
+    c: NDArray[np.float32],
+    min_den: np.float32,
+    r: int,
+    geom: np.float32,
+    noise_scale: np.float32,
+) -> NDArray[np.int8]:
+    # surface_state(valid, facing, _creases(...)) in one call: each row's creases go to the
+    # labeller's state from a row buffer (no crease map, no pass of its own)
+    h, w = valid.shape
+    ws, has, bend = _crease_means(sums, valid, c, min_den, geom, noise_scale)
+    state = np.empty((h, w), np.int8)
+    row = np.empty(w, np.bool_)
+    active = np.int8(ACTIVE)
+    block = np.int8(BLOCK)
+    hole = np.int8(HOLE)
+    for y in range(h):
+        _crease_row(ws, has, bend, y, r, row)
+        sr = state[y]
+        vr = valid[y]
+        fr = facing[y]
+        for x in range(w):
+            sr[x] = (active if fr[x] > row[x] else block) if vr[x] else hole
+    return state
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _crease_means(
+    sums: NDArray[np.float32],
+    valid: NDArray[np.bool_],
+    c: NDArray[np.float32],
+    min_den: np.float32,
+    geom: np.float32,
+    noise_scale: np.float32,
+) -> tuple[NDArray[np.float32], NDArray[np.bool_], NDArray[np.float32]]:
+    # each pixel's window mean of 1000 / z (0 without enough readings), whether it has one
+    # where there is a reading, and its bend threshold times the mean; the window sums are
+    # read back per row into buffers. Every pixel computed, then masked (numpy's division
+    # rule: a window without enough readings divides by a small or zero count harmlessly), so
+    # that the divisions vectorise
     h, w = valid.shape
     flat = sums.reshape((h, 2 * w))
     ws = np.empty((h, w), np.float32)
     dr = np.empty(w, np.float32)
-    has = np.zeros((h, w), np.bool_)
-    bend = np.zeros((h, w), np.float32)
+    has = np.empty((h, w), np.bool_)
+    bend = np.empty((h, w), np.float32)
     thousand = np.float32(1000.0)
     one = np.float32(1.0)
     two = np.float32(2.0)
@@ -240,8 +341,6 @@ def _creases(
         vr = valid[y]
         hr = has[y]
         br = bend[y]
-        # every pixel computed, then masked (numpy's division rule: a window without enough
-        # readings divides by a small or zero count harmlessly), so that the divisions vectorise
         for x in range(w):
             keep = dr[x] >= min_den
             wc = wr[x] / dr[x]
@@ -252,29 +351,70 @@ def _creases(
             hr[x] = keep & vr[x]  # the result is kept where there is a reading only
             wr[x] = wc if keep else zero
             br[x] = max(geom, four * noise) * wc if keep else zero
-    # the neighbours' own `has` is not needed: a neighbour without a mean reads 0 here, which
-    # fails the jump test against a positive mean as it failed numpy's validity test
-    out = np.zeros((h, w), np.bool_)
+    return ws, has, bend
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _crease_row(
+    ws: NDArray[np.float32],
+    has: NDArray[np.bool_],
+    bend: NDArray[np.float32],
+    y: int,
+    r: int,
+    out: NDArray[np.bool_],
+) -> None:
+    # row y's creases: along the row, the column and both diagonals, each one branch-free
+    # loop that vectorises (a per-pixel loop with the four tests behind branches took 3x as
+    # long); the neighbours' own `has` is not needed: a neighbour without a mean reads 0
+    # here, which fails the jump test against a positive mean as it failed numpy's validity
+    # test. Neighbours `r` places on are read through views (an index x + r would be wrapped
+    # as a possibly negative one)
+    h, w = ws.shape
+    two = np.float32(2.0)
     jump = np.float32(0.06)
-    for d in range(4):
-        dy = 0 if d == 0 else r
-        dx = r if d == 0 or d == 2 else 0 if d == 1 else -r
-        adx = abs(dx)
-        for y in range(dy, h - dy):
-            wr = ws[y]
-            ar = ws[y + dy]
-            br = ws[y - dy]
-            hr = has[y]
-            er = bend[y]
-            orow = out[y]
-            for ux in range(np.uint64(adx), np.uint64(w - adx)):
-                wc = wr[ux]
-                a = ar[np.uint64(np.int64(ux) + dx)]
-                b = br[np.uint64(np.int64(ux) - dx)]
-                lim = jump * wc
-                hit = hr[ux] & (abs(a - wc) <= lim) & (abs(b - wc) <= lim) & ((a + b) - two * wc > er[ux])
-                orow[ux] = orow[ux] | hit
-    return out
+    ur = np.uint64(r)
+    uw = np.uint64(w)
+    wr = ws[y]
+    hr = has[y]
+    er = bend[y]
+    out[:] = False
+    if w > 2 * r:
+        left = wr[: w - 2 * r]
+        right = wr[2 * r :]
+        for ux in range(ur, uw - ur):
+            wc = wr[ux]
+            a = right[ux - ur]
+            b = left[ux - ur]
+            lim = jump * wc
+            out[ux] = hr[ux] & (abs(a - wc) <= lim) & (abs(b - wc) <= lim) & ((a + b) - two * wc > er[ux])
+    if y < r or y >= h - r:
+        return
+    dn = ws[y + r]
+    up = ws[y - r]
+    for ux in range(uw):
+        wc = wr[ux]
+        a = dn[ux]
+        b = up[ux]
+        lim = jump * wc
+        out[ux] |= hr[ux] & (abs(a - wc) <= lim) & (abs(b - wc) <= lim) & ((a + b) - two * wc > er[ux])
+    if w <= 2 * r:
+        return
+    dn_right = dn[2 * r :]
+    up_right = up[2 * r :]
+    for ux in range(ur, uw - ur):
+        # down right and up left
+        wc = wr[ux]
+        a = dn_right[ux - ur]
+        b = up[ux - ur]
+        lim = jump * wc
+        out[ux] |= hr[ux] & (abs(a - wc) <= lim) & (abs(b - wc) <= lim) & ((a + b) - two * wc > er[ux])
+    for ux in range(ur, uw - ur):
+        # down left and up right
+        wc = wr[ux]
+        a = dn[ux - ur]
+        b = up_right[ux - ur]
+        lim = jump * wc
+        out[ux] |= hr[ux] & (abs(a - wc) <= lim) & (abs(b - wc) <= lim) & ((a + b) - two * wc > er[ux])
 
 
 @njit(cache=True, nogil=True)
