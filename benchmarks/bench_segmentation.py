@@ -209,7 +209,7 @@ def threshold_stages(size: tuple[int, int], seed: int = 0) -> dict[str, float]:
 STAGES = (
     "check_depth_far", "_orientation", "_add_support_planes", "find_planes", "_supports", "label_two_classes",
     "_support_class", "support_pieces_lazy", "join_near", "drop_classes", "frame_sensor",
-    "_surface_objects", "facing_halves", "log_bin_counts", "depth_bands", "concave_creases", "surfaces_kept",
+    "_surface_objects", "facing_halves", "log_bin_counts", "depth_bands", "crease_state", "surfaces_kept",
     "merge_openings", "relabel", "label_stats_fused", "add_through", "_below_camera",
     "front_faces", "side_faces", "compound_parts", "grid_frame", "_slices", "to_full_resolution",
     "_stack_supports", "_fold_faces", "_compound_objects",

@@ -165,8 +165,11 @@ def estimate_sensor(
     fit, sol = _range_fit(depth_mm, valid, rows)
     if not fit.shape[0]:
         return PROFILES["tof"]
-    s0, s2 = _non_negative(fit[:, 0], fit[:, 1], sol[0], sol[1])
-    n0, n2 = _non_negative(fit[:, 0], fit[:, 2], sol[2], sol[3])
+    # Python floats, as the compiled solve returned them before (numpy scalars in a model
+    # send the creases to their numpy route)
+    a1, b1, a2, b2 = sol.tolist()
+    s0, s2 = _non_negative(fit[:, 0], fit[:, 1], a1, b1)
+    n0, n2 = _non_negative(fit[:, 0], fit[:, 2], a2, b2)
     return SensorModel("auto", s0, s2, n0, n2)
 
 
