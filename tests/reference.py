@@ -39,6 +39,7 @@ __all__ = [
     "planes_from_sums_numpy",
     "refine_per_pixel",
     "relabel_small",
+    "sensor_samples",
     "support_components",
 ]
 
@@ -403,3 +404,33 @@ def best_contact_numpy(contact: NDArray[np.int64], needed: NDArray[np.float64]) 
     for f in np.flatnonzero((most > 0) & (most >= needed)):
         out[int(f)] = int(best[f])
     return out
+
+
+@njit(cache=True, nogil=True)
+def sensor_samples(
+    depth: NDArray[np.float32], valid: NDArray[np.bool_], rows: int
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """The sensor estimate's samples alone, as ``sensor._triples_span`` takes them without the span.
+
+    Every ``rows``-th row: the depth of each pixel whose two row neighbours also have a reading,
+    its first difference z[x+1] - z[x] (absolute) and its second difference
+    (z[x-1] - 2 z[x]) + z[x+1], in raster order.
+    """
+    h, w = depth.shape
+    n_rows = (h + rows - 1) // rows
+    cap = n_rows * max(w - 2, 0)
+    z = np.empty(cap, np.float64)
+    d1 = np.empty(cap, np.float64)
+    d2 = np.empty(cap, np.float64)
+    k = 0
+    for y in range(0, h, rows):
+        for x in range(1, w - 1):
+            if valid[y, x - 1] and valid[y, x] and valid[y, x + 1]:
+                a = np.float64(depth[y, x - 1])
+                b = np.float64(depth[y, x])
+                c = np.float64(depth[y, x + 1])
+                z[k] = b
+                d1[k] = abs(c - b)
+                d2[k] = (a - 2.0 * b) + c
+                k += 1
+    return z[:k], d1[:k], d2[:k]

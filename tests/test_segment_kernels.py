@@ -38,6 +38,7 @@ from reference import (
     on_support_planes,
     plane_fits,
     relabel_small,
+    sensor_samples,
     support_components,
 )
 
@@ -779,11 +780,11 @@ def test_sensor_estimate_keeps_tied_depths_in_raster_order() -> None:
     # estimate; numpy's default sort left that to the CPU's SIMD level (three different models
     # on one frame with AVX-512, AVX2 and without). The estimate is the one with ties in raster
     # order, computed here from the same steps with numpy's stable sort.
-    from depthgram.segmentation.sensor import _fit_a_bz2, _range_estimates, _triples, estimate_sensor
+    from depthgram.segmentation.sensor import _fit_a_bz2, _range_estimates, estimate_sensor
     from depthgram.sensor import simulate
 
     f = next(iter(simulate("table", 1, size=(176, 132), seed=0))).frame
-    z, d1, d2 = _triples(f.depth, f.valid, 1)
+    z, d1, d2 = sensor_samples(f.depth, f.valid, 1)
     assert np.unique(z).size < z.size // 10  # millimetre depths: ties everywhere
     fit = _range_estimates(z, d1, d2, np.argsort(z, kind="stable"), int(min(12, max(2, z.size // 400))))
     fit = fit[fit[:, 3] > 0]
@@ -1369,14 +1370,13 @@ def test_statistics_pass_adds_in_raster_order(seed: int) -> None:
 
 def test_sensor_ranges_in_one_call_equal_the_steps_one_by_one() -> None:
     # _range_fit (samples with their depth span, order, range estimates in one call) against
-    # _triples, the stable order and the range estimates called one by one: whole-millimetre
+    # the samples, the stable order and the range estimates called one by one: whole-millimetre
     # depths (counting route), tenths of a millimetre (radix route), holes, too few samples
     from depthgram.segmentation.sensor import (
         _lstsq_a_bz2,
         _range_estimates,
         _range_estimates_whole,
         _range_fit,
-        _triples,
         _triples_span,
         stable_order,
     )
@@ -1393,7 +1393,7 @@ def test_sensor_ranges_in_one_call_equal_the_steps_one_by_one() -> None:
         (np.where(f.valid, tenths, 0).astype(np.float32), f.valid, 2),
         (f.depth[:3], f.valid[:3], 1),
     ):
-        z, d1, d2 = _triples(depth, valid, rows)
+        z, d1, d2 = sensor_samples(depth, valid, rows)
         zs, d1s, d2s, lo, hi = _triples_span(depth, valid, rows)
         np.testing.assert_array_equal(zs, z)
         np.testing.assert_array_equal(d1s, d1)

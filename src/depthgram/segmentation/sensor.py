@@ -174,37 +174,10 @@ def estimate_sensor(
 
 
 @njit(cache=True, nogil=True)
-def _triples(
-    depth: NDArray[np.float32], valid: NDArray[np.bool_], rows: int
-) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
-    # every ``rows``-th row: the depth of each pixel whose two row neighbours also have a
-    # reading, its first difference z[x+1] - z[x] (absolute) and its second difference
-    # (z[x-1] - 2 z[x]) + z[x+1], in raster order (numpy: a dozen frame-sized temporaries)
-    h, w = depth.shape
-    n_rows = (h + rows - 1) // rows
-    cap = n_rows * max(w - 2, 0)
-    z = np.empty(cap, np.float64)
-    d1 = np.empty(cap, np.float64)
-    d2 = np.empty(cap, np.float64)
-    k = 0
-    for y in range(0, h, rows):
-        for x in range(1, w - 1):
-            if valid[y, x - 1] and valid[y, x] and valid[y, x + 1]:
-                a = np.float64(depth[y, x - 1])
-                b = np.float64(depth[y, x])
-                c = np.float64(depth[y, x + 1])
-                z[k] = b
-                d1[k] = abs(c - b)
-                d2[k] = (a - 2.0 * b) + c
-                k += 1
-    return z[:k], d1[:k], d2[:k]
-
-
-@njit(cache=True, nogil=True)
 def _range_fit(
     depth: NDArray[np.float32], valid: NDArray[np.bool_], rows: int
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    # the steps of estimate_sensor from the samples to the fit: _triples, the stable order
+    # the steps of estimate_sensor from the samples to the fit: the samples, the stable order
     # (_counting_order with the smallest and largest depth taken in the samples' own pass, so
     # no pass of its own), the range estimates, and with two ranges or more _lstsq_a_bz2 of
     # step and sigma against depth squared, one call instead of five. Returns the rows of the
@@ -254,7 +227,10 @@ def _range_estimates_all(depth: NDArray[np.float32], valid: NDArray[np.bool_], r
 def _triples_span(
     depth: NDArray[np.float32], valid: NDArray[np.bool_], rows: int
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], float, float]:
-    # _triples with the smallest and largest depth of the samples (0 and 0 when none)
+    # every ``rows``-th row: the depth of each pixel whose two row neighbours also have a
+    # reading, its first difference z[x+1] - z[x] (absolute) and its second difference
+    # (z[x-1] - 2 z[x]) + z[x+1], in raster order, with the smallest and largest depth of the
+    # samples (0 and 0 when none)
     h, w = depth.shape
     n_rows = (h + rows - 1) // rows
     cap = n_rows * max(w - 2, 0)
