@@ -42,20 +42,8 @@ def front_faces(
     n_facing = widths.size - 1
     if n_facing == 0 or horizontal_ids.size == 0:
         return {}
-    n_ids = int(labels.max(initial=0)) + 1 if n_ids is None else n_ids
-    rel = np.float32(jump_rel)
     widths = np.asarray(widths, np.float64)
-    if boxes is not None:
-        ids = np.asarray(horizontal_ids, np.intp)
-        best = _faces_in_boxes(
-            labels, depth_mm, ids, np.asarray(boxes, np.int64), n_ids, n_facing, rel, False,
-            float(min_contact), widths, widths,
-        )  # fmt: skip
-        return _as_pairs(best)
-    is_support = np.zeros(n_ids, np.bool_)
-    is_support[horizontal_ids] = True
-    contact = _contacts(labels, depth_mm, is_support, n_facing, rel, False)
-    return _as_pairs(_best_faces(contact, float(min_contact), widths, widths, False))
+    return _faces(labels, depth_mm, horizontal_ids, boxes, n_ids, jump_rel, min_contact, widths, widths, False)
 
 
 def side_faces(
@@ -84,21 +72,42 @@ def side_faces(
     n_facing = heights.size - 1
     if n_facing == 0 or vertical_ids.size == 0:
         return {}
-    n_ids = int(labels.max(initial=0)) + 1 if n_ids is None else n_ids
-    rel = np.float32(jump_rel)
     heights = np.asarray(heights, np.float64)
     mean_depth = np.asarray(mean_depth, np.float64)
+    return _faces(labels, depth_mm, vertical_ids, boxes, n_ids, jump_rel, min_contact, heights, mean_depth, True)
+
+
+def _faces(
+    labels: NDArray[np.int32],
+    depth_mm: NDArray[np.float32],
+    support_ids: NDArray[np.int32],
+    boxes: NDArray[np.int64] | None,
+    n_ids: int | None,
+    jump_rel: float,
+    min_contact: float,
+    size: NDArray[np.float64],
+    mean_depth: NDArray[np.float64],
+    side: bool,
+) -> dict[int, int]:
+    """:func:`front_faces` (``side`` False, ``mean_depth`` unread) or :func:`side_faces` (``side`` True).
+
+    ``size`` is each facing object's width or height (px); the supports' ``boxes``, when
+    given, limit the count to them.
+    """
+    n_facing = size.size - 1
+    n_ids = int(labels.max(initial=0)) + 1 if n_ids is None else n_ids
+    rel = np.float32(jump_rel)
     if boxes is not None:
-        ids = np.asarray(vertical_ids, np.intp)
         best = _faces_in_boxes(
-            labels, depth_mm, ids, np.asarray(boxes, np.int64), n_ids, n_facing, rel, True,
-            float(min_contact), heights, mean_depth,
+            labels, depth_mm, np.asarray(support_ids, np.intp), np.asarray(boxes, np.int64), n_ids, n_facing,
+            rel, side, float(min_contact), size, mean_depth,
         )  # fmt: skip
-        return _as_pairs(best)
-    is_side = np.zeros(n_ids, np.bool_)
-    is_side[vertical_ids] = True
-    contact = _contacts(labels, depth_mm, is_side, n_facing, rel, True)
-    return _as_pairs(_best_faces(contact, float(min_contact), heights, mean_depth, True))
+    else:
+        is_support = np.zeros(n_ids, np.bool_)
+        is_support[support_ids] = True
+        contact = _contacts(labels, depth_mm, is_support, n_facing, rel, side)
+        best = _best_faces(contact, float(min_contact), size, mean_depth, side)
+    return _as_pairs(best)
 
 
 def _as_pairs(best: NDArray[np.int64]) -> dict[int, int]:
