@@ -456,12 +456,12 @@ def _rodrigues(w0: float, w1: float, w2: float) -> NDArray[np.float64]:
     """Return the rotation matrix of the rotation vector ``(w0, w1, w2)`` (rad), by Rodrigues' formula."""
     th = math.sqrt(w0 * w0 + w1 * w1 + w2 * w2)
     k: NDArray[np.float64] = np.array([[0.0, -w2, w1], [w2, 0.0, -w0], [-w1, w0, 0.0]])
-    out: NDArray[np.float64] = np.eye(3) + k
     if th < 1e-12:
-        return out
+        small: NDArray[np.float64] = np.eye(3) + k
+        return small
     k /= th
-    out = np.eye(3) + math.sin(th) * k + (1.0 - math.cos(th)) * (k @ k)
-    return out
+    rot: NDArray[np.float64] = np.eye(3) + math.sin(th) * k + (1.0 - math.cos(th)) * (k @ k)
+    return rot
 
 
 def _icp(now: _Surface, before: _Surface, cam: tuple[float, float, float, float]) -> NDArray[np.float64] | None:
