@@ -39,6 +39,7 @@ __all__ = [
     "planes_from_sums_numpy",
     "refine_per_pixel",
     "relabel_small",
+    "sensor_ranges",
     "sensor_samples",
     "support_components",
 ]
@@ -434,3 +435,24 @@ def sensor_samples(
                 d2[k] = (a - 2.0 * b) + c
                 k += 1
     return z[:k], d1[:k], d2[:k]
+
+
+def sensor_ranges(depth: NDArray[np.float32], valid: NDArray[np.bool_], rows: int) -> NDArray[np.float64]:
+    """Each depth range's row of the sensor estimate (median depth, step, sigma, 1), the steps one by one.
+
+    The route ``sensor._range_estimates_counted`` replaced: the samples (:func:`sensor_samples`),
+    their stable order (numpy's), and the range estimates, counted
+    (``sensor._range_estimates_whole``) when every depth is a whole number of millimetres from
+    the smallest within 2**20 of it, else from masked copies and selections
+    (``sensor._range_estimates``). No rows below 200 samples.
+    """
+    from depthgram.segmentation.sensor import _range_estimates, _range_estimates_whole
+
+    z, d1, d2 = sensor_samples(depth, valid, rows)
+    if z.size < 200:
+        return np.zeros((0, 4), np.float64)
+    k = min(12, max(2, z.size // 400))
+    order = np.argsort(z, kind="stable")
+    off = z - z.min()
+    whole = bool(np.all(off == np.trunc(off))) and float(off.max()) < 1 << 20
+    return (_range_estimates_whole if whole else _range_estimates)(z, d1, d2, order, k)

@@ -183,7 +183,7 @@ def _range_fit(
     # step and sigma against depth squared, one call instead of five. Returns the rows of the
     # ranges with enough differences (median depth, step, sigma, 1; none below 200 samples)
     # and (a, b) of the step's and the sigma's least squares (zeros with fewer than two rows).
-    est = _range_estimates_all(depth, valid, rows)
+    est = _range_estimates_counted(depth, valid, rows)
     m = 0
     for i in range(est.shape[0]):
         if est[i, 3] > 0:
@@ -201,6 +201,218 @@ def _range_fit(
         sol[0], sol[1] = _lstsq_a_bz2(x, fit[:, 1].copy())
         sol[2], sol[3] = _lstsq_a_bz2(x, fit[:, 2].copy())
     return fit, sol
+
+
+@njit(cache=True, nogil=True)
+def _range_estimates_counted(depth: NDArray[np.float32], valid: NDArray[np.bool_], rows: int) -> NDArray[np.float64]:
+    # _range_estimates_all without the samples' order: when every reading of the sampled rows
+    # is a whole number in [1, 2**24) (what most cameras give), the ranges' order statistics
+    # come from counts. The depths' counts give each equal-count range's limits and median
+    # depth; a table gives each depth its range (its pixels' differences counted in that
+    # range's histograms), and only the few depths tied across a range boundary take their
+    # pixels' places in raster order, as the stable order did. Other frames take
+    # _range_estimates_all (the same values: a test holds both).
+    key, d1, d2, lo, hi, whole = _whole_samples(depth, valid, rows)
+    if not whole or hi - lo >= 1 << 20 or 0.05 * hi > _MAX_WHOLE_LIM:
+        return _range_estimates_all(depth, valid, rows)
+    if hi < lo:  # no reading in the sampled rows
+        return np.zeros((0, 4), np.float64)
+    # each depth's count (slot 0 holds the places without a sample), the places keyed in place
+    count = np.zeros(hi - lo + 2, np.int32)
+    off = np.int32(1 - lo)
+    for i in range(key.size):
+        j = max(key[i] + off, np.int32(0))
+        key[i] = j
+        count[np.uint64(j)] += 1
+    n = key.size - count[0]
+    if n < 200:
+        return np.zeros((0, 4), np.float64)
+    k = min(12, max(2, n // 400))
+    return _ranges_from_counts(key, d1, d2, count, lo, n, k)
+
+
+@njit(cache=True, nogil=True)
+def _whole_samples(
+    depth: NDArray[np.float32], valid: NDArray[np.bool_], rows: int
+) -> tuple[NDArray[np.int32], NDArray[np.int32], NDArray[np.int32], int, int, bool]:
+    # every ``rows``-th row, every place x in 1 .. w - 2 in raster order: the depth (0 unless
+    # x and both row neighbours have a reading), |z[x+1] - z[x]| and (z[x-1] - 2 z[x]) + z[x+1]
+    # as whole numbers, with the smallest and largest reading of the rows and whether every
+    # reading of the rows is a whole number in [1, 2**24) (only then are the rest meaningful).
+    # Each row's readings are tested and made whole in one loop and its places written in
+    # another, both without branches, so that they vectorise.
+    h, w = depth.shape
+    n_rows = (h + rows - 1) // rows
+    places = max(w - 2, 0)
+    key = np.empty(n_rows * places, np.int32)
+    d1 = np.empty(n_rows * places, np.int32)
+    d2 = np.empty(n_rows * places, np.int32)
+    iz = np.empty(w, np.int32)
+    ok = np.empty(w, np.uint8)
+    none = np.int32(1 << 30)
+    lo = none
+    hi = np.int32(0)
+    bad = np.uint8(0)
+    p = 0
+    for y in range(0, h, rows):
+        zrow = depth[y]
+        vrow = valid[y]
+        for x in range(w):
+            v = zrow[x]
+            m = np.uint8(vrow[x])
+            g = np.uint8((v >= np.float32(1.0)) & (v < np.float32(16777216.0)) & (np.floor(v) == v)) & m
+            bad |= m ^ g
+            t = np.int32(v) if g else np.int32(0)
+            iz[x] = t
+            ok[x] = g
+            lo = min(lo, t if g else none)
+            hi = max(hi, t)
+        for x in range(1, w - 1):
+            b = iz[x]
+            c = iz[x + 1]
+            key[p + x - 1] = b if ok[x - 1] & ok[x] & ok[x + 1] else np.int32(0)
+            d1[p + x - 1] = abs(c - b)
+            d2[p + x - 1] = (iz[x - 1] - 2 * b) + c
+        p += places
+    return key, d1, d2, int(lo), int(hi), bad == 0
+
+
+@njit(cache=True, nogil=True)
+def _ranges_from_counts(
+    key: NDArray[np.int32],
+    d1: NDArray[np.int32],
+    d2: NDArray[np.int32],
+    count: NDArray[np.int32],
+    lo: int,
+    n: int,
+    k: int,
+) -> NDArray[np.float64]:
+    # _range_estimates_whole for the samples of _whole_samples, keyed (depth - lo + 1, 0 for a
+    # place without a sample) and counted per depth (count), n of them in k ranges
+    each, extra = divmod(n, k)
+    ends = np.empty(k + 1, np.int64)
+    ends[0] = 0
+    for r in range(k):
+        ends[r + 1] = ends[r] + each + (1 if r < extra else 0)
+    # the places in the order of each range's median: its middle one or two
+    mid = np.empty(2 * k, np.int64)
+    for r in range(k):
+        m = ends[r + 1] - ends[r]
+        mid[2 * r] = ends[r] + m // 2 - (1 - m % 2)
+        mid[2 * r + 1] = ends[r] + m // 2
+    at_mid = np.empty(2 * k, np.int64)
+    # one walk over the depths: each depth's range, or (negative) its number among the depths
+    # whose pixels straddle a range boundary, with the place of its first pixel
+    span = count.size
+    table = np.zeros(span, np.int32)
+    first = np.empty(k, np.int64)
+    n_split = 0
+    r = 0
+    s = 0
+    t = 0
+    for v in range(1, span):
+        c = count[v]
+        if c == 0:
+            continue
+        e = s + c
+        while t < 2 * k and mid[t] < e:
+            at_mid[t] = v
+            t += 1
+        while s >= ends[r + 1]:
+            r += 1
+        if e <= ends[r + 1]:
+            table[v] = r
+        else:
+            n_split += 1
+            table[v] = -n_split
+            first[n_split - 1] = s
+        s = e
+    zc = np.empty(k, np.float64)
+    for r in range(k):
+        a = float(at_mid[2 * r] - 1 + lo)
+        b = float(at_mid[2 * r + 1] - 1 + lo)
+        zc[r] = b if (ends[r + 1] - ends[r]) % 2 else (a + b) / 2.0
+    # one histogram row per range (and one for the places without a sample), wide enough for
+    # the last range's tolerance: |d1| clamped to 0 .. top + 1, d2 + top + 1 to 0 .. 2 top + 2
+    # after them, so a difference outside a range's own tolerance lands in a bin it does not read
+    top = math.ceil(0.05 * zc[k - 1]) - 1
+    w1 = top + 2
+    width = w1 + 2 * top + 3
+    for v in range(span):
+        if table[v] >= 0:
+            table[v] *= width
+    table[0] = k * width
+    c1 = np.int32(top + 1)
+    c2 = np.int32(2 * top + 2)
+    for i in range(key.size):
+        d1[i] = min(d1[i], c1)
+        d2[i] = np.int32(w1) + min(max(d2[i] + c1, np.int32(0)), c2)
+    hist = np.zeros((k + 1) * width, np.int32)
+    seen = np.zeros(k, np.int64)
+    for i in range(key.size):
+        row = table[np.uint64(key[i])]
+        if row < 0:
+            # a straddling depth: its pixels take their places in raster order
+            j = -1 - row
+            pos = first[j] + seen[j]
+            seen[j] += 1
+            big = each + 1
+            row = width * (pos // big if pos < extra * big else extra + (pos - extra * big) // each)
+        hist[np.uint64(row + d1[i])] += 1
+        hist[np.uint64(row + d2[i])] += 1
+    # each range's order statistics with _range_estimates_whole's arithmetic
+    out = np.zeros((k, 4), np.float64)
+    h3 = np.zeros(4 * top + 2, np.int64)
+    for r in range(k):
+        lim = 0.05 * zc[r]
+        top1 = math.ceil(lim) - 1
+        top2 = top1
+        base = r * width
+        h1 = hist[base : base + top1 + 1]
+        h1[0] = 0  # no zero differences
+        h2 = hist[base + w1 + top + 1 - top2 : base + w1 + top + 2 + top2]
+        n1 = 0
+        for v in range(1, top1 + 1):
+            n1 += h1[v]
+        n2 = 0
+        for v in range(2 * top2 + 1):
+            n2 += h2[v]
+        if n1 < 20 or n2 < 20:
+            continue
+        vi = (n1 - 1) * (20 / 100)
+        jj = math.floor(vi)
+        if vi >= n1 - 1:
+            step = float(_kth_count(h1, top1 + 1, n1 - 1))
+        else:
+            p_lo = float(_kth_count(h1, top1 + 1, jj))
+            p_hi = float(_kth_count(h1, top1 + 1, jj + 1))
+            tt = vi - jj
+            diff = p_hi - p_lo
+            step = p_hi - diff * (1.0 - tt) if tt >= 0.5 else p_lo + diff * tt
+        hb = n2 // 2
+        if n2 % 2:
+            med = float(_kth_count(h2, 2 * top2 + 1, hb) - top2)
+        else:
+            med = (
+                float(_kth_count(h2, 2 * top2 + 1, hb - 1) - top2) + float(_kth_count(h2, 2 * top2 + 1, hb) - top2)
+            ) / 2.0
+        size3 = 4 * top2 + 2
+        for v in range(2 * top2 + 1):
+            cnt = h2[v]
+            if cnt:
+                h3[int(abs(float(v - top2) - med) * 2.0)] += cnt
+        if n2 % 2:
+            dev = _kth_count(h3, size3, hb) / 2.0
+        else:
+            dev = (_kth_count(h3, size3, hb - 1) / 2.0 + _kth_count(h3, size3, hb) / 2.0) / 2.0
+        mad = dev * 1.4826
+        sigma2 = max(mad * mad - step * step / 2.0, 0.0) / 6.0
+        out[r, 0] = zc[r]
+        out[r, 1] = step
+        out[r, 2] = math.sqrt(sigma2)
+        out[r, 3] = 1.0
+        h3[:size3] = 0
+    return out
 
 
 @njit(cache=True, nogil=True)
