@@ -20,6 +20,7 @@ from depthgram.segmentation.label.stats import N_COLUMNS, flush_run
 from depthgram.segmentation.planes import (
     Plane,
     _assign,
+    _inliers_counted,
     coplanar_groups,
     near_planes,
     plane_residual_mask,
@@ -29,6 +30,7 @@ from depthgram.segmentation.planes import (
 
 __all__ = [
     "best_contact_numpy",
+    "best_hypothesis_in_index_order",
     "grid_first_reading",
     "label_stats_bincount",
     "large_pieces_opencv",
@@ -456,3 +458,44 @@ def sensor_ranges(depth: NDArray[np.float32], valid: NDArray[np.bool_], rows: in
     off = z - z.min()
     whole = bool(np.all(off == np.trunc(off))) and float(off.max()) < 1 << 20
     return (_range_estimates_whole if whole else _range_estimates)(z, d1, d2, order, k)
+
+
+@njit(cache=True, nogil=True)
+def best_hypothesis_in_index_order(
+    coef: NDArray[np.float64],
+    u: NDArray[np.float64],
+    v: NDArray[np.float64],
+    z: NDArray[np.float64],
+    tol: NDArray[np.float64],
+    ev: NDArray[np.int64],
+) -> int:
+    """The RANSAC scoring ``planes._best_hypothesis`` replaced: hypotheses in index order.
+
+    The first hypothesis with the most inliers among the points ``ev`` (``np.argmax`` of the
+    scores), each scored by blocks of 256 points and left when it could not pass the best one
+    even if all its remaining points were inliers.
+    """
+    m = ev.size
+    ue = np.empty(m, np.float64)
+    ve = np.empty(m, np.float64)
+    ze = np.empty(m, np.float64)
+    te = np.empty(m, np.float64)
+    for i in range(m):
+        j = ev[i]
+        ue[i] = u[j]
+        ve[i] = v[j]
+        ze[i] = z[j]
+        te[i] = tol[j]
+    best = -1
+    arg = 0
+    for k in range(coef.shape[0]):
+        a, b, c = coef[k, 0], coef[k, 1], coef[k, 2]
+        cnt = 0
+        for i0 in range(0, m, 256):
+            if cnt + (m - i0) <= best:
+                break
+            cnt += _inliers_counted(a, b, c, ue[i0 : i0 + 256], ve[i0 : i0 + 256], ze[i0 : i0 + 256], te[i0 : i0 + 256])
+        if cnt > best:
+            best = cnt
+            arg = k
+    return arg

@@ -525,26 +525,49 @@ def _best_hypothesis(
         ve[i] = v[j]
         ze[i] = z[j]
         te[i] = tol[j]
+    n_hyp = coef.shape[0]
+    # every hypothesis scored on the first block, then each in the order of those counts (most
+    # first, ties by index), so that a strong best is known early and the others are left as
+    # soon as they cannot be chosen: by blocks (so that the loop still vectorises), a
+    # hypothesis before the best so far (by index) when it can no longer reach its count, one
+    # after it when it can no longer pass it (argmax keeps the first of equal counts)
+    f = min(_SCORE_FIRST, m)
+    first = np.empty(n_hyp, np.int64)
+    for k in range(n_hyp):
+        first[k] = _inliers_counted(coef[k, 0], coef[k, 1], coef[k, 2], ue[:f], ve[:f], ze[:f], te[:f])
+    # a stable counting sort on f - count: most first, equal counts in index order
+    start = np.zeros(f + 2, np.int64)
+    for k in range(n_hyp):
+        start[f - first[k] + 1] += 1
+    for j in range(f + 1):
+        start[j + 1] += start[j]
+    order = np.empty(n_hyp, np.int64)
+    for k in range(n_hyp):
+        d = f - first[k]
+        order[start[d]] = k
+        start[d] += 1
     best = -1
     arg = 0
-    for k in range(coef.shape[0]):
+    for t in range(n_hyp):
+        k = order[t]
         a, b, c = coef[k, 0], coef[k, 1], coef[k, 2]
-        cnt = 0
-        # by blocks of points: a hypothesis that could not pass the best one even if all its
-        # remaining points were inliers is left there (it would not be chosen: the same argmax)
-        for i0 in range(0, m, _SCORE_BLOCK):
-            if cnt + (m - i0) <= best:
-                break
-            cnt += _inliers_counted(a, b, c, ue[i0 : i0 + _SCORE_BLOCK], ve[i0 : i0 + _SCORE_BLOCK],
-                                    ze[i0 : i0 + _SCORE_BLOCK], te[i0 : i0 + _SCORE_BLOCK])  # fmt: skip
-        if cnt > best:
+        cnt = first[k]
+        need = best if k < arg else best + 1
+        i0 = f
+        while i0 < m and cnt + (m - i0) >= need:
+            i1 = min(i0 + _SCORE_BLOCK, m)
+            cnt += _inliers_counted(a, b, c, ue[i0:i1], ve[i0:i1], ze[i0:i1], te[i0:i1])
+            i0 = i1
+        if cnt >= need:  # scored to the end (a hypothesis left early is below need)
             best = cnt
             arg = k
     return arg
 
 
-#: Points scored between two checks of whether a RANSAC hypothesis can still win.
-_SCORE_BLOCK = 256
+#: Points every RANSAC hypothesis is scored on before they are ordered by their counts there.
+_SCORE_FIRST = 256
+#: Points scored between two checks of whether a RANSAC hypothesis can still be chosen.
+_SCORE_BLOCK = 64
 
 
 @njit(cache=True, inline="always")
