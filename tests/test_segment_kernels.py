@@ -395,7 +395,8 @@ def test_slopes_match_the_passes_they_replaced() -> None:
         z[~valid] = 0
         inverse = _inverse(z, valid)
         for step in (1, 3):
-            inv3, kept, edge = _slopes(inverse, z, valid, step, fx, fy, steep, f32(0.05))
+            inv3, planes, edge, _ = _slopes(inverse, z, valid, step, fx, fy, steep, f32(0.05))
+            kept = np.moveaxis(planes, 0, -1)  # the channel planes
             box = cv2.boxFilter(inverse, -1, (3, 3), normalize=False, borderType=cv2.BORDER_REPLICATE)
             den3 = np.maximum(box[:, :, 1], f32(1e-6))
             np.testing.assert_array_equal(inv3, np.asarray(box[:, :, 0] / den3, f32))

@@ -23,6 +23,7 @@ from depthgram.segmentation.orientation import (
     HORIZONTAL,
     VERTICAL,
     default_intrinsics,
+    load_opencv_routes,
     orientation_classes,
     upsample_classes,
 )
@@ -188,6 +189,8 @@ def load_rare_kernels() -> None:
     # the pixels of the planes found (a 2 x 2 frame finds none; 7-Scenes on the grid of a
     # 640 px frame first found one at frame 5: 367 ms on a fresh install)
     assign_planes(z, ok, np.zeros((1, 3), np.float64), np.ones((1, 1, 1), np.uint8), 2, 8.0, 0.01)
+    # the window sums of a frame whose values span too many octaves for float64 (OpenCV's)
+    load_opencv_routes()
 
 
 def _segment(

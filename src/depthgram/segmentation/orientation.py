@@ -19,9 +19,10 @@ from numba import njit
 from numpy.typing import NDArray
 
 from depthgram.frame import Intrinsics
-from depthgram.segmentation.surfaces import _inverse
+from depthgram.segmentation.surfaces import _crease_state, _creases, _inverse
+from depthgram.segmentation.window import bits_range, exact_rows, next_columns, start_columns, window_row
 
-__all__ = ["default_intrinsics", "orientation_classes"]
+__all__ = ["default_intrinsics", "load_opencv_routes", "orientation_classes"]
 
 #: Classes returned by :func:`orientation_classes`.
 FACING, HORIZONTAL, VERTICAL = 0, 1, 2
@@ -73,6 +74,24 @@ def orientation_classes(
     return _field(depth_mm, valid, intrinsics, window_px, oblique_deg, jump_rel, False, inverse)[0]
 
 
+def load_opencv_routes() -> None:
+    """Load (on a fresh install: compile) the kernels of a frame whose window sums OpenCV takes.
+
+    The orientation field and the creases sum their windows themselves where float64 adds them
+    exactly (:mod:`depthgram.segmentation.window`); a frame whose values span too many octaves
+    takes OpenCV's sums and the kernels that read them (:func:`_classify`,
+    ``surfaces._crease_state`` and ``surfaces._creases``). No frame of the recordings at hand
+    does, so a stream would load them in its middle.
+    """
+    f = np.float32(1.0)
+    ok = np.ones((2, 2), np.bool_)
+    _classify(np.zeros((2, 2, 3), np.float32), np.ones((2, 2), np.float32), ok, ~ok, f, f, f, f, f)
+    sums = np.ones((2, 2, 2), np.float32)
+    c = np.ones(4, np.float32)
+    _crease_state(sums, ok, ok, c, f, 1, f, f)
+    _creases(sums, ok, c, f, 1, f, f)
+
+
 def _field(
     depth_mm: NDArray[np.float32],
     valid: NDArray[np.bool_],
@@ -102,25 +121,27 @@ def _field(
     step = max(1, window_px // 2)
     z = np.ascontiguousarray(depth_mm)
     ok = np.ascontiguousarray(valid)
-    inv3, kept, edge = _slopes(inverse, z, ok, step, np.float32(fx), np.float32(fy), steep, np.float32(jump_rel))
+    inv3, kept, edge, ranges = _slopes(
+        inverse, z, ok, step, np.float32(fx), np.float32(fy), steep, np.float32(jump_rel)
+    )
+    cos_t = math.cos(math.radians(oblique_deg))
+    cam = (np.float32(fx), np.float32(fy), np.float32(cx), np.float32(cy), np.float32(cos_t))
+    if not want_normals:
+        # the window sums of the count of kept slopes and of the slopes, taken row by row
+        # inside the classes' pass (no sums image), in an order of our own: OpenCV's to the
+        # last bit where float64 adds them exactly (:mod:`depthgram.segmentation.window`; a
+        # frame whose slopes span too many octaves takes OpenCV's filter below)
+        cls, exact = _classify_window(kept, ranges, window_px, inv3, ok, edge, *cam)
+        if exact:
+            return cls, None
     k = (window_px, window_px)
     # the count of kept slopes per window and their sums, as channels of one image: OpenCV's
     # row sums of a channel are a chain of dependent additions, three channels run three
     # chains side by side (the same sums as three one-channel filters, a test; 257 -> 159 us
     # at 320 x 240). _classify takes the count at least 1e-6 (np.maximum's float32)
-    sums = np.asarray(cv2.boxFilter(kept, -1, k, normalize=False, borderType=cv2.BORDER_REPLICATE), np.float32)
-    cos_t = math.cos(math.radians(oblique_deg))
-    cls = _classify(
-        sums,
-        inv3,
-        ok,
-        edge,
-        np.float32(fx),
-        np.float32(fy),
-        np.float32(cx),
-        np.float32(cy),
-        np.float32(cos_t),
-    )
+    img = cv2.merge([kept[0], kept[1], kept[2]])
+    sums = np.asarray(cv2.boxFilter(img, -1, k, normalize=False, borderType=cv2.BORDER_REPLICATE), np.float32)
+    cls = _classify(sums, inv3, ok, edge, *cam)
     if not want_normals:  # segmentation needs the classes only
         return cls, None
     den = np.maximum(sums[:, :, 0], np.float32(1e-6))
@@ -149,8 +170,8 @@ def _slopes(
     fy: np.float32,
     steep: np.float32,
     rel: np.float32,
-) -> tuple[NDArray[np.float32], NDArray[np.float32], NDArray[np.bool_]]:
-    """Return the 3 x 3 mean of 1/Z, the kept slopes (H, W, 3) and the occlusion edges, in one call.
+) -> tuple[NDArray[np.float32], NDArray[np.float32], NDArray[np.bool_], NDArray[np.int64]]:
+    """Return the 3 x 3 mean of 1/Z, the kept slopes (3, H, W), the occlusion edges and the slopes' ranges.
 
     ``inverse`` (H, W, 2): 1000 / Z and the readings (:func:`_inverse`). The mean is numpy's
     ``s_inv / np.maximum(s_m, 1e-6)`` (float32) of OpenCV's 3 x 3 unnormalised box sums with
@@ -158,24 +179,27 @@ def _slopes(
     along rows and columns of the mean where it is defined, kept under 80 degrees
     (:func:`_kept_row`); the edges are :func:`_jumps` along rows or columns. One compiled call
     instead of eight (OpenCV's box filter among them), whose dispatch and temporaries cost more
-    than their arithmetic on small frames.
+    than their arithmetic on small frames. ``ranges`` (4, H): each row's
+    :func:`~depthgram.segmentation.window.bits_range` of the kept x slopes, then of the y slopes.
     """
     h, w = z.shape
     inv3, has = _box3_mean(inverse)
-    kept = np.empty((h, 3 * w), np.float32)
+    kept = np.empty((3, h, w), np.float32)
     gx = np.empty(w, np.float32)
     gy = np.empty(w, np.float32)
-    mk = np.empty(w, np.float32)
-    kx = np.empty(w, np.float32)
-    ky = np.empty(w, np.float32)
+    ranges = np.empty((4, h), np.int64)
     for y in range(h):
         _one_sided_row(inv3[y], has[y], step, gx)
         _one_sided_col(inv3, has, y, step, gy)
-        _kept_row(gx, gy, has[y], inv3[y], fx, fy, steep, kept[y], mk, kx, ky)
+        kx, ky = kept[1, y], kept[2, y]
+        _kept_row(gx, gy, has[y], inv3[y], fx, fy, steep, kept[0, y], kx, ky)
+        # each row's range of kept slopes, for the window sums' exactness test
+        ranges[0, y], ranges[1, y] = bits_range(kx)
+        ranges[2, y], ranges[3, y] = bits_range(ky)
     edge = np.zeros((h, w), np.bool_)
     _row_edges_into(z, valid, rel, edge)
     _col_edges_into(z, valid, rel, edge)
-    return inv3, kept.reshape((h, w, 3)), edge
+    return inv3, kept, edge, ranges
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -265,16 +289,13 @@ def _kept_row(
     fx: np.float32,
     fy: np.float32,
     steep: np.float32,
-    o: NDArray[np.float32],
     mk: NDArray[np.float32],
     kx: NDArray[np.float32],
     ky: NDArray[np.float32],
 ) -> None:
-    # pixels with a mean and a slope under 80 degrees keep their slopes (others get 0): the row
-    # `o` (3 W) gets the channels 1 / 0 for kept, then the kept x and y slopes, one image for the
-    # box filter. numpy's float32 arithmetic (its Python scalars act as float32). The row is
-    # computed into three buffers and then interleaved: both loops vectorise (writing the
-    # channels straight away made it five times slower).
+    # pixels with a mean and a slope under 80 degrees keep their slopes (others get 0): `mk`
+    # gets 1 / 0 for kept, `kx` and `ky` the kept x and y slopes (rows of the three channel
+    # planes). numpy's float32 arithmetic (its Python scalars act as float32)
     w = ax.size
     zero = np.float32(0.0)
     one = np.float32(1.0)
@@ -284,11 +305,6 @@ def _kept_row(
         mk[x] = one if keep else zero
         kx[x] = ax[x] if keep else zero
         ky[x] = ay[x] if keep else zero
-    for ux in range(np.uint64(w)):
-        j = np.uint64(3) * ux
-        o[j] = mk[ux]
-        o[j + np.uint64(1)] = kx[ux]
-        o[j + np.uint64(2)] = ky[ux]
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -304,51 +320,129 @@ def _classify(
     cos_t: np.float32,
 ) -> NDArray[np.int8]:
     # the class of each pixel from its window-mean slopes, in one pass instead of a dozen
-    # full-frame float32 temporaries; the same float32 operations in the same order, so the
-    # classes are those of the numpy expression (tests/reference.py). Branch-free over each
-    # row, with numpy's division rules (no zero test; `den` is taken at least 1e-6 as
-    # np.maximum did), so that the divisions and square roots vectorise: every pixel is
-    # computed, then masked. A pixel beside an occlusion edge along its row or its column
-    # (`edge`) is facing. `sums` (H, W, 3): the window's count of kept slopes and
-    # their x and y sums, read into three row buffers first (so that the loop still vectorises).
+    # full-frame float32 temporaries (:func:`_classify_row`). `sums` (H, W, 3): the window's
+    # count of kept slopes and their x and y sums, read into three row buffers first (so that
+    # the loop still vectorises).
     h, w = inv3.shape
     flat = sums.reshape((h, 3 * w))
     sgx_r = np.empty(w, np.float32)
     sgy_r = np.empty(w, np.float32)
     den_r = np.empty(w, np.float32)
     cls = np.empty((h, w), np.int8)
-    tiny = np.float32(1e-12)
-    eps = np.float32(1e-6)
     ucol = np.empty(w, np.float32)  # u of each column once: the same float32 division
     for x in range(w):
         ucol[x] = (np.float32(x) - cx) / fx
-    vert = np.int8(VERTICAL)
-    horiz = np.int8(HORIZONTAL)
-    face = np.int8(FACING)
     for y in range(h):
-        v = (np.float32(y) - cy) / fy
         sr = flat[y]
         for ux in range(np.uint64(w)):
             j = np.uint64(3) * ux
             den_r[ux] = sr[j]
             sgx_r[ux] = sr[j + np.uint64(1)]
             sgy_r[ux] = sr[j + np.uint64(2)]
-        gx = sgx_r
-        gy = sgy_r
-        dn = den_r
-        iv = inv3[y]
-        ok = valid[y]
-        er = edge[y]
-        out = cls[y]
-        for x in range(w):
-            d = max(dn[x], eps)
-            a = fx * (gx[x] / d)
-            b = fy * (gy[x] / d)
-            c = iv[x] - a * ucol[x] - b * v
-            t = cos_t * (np.sqrt(a * a + b * b + c * c) + tiny)
-            k = vert if abs(a) >= t else (horiz if abs(b) >= t else face)
-            out[x] = k if ok[x] & ~er[x] else face
+        _classify_row(den_r, sgx_r, sgy_r, inv3, valid, edge, ucol, y, fx, fy, cy, cos_t, cls[y])
     return cls
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _classify_row(
+    dn: NDArray[np.float32],
+    gx: NDArray[np.float32],
+    gy: NDArray[np.float32],
+    inv3: NDArray[np.float32],
+    valid: NDArray[np.bool_],
+    edge: NDArray[np.bool_],
+    ucol: NDArray[np.float32],
+    y: int,
+    fx: np.float32,
+    fy: np.float32,
+    cy: np.float32,
+    cos_t: np.float32,
+    out: NDArray[np.int8],
+) -> None:
+    # row y's classes from its window counts and slope sums: the same float32 operations in
+    # the same order as the numpy expression (tests/reference.py). Branch-free over the row,
+    # with numpy's division rules (no zero test; `den` is taken at least 1e-6 as np.maximum
+    # did), so that the divisions and square roots vectorise: every pixel is computed, then
+    # masked. A pixel beside an occlusion edge along its row or its column (`edge`) is facing.
+    w = dn.size
+    tiny = np.float32(1e-12)
+    eps = np.float32(1e-6)
+    vert = np.int8(VERTICAL)
+    horiz = np.int8(HORIZONTAL)
+    face = np.int8(FACING)
+    v = (np.float32(y) - cy) / fy
+    iv = inv3[y]
+    ok = valid[y]
+    er = edge[y]
+    for x in range(w):
+        d = max(dn[x], eps)
+        a = fx * (gx[x] / d)
+        b = fy * (gy[x] / d)
+        c = iv[x] - a * ucol[x] - b * v
+        t = cos_t * (np.sqrt(a * a + b * b + c * c) + tiny)
+        k = vert if abs(a) >= t else (horiz if abs(b) >= t else face)
+        out[x] = k if ok[x] & ~er[x] else face
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _classify_window(
+    kept: NDArray[np.float32],
+    ranges: NDArray[np.int64],
+    k: int,  # odd
+    inv3: NDArray[np.float32],
+    valid: NDArray[np.bool_],
+    edge: NDArray[np.bool_],
+    fx: np.float32,
+    fy: np.float32,
+    cx: np.float32,
+    cy: np.float32,
+    cos_t: np.float32,
+) -> tuple[NDArray[np.int8], bool]:
+    """Return :func:`_classify` of OpenCV's ``k x k`` replicated-border window sums of ``kept``, and True.
+
+    The sums are taken row by row in float64 (a column sum running down the rows, then the
+    ``k`` columns of the window added across) and given as float32 to the classes' row: no
+    sums image. When :func:`~depthgram.segmentation.window.exact_rows` holds for the slopes'
+    ``ranges`` (:func:`_slopes`) every float64 intermediate here and in OpenCV is exact, so the
+    sums are OpenCV's to the last bit; the count channel (whole numbers) always is. Otherwise,
+    or for an even ``k``, nothing is computed and the flag is False (the caller takes OpenCV's
+    filter).
+    """
+    h, w = inv3.shape
+    r = k // 2
+    n = k * k
+    if k % 2 == 0 or not (
+        exact_rows(ranges[0], ranges[1], n, r + 1, r) and exact_rows(ranges[2], ranges[3], n, r + 1, r)
+    ):
+        return np.empty((0, 0), np.int8), False
+    # per channel plane: the column sums in the middle of a row padded by r pixels each side;
+    # the count (whole numbers up to k * k) is exact in float32, which adds twice as many at once
+    pad_n = np.empty(w + 2 * r, np.float32)
+    pad_x = np.empty(w + 2 * r, np.float64)
+    pad_y = np.empty(w + 2 * r, np.float64)
+    pairs_n = np.empty(w + 2 * r, np.float32)
+    pairs = np.empty(w + 2 * r, np.float64)
+    cnt, sx, sy = kept[0], kept[1], kept[2]
+    start_columns(cnt, r, pad_n)
+    start_columns(sx, r, pad_x)
+    start_columns(sy, r, pad_y)
+    sgx_r = np.empty(w, np.float32)
+    sgy_r = np.empty(w, np.float32)
+    den_r = np.empty(w, np.float32)
+    cls = np.empty((h, w), np.int8)
+    ucol = np.empty(w, np.float32)
+    for x in range(w):
+        ucol[x] = (np.float32(x) - cx) / fx
+    for y in range(h):
+        if y > 0:
+            next_columns(cnt, y, r, pad_n)
+            next_columns(sx, y, r, pad_x)
+            next_columns(sy, y, r, pad_y)
+        window_row(pad_n, r, pairs_n, den_r)
+        window_row(pad_x, r, pairs, sgx_r)
+        window_row(pad_y, r, pairs, sgy_r)
+        _classify_row(den_r, sgx_r, sgy_r, inv3, valid, edge, ucol, y, fx, fy, cy, cos_t, cls[y])
+    return cls, True
 
 
 def _jumps(z: NDArray[np.float32], valid: NDArray[np.bool_], jump_rel: float) -> NDArray[np.bool_]:

@@ -32,6 +32,7 @@ from depthgram.segmentation.label.unionfind import resolve_tables
 from depthgram.segmentation.label.unionfind import union as _union
 from depthgram.segmentation.order_stats import kth_smallest, next_smallest, percentile32
 from depthgram.segmentation.sensor import SensorModel
+from depthgram.segmentation.window import bits_range, exact_rows
 
 __all__ = [
     "concave_creases",
@@ -164,7 +165,11 @@ def concave_creases(
     plain = all(type(c) in (int, float, np.float64, np.float32) for c in coefs)
     if type(sensor).resolution is not SensorModel.resolution or not plain:
         return _creases_numpy(depth_mm, valid, sensor, scale_px, k, geom, noise_scale)
-    return _creases(*_crease_inputs(depth_mm, valid, coefs, scale_px, k, geom, noise_scale, inverse))
+    im, ok, c32, min_den, r = _crease_inputs(depth_mm, valid, coefs, scale_px, k, inverse)
+    creases, exact = _creases_window(im, ok, c32, min_den, k, r, geom, noise_scale)
+    if exact:
+        return creases
+    return _creases(_window_sums(im, k), ok, c32, min_den, r, geom, noise_scale)
 
 
 def _crease_inputs(
@@ -173,21 +178,24 @@ def _crease_inputs(
     coefs: tuple[float, float, float, float],
     scale_px: int,
     k: int,
-    geom: np.float32,
-    noise_scale: np.float32,
     inverse: NDArray[np.float32] | None,
 ) -> tuple[Any, ...]:
-    # the compiled route's arguments after the readings: window sums, readings, coefficients,
-    # the least count of readings, span, geometric and noise factors
+    # the compiled route's arguments: 1000 / z and the readings (H, W, 2), the readings,
+    # coefficients, the least count of readings, span
     z = np.ascontiguousarray(depth_mm, np.float32)
     ok = np.ascontiguousarray(valid, np.bool_)
     im = inverse if inverse is not None else _inverse(z, ok)
-    # both window sums from one two-channel filter (the same sums as one filter each, a test)
-    sums = np.asarray(cv2.boxFilter(im, -1, (k, k), normalize=False, borderType=cv2.BORDER_CONSTANT), np.float32)
     # the sensor's coefficients as float32, as numpy's scalar rules make Python floats in
     # _creases_numpy
     c32 = np.array([float(c) for c in coefs], np.float32)
-    return sums, ok, c32, np.float32(0.5 * k * k), int(scale_px), geom, noise_scale
+    return im, ok, c32, np.float32(0.5 * k * k), int(scale_px)
+
+
+def _window_sums(im: NDArray[np.float32], k: int) -> NDArray[np.float32]:
+    # OpenCV's k x k window sums of 1000 / z and the readings, for a frame whose values
+    # window.exact_rows refused: both from one two-channel filter (the same sums as one
+    # filter each, a test)
+    return np.asarray(cv2.boxFilter(im, -1, (k, k), normalize=False, borderType=cv2.BORDER_CONSTANT), np.float32)
 
 
 def crease_state(
@@ -218,10 +226,14 @@ def crease_state(
     k = 2 * (scale_px // 2) + 1
     geom = np.float32(scale_px * math.tan(math.radians(min_angle_deg)) / focal_px)
     noise_scale = np.float32(math.sqrt(6.0) / (0.7 * k))
-    sums, ok, c32, min_den, r, geom, noise_scale = _crease_inputs(
-        depth_mm, valid, coefs, scale_px, k, geom, noise_scale, inverse
-    )
-    return _crease_state(sums, ok, np.ascontiguousarray(facing, np.bool_), c32, min_den, r, geom, noise_scale)
+    im, ok, c32, min_den, r = _crease_inputs(depth_mm, valid, coefs, scale_px, k, inverse)
+    face = np.ascontiguousarray(facing, np.bool_)
+    # the window sums taken row by row in the same call, OpenCV's to the last bit where
+    # window.exact_rows holds (always on real frames so far), else OpenCV's
+    state, exact = _crease_state_window(im, ok, face, c32, min_den, k, r, geom, noise_scale)
+    if exact:
+        return state
+    return _crease_state(_window_sums(im, k), ok, face, c32, min_den, r, geom, noise_scale)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -267,8 +279,35 @@ def _creases(
     # (_crease_row). Every operation is the float32 one numpy does there, in the same order (no
     # fast-math, no contraction), so the same creases (a test compares the two). `sums`
     # (H, W, 2): the window sums of 1000 / z and of the readings.
-    h, w = valid.shape
     ws, has, bend = _crease_means(sums, valid, c, min_den, geom, noise_scale)
+    return _creases_from(ws, has, bend, r)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _creases_window(
+    inverse: NDArray[np.float32],
+    valid: NDArray[np.bool_],
+    c: NDArray[np.float32],
+    min_den: np.float32,
+    k: int,
+    r: int,
+    geom: np.float32,
+    noise_scale: np.float32,
+) -> tuple[NDArray[np.bool_], bool]:
+    # _creases of OpenCV's k x k window sums of `inverse` (H, W, 2), taken in the same call
+    # (_crease_means_window), and True; False (and nothing computed) where they could differ
+    # from OpenCV's
+    ws, has, bend, exact = _crease_means_window(inverse, valid, c, min_den, k, geom, noise_scale)
+    if not exact:
+        return np.empty((0, 0), np.bool_), False
+    return _creases_from(ws, has, bend, r), True
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _creases_from(
+    ws: NDArray[np.float32], has: NDArray[np.bool_], bend: NDArray[np.float32], r: int
+) -> NDArray[np.bool_]:
+    h, w = ws.shape
     out = np.empty((h, w), np.bool_)
     for y in range(h):
         _crease_row(ws, has, bend, y, r, out[y])
@@ -288,8 +327,41 @@ def _crease_state(
 ) -> NDArray[np.int8]:
     # surface_state(valid, facing, _creases(...)) in one call: each row's creases go to the
     # labeller's state from a row buffer (no crease map, no pass of its own)
-    h, w = valid.shape
     ws, has, bend = _crease_means(sums, valid, c, min_den, geom, noise_scale)
+    return _state_from(ws, has, bend, valid, facing, r)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _crease_state_window(
+    inverse: NDArray[np.float32],
+    valid: NDArray[np.bool_],
+    facing: NDArray[np.bool_],
+    c: NDArray[np.float32],
+    min_den: np.float32,
+    k: int,
+    r: int,
+    geom: np.float32,
+    noise_scale: np.float32,
+) -> tuple[NDArray[np.int8], bool]:
+    # _crease_state of OpenCV's k x k window sums of `inverse` (H, W, 2), taken in the same
+    # call (_crease_means_window), and True; False (and nothing computed) where they could
+    # differ from OpenCV's
+    ws, has, bend, exact = _crease_means_window(inverse, valid, c, min_den, k, geom, noise_scale)
+    if not exact:
+        return np.empty((0, 0), np.int8), False
+    return _state_from(ws, has, bend, valid, facing, r), True
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _state_from(
+    ws: NDArray[np.float32],
+    has: NDArray[np.bool_],
+    bend: NDArray[np.float32],
+    valid: NDArray[np.bool_],
+    facing: NDArray[np.bool_],
+    r: int,
+) -> NDArray[np.int8]:
+    h, w = valid.shape
     state = np.empty((h, w), np.int8)
     row = np.empty(w, np.bool_)
     active = np.int8(ACTIVE)
@@ -325,12 +397,6 @@ def _crease_means(
     dr = np.empty(w, np.float32)
     has = np.empty((h, w), np.bool_)
     bend = np.empty((h, w), np.float32)
-    thousand = np.float32(1000.0)
-    one = np.float32(1.0)
-    two = np.float32(2.0)
-    four = np.float32(4.0)
-    c0, c1, c2, c3 = c[0], c[1], c[2], c[3]
-    zero = np.float32(0.0)
     for y in range(h):
         wr = ws[y]
         fr = flat[y]
@@ -338,20 +404,116 @@ def _crease_means(
             j = np.uint64(2) * ux
             wr[ux] = fr[j]
             dr[ux] = fr[j + np.uint64(1)]
-        vr = valid[y]
-        hr = has[y]
-        br = bend[y]
-        for x in range(w):
-            keep = dr[x] >= min_den
-            wc = wr[x] / dr[x]
-            z = thousand / wc
-            sq = z * z
-            res = max(c0 + c1 * sq, two * (c2 + c3 * sq))
-            noise = res / two / max(z, one) * noise_scale
-            hr[x] = keep & vr[x]  # the result is kept where there is a reading only
-            wr[x] = wc if keep else zero
-            br[x] = max(geom, four * noise) * wc if keep else zero
+        _crease_mean_row(wr, dr, valid[y], has[y], bend[y], c, min_den, geom, noise_scale)
     return ws, has, bend
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _crease_means_window(
+    inverse: NDArray[np.float32],
+    valid: NDArray[np.bool_],
+    c: NDArray[np.float32],
+    min_den: np.float32,
+    k: int,
+    geom: np.float32,
+    noise_scale: np.float32,
+) -> tuple[NDArray[np.float32], NDArray[np.bool_], NDArray[np.float32], bool]:
+    # _crease_means of OpenCV's k x k window sums of `inverse` (zeros outside the frame), the
+    # sums taken row by row in float64 here (a column sum running down the rows, then the k
+    # columns across), in an order of our own: OpenCV's to the last bit when
+    # window.exact_rows holds for the rows' ranges (both channels' together: the readings
+    # are 1 or 0). Otherwise nothing is computed and the flag is False (the caller takes
+    # OpenCV's filter)
+    h, w = valid.shape
+    m = 2 * w
+    r = k // 2
+    flat = inverse.reshape((h, m))
+    hi = np.empty(h, np.int64)
+    lo = np.empty(h, np.int64)
+    for y in range(h):
+        hi[y], lo[y] = bits_range(flat[y])
+    ws = np.empty((h, w), np.float32)
+    has = np.empty((h, w), np.bool_)
+    bend = np.empty((h, w), np.float32)
+    if not exact_rows(hi, lo, k * k, r + 1, r):
+        return ws, has, bend, False
+    pad = np.zeros(m + 4 * r, np.float64)  # r pixels of zeros each side
+    mid = pad[2 * r : 2 * r + m]
+    for d in range(min(r, h - 1) + 1):  # the rows above the first are zeros
+        row = flat[d]
+        for j in range(m):
+            mid[j] += row[j]
+    acc = np.empty(m, np.float64)
+    out = np.empty(m, np.float32)
+    dr = np.empty(w, np.float32)
+    for y in range(h):
+        if y > 0:
+            add = y + r < h
+            sub = y - r - 1 >= 0
+            if add and sub:
+                new, old = flat[y + r], flat[y - r - 1]
+                for j in range(m):
+                    mid[j] = (mid[j] + new[j]) - old[j]
+            elif add:
+                new = flat[y + r]
+                for j in range(m):
+                    mid[j] += new[j]
+            elif sub:
+                old = flat[y - r - 1]
+                for j in range(m):
+                    mid[j] -= old[j]
+        if r == 1:
+            p0, p2, p4 = pad[0:m], pad[2 : m + 2], pad[4 : m + 4]
+            for j in range(m):
+                out[j] = np.float32((p0[j] + p2[j]) + p4[j])
+        else:
+            for j in range(m):
+                acc[j] = pad[j]
+            for d in range(1, 2 * r + 1):
+                pd = pad[2 * d : 2 * d + m]
+                for j in range(m):
+                    acc[j] += pd[j]
+            for j in range(m):
+                out[j] = np.float32(acc[j])
+        wr = ws[y]
+        for ux in range(np.uint64(w)):
+            i2 = np.uint64(2) * ux
+            wr[ux] = out[i2]
+            dr[ux] = out[i2 + np.uint64(1)]
+        _crease_mean_row(wr, dr, valid[y], has[y], bend[y], c, min_den, geom, noise_scale)
+    return ws, has, bend, True
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _crease_mean_row(
+    wr: NDArray[np.float32],
+    dr: NDArray[np.float32],
+    vr: NDArray[np.bool_],
+    hr: NDArray[np.bool_],
+    br: NDArray[np.float32],
+    c: NDArray[np.float32],
+    min_den: np.float32,
+    geom: np.float32,
+    noise_scale: np.float32,
+) -> None:
+    # one row of _crease_means: `wr` (the window sums of 1000 / z in, the means out), `dr`
+    # (the window counts of readings); `hr` and `br` out
+    thousand = np.float32(1000.0)
+    one = np.float32(1.0)
+    two = np.float32(2.0)
+    four = np.float32(4.0)
+    c0, c1, c2, c3 = c[0], c[1], c[2], c[3]
+    zero = np.float32(0.0)
+    for x in range(wr.size):
+        keep = dr[x] >= min_den
+        wc = wr[x] / dr[x]
+        z = thousand / wc
+        sq = z * z
+        res = max(c0 + c1 * sq, two * (c2 + c3 * sq))
+        noise = res / two / max(z, one) * noise_scale
+        hr[x] = keep & vr[x]  # the result is kept where there is a reading only
+        wr[x] = wc if keep else zero
+        br[x] = max(geom, four * noise) * wc if keep else zero
 
 
 @njit(cache=True, inline="always", error_model="numpy")

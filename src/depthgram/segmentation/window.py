@@ -1,0 +1,168 @@
+"""Window sums of float32 images that are OpenCV's to the last bit, in an order of our choosing.
+
+OpenCV's unnormalised box filter of a float32 image adds in float64 (row sums sliding along the
+row, column sums kept running down the rows) and rounds each sum to float32 once, at the end.
+When every float64 intermediate is exact, its output is float32 of the exact window sum,
+whatever order it adds in, and so is any other order whose intermediates are exact too. Every
+float32 value is a whole multiple of ``2**q``, ``q`` the place of the last mantissa bit of the
+smallest nonzero magnitude (``e_min - 23``, at least ``-149``), and every intermediate of
+either route (a partial sum of an ``k x k`` window, a running column sum plus or minus one
+value, one value minus another) is at most ``k * k`` times the largest magnitude ``m`` in the
+rows it reads. float64 holds every whole multiple of ``2**q`` up to ``2**(53 + q)``, so all
+intermediates are exact when ``k * k * m <= 2**(53 + q)``: about 23 octaves between the
+smallest and largest magnitude for a 7 x 7 window, 25 for 3 x 3. :func:`exact_rows` tests it
+over each output row's band of source rows (from the per-row ranges :func:`bits_range`
+gives); a caller whose image fails it takes OpenCV's own filter.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from numba import njit
+from numpy.typing import NDArray
+
+__all__ = ["bits_range", "exact_in_float64", "exact_rows", "next_columns", "start_columns", "window_row"]
+
+_ABS = 0x7FFFFFFF
+_NONE = 0xFFFFFFFF
+
+
+@njit(cache=True, inline="always")
+def bits_range(v: NDArray[np.float32]) -> tuple[np.int64, np.int64]:
+    """Return the bit patterns of the largest and the smallest nonzero ``|v|`` (0, 0 if all zero).
+
+    Integer reductions on the bit patterns (non-negative float32 values order as their bits), so
+    that the loop vectorises (a float max reduction does not without fast-math); a NaN or an
+    infinity gives a largest pattern of at least ``0x7F800000``.
+    """
+    b = v.view(np.uint32)
+    none = np.int64(_NONE)
+    hi = np.int64(0)
+    lo = none
+    for i in range(b.size):
+        a = np.int64(b[i]) & np.int64(_ABS)
+        hi = a if a > hi else hi
+        c = a if a != 0 else none  # zeros never win
+        lo = c if c < lo else lo
+    return hi, lo if lo != none else np.int64(0)
+
+
+@njit(cache=True, inline="always")
+def exact_in_float64(hi: Any, lo: Any, n: int) -> bool:
+    """Whether ``n`` times the largest magnitude is a float64 whole multiple of the smallest's last bit.
+
+    ``hi`` and ``lo``: bit patterns of the largest and smallest nonzero magnitudes
+    (:func:`bits_range`); ``n`` at most ``2**30``. Exact integer arithmetic on exponents and
+    mantissas: ``n * m * 2**(e_hi - 150) <= 2**(53 + e_lo - 150)`` with ``m`` the largest
+    value's 24-bit mantissa and ``e`` the biased exponents (1 for subnormals). Infinite or NaN
+    values fail; so do sums that could leave float32's range.
+    """
+    if hi == 0:
+        return True  # all zeros
+    e_hi = hi >> 23
+    if e_hi >= 240:  # infinities, NaNs and sums near float32's largest value
+        return False
+    m = hi & 0x7FFFFF
+    if e_hi == 0:
+        e_hi = 1  # subnormal: no hidden bit
+    else:
+        m += 1 << 23
+    e_lo = max(lo >> 23, 1)
+    s = 53 + e_lo - e_hi
+    if s < 0:
+        return False
+    if s >= 62:
+        return True
+    fits: bool = n * m <= (1 << s)
+    return fits
+
+
+@njit(cache=True, inline="always")
+def exact_rows(hi: NDArray[np.int64], lo: NDArray[np.int64], n: int, before: int, after: int) -> bool:
+    """Whether every output row's band of source rows passes :func:`exact_in_float64`.
+
+    ``hi``, ``lo`` (H,): each source row's :func:`bits_range`. Output row ``y`` reads source
+    rows ``y - before`` to ``y + after`` (clamped to the image): a running column sum takes the
+    row ``r + 1`` above and adds the row ``r`` below. A band of rows instead of the whole image,
+    so that a row of tiny values far from the largest ones does not send the frame to OpenCV.
+    """
+    h = hi.size
+    for y in range(h):
+        a = max(y - before, 0)
+        b = min(y + after, h - 1)
+        top = 0
+        low = _NONE
+        for i in range(a, b + 1):
+            top = max(top, hi[i])
+            if lo[i] != 0:
+                low = min(low, lo[i])
+        if top != 0 and not exact_in_float64(top, low, n):
+            return False
+    return True
+
+
+@njit(cache=True, inline="always")
+def start_columns(src: NDArray[np.float32], r: int, pad: NDArray[np.float64]) -> None:
+    """Put the column sums of output row 0 (rows ``-r`` to ``r``, replicated) in ``pad[r:r + W]``.
+
+    ``src`` (H, W); ``pad`` (W + 2 r,) of float64, or float32 for whole numbers that stay exact
+    in it.
+    """
+    h, w = src.shape
+    mid = pad[r : r + w]
+    mid[:] = 0
+    for d in range(-r, r + 1):
+        row = src[min(max(d, 0), h - 1)]
+        for x in range(w):
+            mid[x] += row[x]
+
+
+@njit(cache=True, inline="always")
+def next_columns(src: NDArray[np.float32], y: int, r: int, pad: NDArray[np.float64]) -> None:
+    """Move the column sums in ``pad[r:r + W]`` from output row ``y - 1`` to ``y`` (replicated rows).
+
+    The row ``r`` below is added and the row ``r + 1`` above taken off, in ``pad``'s type (a
+    float32 value is exact in float64).
+    """
+    h, w = src.shape
+    new = src[min(y + r, h - 1)]
+    old = src[max(y - r - 1, 0)]
+    mid = pad[r : r + w]
+    for x in range(w):
+        mid[x] = (mid[x] + new[x]) - old[x]
+
+
+@njit(cache=True, inline="always")
+def window_row(pad: NDArray[np.float64], r: int, pairs: NDArray[np.float64], out: NDArray[np.float32]) -> None:
+    """Give ``out`` (W,) the sums of ``2 r + 1`` column sums across (replicated border), as float32.
+
+    ``pad`` (W + 2 r,) holds the column sums in its middle (:func:`next_columns`); its ends are
+    filled here. ``pairs`` (W + 2 r,): scratch of ``pad``'s type. For r = 3 the pairs of
+    neighbours are summed once and a window is three pairs and one sum (4 additions for 6).
+    """
+    w = out.size
+    first = pad[r]
+    last = pad[r + w - 1]
+    for i in range(r):
+        pad[i] = first
+        pad[r + w + i] = last
+    if r == 3:
+        m = w + 5
+        a, b = pad[0:m], pad[1 : m + 1]
+        for i in range(m):
+            pairs[i] = a[i] + b[i]
+        p0, p2, p4, s6 = pairs[0:w], pairs[2 : w + 2], pairs[4 : w + 4], pad[6 : w + 6]
+        for x in range(w):
+            out[x] = np.float32((p0[x] + p2[x]) + (p4[x] + s6[x]))
+        return
+    acc = pairs[:w]
+    for x in range(w):
+        acc[x] = pad[x]
+    for d in range(1, 2 * r + 1):
+        pd = pad[d : d + w]
+        for x in range(w):
+            acc[x] += pd[x]
+    for x in range(w):
+        out[x] = np.float32(acc[x])
