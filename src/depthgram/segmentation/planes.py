@@ -1081,66 +1081,68 @@ def _lu_solve3(a: NDArray[np.float64], x: NDArray[np.float64]) -> None:
     same order give the same numbers (a test compares them on many systems); a zero pivot,
     where numpy raises, gives inf or nan here.
     """
-    piv0 = 0
-    piv1 = 1
-    for j in range(3):
-        # the earlier row swaps, on this column
-        if j > 0 and piv0 != 0:
-            t = a[0, j]
-            a[0, j] = a[piv0, j]
-            a[piv0, j] = t
-        if j > 1 and piv1 != 1:
-            t = a[1, j]
-            a[1, j] = a[piv1, j]
-            a[piv1, j] = t
-        # the column's U part above the diagonal, then the rest minus L times it (gemv)
-        if j == 2:
-            a[1, 2] = a[1, 2] - _fma(a[1, 0], a[0, 2], 0.0)
-        for r in range(j, 3):
-            acc = 0.0
-            for k in range(j):
-                acc = _fma(a[r, k], a[k, j], acc)
-            a[r, j] = a[r, j] - acc
-        jp = j
-        big = abs(a[j, j])
-        for r in range(j + 1, 3):
-            if abs(a[r, j]) > big:
-                big = abs(a[r, j])
-                jp = r
-        if j == 0:
-            piv0 = jp
-        elif j == 1:
-            piv1 = jp
-        p = a[jp, j]
-        if p != 0.0:
-            if jp != j:
-                for c in range(j + 1):
-                    t = a[j, c]
-                    a[j, c] = a[jp, c]
-                    a[jp, c] = t
-            if abs(p) >= 2.2250738585072014e-308:
-                rp = 1.0 / p
-                for r in range(j + 1, 3):
-                    a[r, j] *= rp
-            else:
-                for r in range(j + 1, 3):
-                    a[r, j] /= p
-    # the right-hand side through the swaps, L (unit diagonal) and U, by columns
-    if piv0 != 0:
-        t = x[0]
-        x[0] = x[piv0]
-        x[piv0] = t
-    if piv1 != 1:
-        t = x[1]
-        x[1] = x[piv1]
-        x[piv1] = t
-    for i in range(3):
-        for r in range(i + 1, 3):
-            x[r] = _fma(-x[i], a[r, i], x[r])
-    for i in range(2, -1, -1):
-        x[i] /= a[i, i]
-        for r in range(i):
-            x[r] = _fma(-x[i], a[r, i], x[r])
+    # the matrix and the right-hand side in registers: the pivot's row swaps are selects
+    # (which row holds the largest magnitude cannot be predicted: a branch on it flushed the
+    # pipeline, and with it the overlap of one system's divisions with the next one's); the
+    # rows are swapped whole when the pivot is chosen, as getf2's later columns would be
+    a00, a01, a02 = a[0, 0], a[0, 1], a[0, 2]
+    a10, a11, a12 = a[1, 0], a[1, 1], a[1, 2]
+    a20, a21, a22 = a[2, 0], a[2, 1], a[2, 2]
+    x0, x1, x2 = x[0], x[1], x[2]
+    # column 0 (no update: the column minus an empty product is itself)
+    big = abs(a00)
+    s1 = abs(a10) > big
+    big = max(big, abs(a10)) if s1 else big
+    s2 = abs(a20) > big
+    s1 = s1 and not s2
+    # rows 0 and 1 or 0 and 2 swapped (x too: its swaps come first in the solve)
+    t00, t01, t02, tx = a00, a01, a02, x0
+    a00 = a20 if s2 else (a10 if s1 else a00)
+    a01 = a21 if s2 else (a11 if s1 else a01)
+    a02 = a22 if s2 else (a12 if s1 else a02)
+    x0 = x2 if s2 else (x1 if s1 else x0)
+    a10, a11, a12, x1 = (t00, t01, t02, tx) if s1 else (a10, a11, a12, x1)
+    a20, a21, a22, x2 = (t00, t01, t02, tx) if s2 else (a20, a21, a22, x2)
+    p = a00
+    if p != 0.0:
+        if abs(p) >= 2.2250738585072014e-308:
+            rp = 1.0 / p
+            a10 *= rp
+            a20 *= rp
+        else:
+            a10 /= p
+            a20 /= p
+    # column 1: minus L times its U part, then its pivot among rows 1 and 2
+    a11 = a11 - _fma(a10, a01, 0.0)
+    a21 = a21 - _fma(a20, a01, 0.0)
+    sw = abs(a21) > abs(a11)
+    a10, a20 = (a20, a10) if sw else (a10, a20)
+    a11, a21 = (a21, a11) if sw else (a11, a21)
+    a12, a22 = (a22, a12) if sw else (a12, a22)
+    x1, x2 = (x2, x1) if sw else (x1, x2)
+    p = a11
+    if p != 0.0:
+        if abs(p) >= 2.2250738585072014e-308:
+            a21 *= 1.0 / p
+        else:
+            a21 /= p
+    # column 2
+    a12 = a12 - _fma(a10, a02, 0.0)
+    a22 = a22 - _fma(a21, a12, _fma(a20, a02, 0.0))
+    a[0, 0], a[0, 1], a[0, 2] = a00, a01, a02
+    a[1, 0], a[1, 1], a[1, 2] = a10, a11, a12
+    a[2, 0], a[2, 1], a[2, 2] = a20, a21, a22
+    # the right-hand side through L (unit diagonal) and U, by columns
+    x1 = _fma(-x0, a10, x1)
+    x2 = _fma(-x0, a20, x2)
+    x2 = _fma(-x1, a21, x2)
+    x2 /= a22
+    x0 = _fma(-x2, a02, x0)
+    x1 = _fma(-x2, a12, x1)
+    x1 /= a11
+    x0 = _fma(-x1, a01, x0)
+    x0 /= a00
+    x[0], x[1], x[2] = x0, x1, x2
 
 
 def coplanar_groups(
