@@ -247,3 +247,41 @@ def test_creases_from_window_sums_equal_the_opencv_route() -> None:
     im, valid, facing = _crease_args(rng, 20, 20, 40.0)
     assert not _creases_window(im, valid, c, f32(4.5), 3, 2, f32(0.02), f32(1.0))[1]
     assert not _crease_state_window(im, valid, facing, c, f32(4.5), 3, 2, f32(0.02), f32(1.0))[1]
+
+
+def test_a_refused_frame_takes_opencvs_route_to_the_same_result(monkeypatch: pytest.MonkeyPatch) -> None:
+    # a frame the exactness test refuses (SUN RGB-D's frame read in the wrong units was one)
+    # gets its classes, creases and labeller state from OpenCV's sums: the same results where
+    # both routes apply
+    from depthgram.segmentation import orientation, surfaces
+    from depthgram.segmentation.sensor import PROFILES
+    from depthgram.sensor import simulate
+
+    f = next(iter(simulate("table", 1, size=(176, 132), seed=0))).frame
+    facing = f.valid & (np.arange(176)[None, :] % 3 > 0)
+    kw = {"scale_px": 2, "min_angle_deg": 10.0, "focal_px": float(f.intrinsics.fx)}
+    sensor = PROFILES["kinect-v1"]
+    want = (
+        orientation.orientation_classes(f.depth, f.valid, f.intrinsics),
+        surfaces.concave_creases(f.depth, f.valid, sensor, **kw),
+        surfaces.crease_state(f.depth, f.valid, facing, sensor, **kw),
+    )
+    calls = []
+
+    def refuse(*args: object) -> tuple[None, bool]:
+        calls.append(args)
+        return None, False
+
+    for name in ("_classify_window",):
+        monkeypatch.setattr(orientation, name, refuse)
+    for name in ("_creases_window", "_crease_state_window"):
+        monkeypatch.setattr(surfaces, name, refuse)
+    got = (
+        orientation.orientation_classes(f.depth, f.valid, f.intrinsics),
+        surfaces.concave_creases(f.depth, f.valid, sensor, **kw),
+        surfaces.crease_state(f.depth, f.valid, facing, sensor, **kw),
+    )
+    assert len(calls) == 3
+    for a, b in zip(got, want, strict=True):
+        np.testing.assert_array_equal(a, b)
+    assert want[1].any() and len(np.unique(want[0])) == 3
