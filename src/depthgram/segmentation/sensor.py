@@ -157,8 +157,9 @@ def estimate_sensor(
     depth ranges, so a structured-light camera comes out with ``b`` and a ToF camera with ``a``.
     """
     h, w = depth_mm.shape
-    if w < 3 or not valid.any():
+    if w < 3:
         return PROFILES["tof"]
+    # (a frame without readings needs no test of its own: it has no samples, so no fit)
     rows = max(1, h * (w - 2) // max_samples)
     # the samples, their order, each depth range's estimates and both least squares in one
     # compiled call
