@@ -397,7 +397,8 @@ def test_slopes_match_the_passes_they_replaced() -> None:
         for step in (1, 3):
             inv3, planes, edge, _ = _slopes(inverse, z, valid, step, fx, fy, steep, f32(0.05))
             kept = np.moveaxis(planes, 0, -1)  # the channel planes
-            box = cv2.boxFilter(inverse, -1, (3, 3), normalize=False, borderType=cv2.BORDER_REPLICATE)
+            both = cv2.merge([inverse[0], inverse[1]])  # the two planes as channels of one image
+            box = cv2.boxFilter(both, -1, (3, 3), normalize=False, borderType=cv2.BORDER_REPLICATE)
             den3 = np.maximum(box[:, :, 1], f32(1e-6))
             np.testing.assert_array_equal(inv3, np.asarray(box[:, :, 0] / den3, f32))
             has = den3 > 0.5
@@ -430,7 +431,7 @@ def test_box3_mean_equals_opencvs_box_filter() -> None:
         img[rng.random((h, w, 2)) < 0.3] = 0.0
         box = cv2.boxFilter(img, -1, (3, 3), normalize=False, borderType=cv2.BORDER_REPLICATE)
         den = np.maximum(box[:, :, 1], np.float32(1e-6))
-        inv3, has = _box3_mean(img)
+        inv3, has = _box3_mean(np.ascontiguousarray(np.moveaxis(img, -1, 0)))  # as two planes
         np.testing.assert_array_equal(inv3, np.asarray(box[:, :, 0] / den, np.float32))
         np.testing.assert_array_equal(has, den > 0.5)
 
@@ -469,9 +470,9 @@ def test_orientation_inverse_and_mean_match_numpy() -> None:
     z[~valid] = 0
     inv_ref = np.zeros_like(z)
     np.divide(1000.0, z, out=inv_ref, where=valid)
-    both = _inverse(z, valid)  # the two as channels of one image
-    assert both.shape == (*z.shape, 2) and both.dtype == np.float32
-    inv, m = both[:, :, 0], both[:, :, 1]
+    both = _inverse(z, valid)  # the two as planes
+    assert both.shape == (2, *z.shape) and both.dtype == np.float32
+    inv, m = both[0], both[1]
     np.testing.assert_array_equal(inv, inv_ref)
     np.testing.assert_array_equal(m, valid.astype(np.float32))
     box = {"ddepth": -1, "ksize": (3, 3), "normalize": False, "borderType": cv2.BORDER_REPLICATE}

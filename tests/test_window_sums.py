@@ -212,7 +212,7 @@ def test_orientation_classes_whichever_route_sums_the_window(scene: str) -> None
 def _crease_args(rng: np.random.Generator, h: int, w: int, octaves: float) -> tuple:
     valid = rng.random((h, w)) > 0.15
     inv = np.where(valid, np.exp2(rng.uniform(-octaves, 0, (h, w))) * 4.0, 0.0)
-    im = np.ascontiguousarray(np.stack([inv, valid], axis=-1).astype(f32))
+    im = np.ascontiguousarray(np.stack([inv, valid]).astype(f32))  # two planes, as _inverse
     facing = valid & (rng.random((h, w)) > 0.2)
     return im, valid, facing
 
@@ -233,7 +233,7 @@ def test_creases_from_window_sums_equal_the_opencv_route() -> None:
         im, valid, facing = _crease_args(rng, h, w, (1.0, 6.0, 20.0)[t % 3])
         sums = _window_sums(im, k)
         for ch in range(2):
-            np.testing.assert_array_equal(sums[:, :, ch], exact_box(np.ascontiguousarray(im[:, :, ch]), k, 0))
+            np.testing.assert_array_equal(sums[:, :, ch], exact_box(im[ch], k, 0))
         args = (c, f32(0.5 * k * k))
         tail = (f32(0.02), f32(math.sqrt(6.0) / (0.7 * k)))
         want = _creases(sums, valid, *args, r, *tail)

@@ -62,8 +62,8 @@ def orientation_classes(
         horizontal surface, or its horizontal axis for a wall.
     jump_rel : float
         Relative depth step between neighbours marking an occlusion edge.
-    inverse : ndarray of float32, shape (H, W, 2), optional
-        ``1000 / depth_mm`` and the readings (1 / 0) as channels, as
+    inverse : ndarray of float32, shape (2, H, W), optional
+        ``1000 / depth_mm`` and the readings (1 / 0) as two planes, as
         ``depthgram.segmentation.surfaces._inverse`` gives them, when the caller has them (the
         creases take the same).
 
@@ -103,8 +103,8 @@ def _field(
     inverse: NDArray[np.float32] | None = None,
 ) -> tuple[NDArray[np.int8], NDArray[np.float32] | None]:
     h, w = depth_mm.shape
-    # 1000 / Z (1/m keeps float32 well scaled) and the readings as 1 / 0, in one pass, as the
-    # two channels of one image (one box filter for both: the same sums, a test)
+    # 1000 / Z (1/m keeps float32 well scaled) and the readings as 1 / 0, in one pass, as two
+    # planes
     if inverse is None:
         inverse = _inverse(np.ascontiguousarray(depth_mm, np.float32), np.ascontiguousarray(valid, np.bool_))
     # a 3 x 3 valid-weighted mean, then differences over `step` px: the slope of a distant floor
@@ -173,7 +173,7 @@ def _slopes(
 ) -> tuple[NDArray[np.float32], NDArray[np.float32], NDArray[np.bool_], NDArray[np.int64]]:
     """Return the 3 x 3 mean of 1/Z, the kept slopes (3, H, W), the occlusion edges and the slopes' ranges.
 
-    ``inverse`` (H, W, 2): 1000 / Z and the readings (:func:`_inverse`). The mean is numpy's
+    ``inverse`` (2, H, W): 1000 / Z and the readings (:func:`_inverse`). The mean is numpy's
     ``s_inv / np.maximum(s_m, 1e-6)`` (float32) of OpenCV's 3 x 3 unnormalised box sums with
     replicated borders (:func:`_box3_mean`, the same sums); the slopes are :func:`_one_sided`
     along rows and columns of the mean where it is defined, kept under 80 degrees
@@ -219,38 +219,28 @@ def _box3_row(s: NDArray[np.float32], d: NDArray[np.float64]) -> None:
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _box3_rows(inverse: NDArray[np.float32], y: int, si: NDArray[np.float32], sm: NDArray[np.float32],
-               di: NDArray[np.float64], dm: NDArray[np.float64]) -> None:  # fmt: skip
-    # the row sums of both channels of source row y, read into two row buffers first (so that
-    # the sums vectorise)
-    w = si.size
-    fr = inverse[y].reshape(2 * w)
-    for ux in range(np.uint64(w)):
-        j = np.uint64(2) * ux
-        si[ux] = fr[j]
-        sm[ux] = fr[j + np.uint64(1)]
-    _box3_row(si, di)
-    _box3_row(sm, dm)
+def _box3_rows(inverse: NDArray[np.float32], y: int, di: NDArray[np.float64], dm: NDArray[np.float64]) -> None:
+    # the row sums of both planes' source row y
+    _box3_row(inverse[0, y], di)
+    _box3_row(inverse[1, y], dm)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def _box3_mean(inverse: NDArray[np.float32]) -> tuple[NDArray[np.float32], NDArray[np.bool_]]:
-    # the 3 x 3 mean of 1/Z where a neighbour has a reading: OpenCV's boxFilter(inverse, -1,
-    # (3, 3), normalize=False, borderType=BORDER_REPLICATE) computed as OpenCV computes a float32
-    # image (float64 row sums; float64 column sums kept running down the rows, SUM + new row
-    # given as float32, then the row leaving the window taken off), then numpy's
-    # np.maximum(s_m, 1e-6) (float32), float32 division and test against 0.5
-    h, w = inverse.shape[0], inverse.shape[1]
+    # the 3 x 3 mean of 1/Z where a neighbour has a reading: OpenCV's boxFilter of each plane
+    # of `inverse`, (3, 3), normalize=False, borderType=BORDER_REPLICATE, computed as OpenCV
+    # computes a float32 image (float64 row sums; float64 column sums kept running down the
+    # rows, SUM + new row given as float32, then the row leaving the window taken off), then
+    # numpy's np.maximum(s_m, 1e-6) (float32), float32 division and test against 0.5
+    h, w = inverse.shape[1], inverse.shape[2]
     inv3 = np.empty((h, w), np.float32)
     has = np.empty((h, w), np.bool_)
-    si = np.empty(w, np.float32)
-    sm = np.empty(w, np.float32)
     # row sums of source rows y - 1, y, y + 1 (clamped: replicated border rows)
     ri = np.empty((3, w), np.float64)
     rm = np.empty((3, w), np.float64)
     sum_i = np.zeros(w, np.float64)
     sum_m = np.zeros(w, np.float64)
-    _box3_rows(inverse, 0, si, sm, ri[0], rm[0])
+    _box3_rows(inverse, 0, ri[0], rm[0])
     ri[1] = ri[0]
     rm[1] = rm[0]
     # OpenCV's column filter starts from zeros and adds the first ksize - 1 rows (row -1 = row 0)
@@ -264,7 +254,7 @@ def _box3_mean(inverse: NDArray[np.float32]) -> tuple[NDArray[np.float32], NDArr
     half = np.float32(0.5)
     prev, cur, nxt = 0, 1, 2
     for y in range(h):
-        _box3_rows(inverse, min(y + 1, h - 1), si, sm, ri[nxt], rm[nxt])
+        _box3_rows(inverse, min(y + 1, h - 1), ri[nxt], rm[nxt])
         pi, pm, ni, nm = ri[prev], rm[prev], ri[nxt], rm[nxt]
         ir = inv3[y]
         hr = has[y]

@@ -121,7 +121,7 @@ def concave_creases(
         facing the sensor.
     focal_px : float
         Focal length (px).
-    inverse : ndarray of float32, shape (H, W, 2), optional
+    inverse : ndarray of float32, shape (2, H, W), optional
         ``1000 / depth_mm`` and the readings (1 / 0) of this frame as :func:`_inverse` gives
         them, when the caller has them (the orientation field takes the same): read where the
         creases are taken on every pixel.
@@ -180,7 +180,7 @@ def _crease_inputs(
     k: int,
     inverse: NDArray[np.float32] | None,
 ) -> tuple[Any, ...]:
-    # the compiled route's arguments: 1000 / z and the readings (H, W, 2), the readings,
+    # the compiled route's arguments: 1000 / z and the readings (2, H, W), the readings,
     # coefficients, the least count of readings, span
     z = np.ascontiguousarray(depth_mm, np.float32)
     ok = np.ascontiguousarray(valid, np.bool_)
@@ -195,7 +195,8 @@ def _window_sums(im: NDArray[np.float32], k: int) -> NDArray[np.float32]:
     # OpenCV's k x k window sums of 1000 / z and the readings, for a frame whose values
     # window.exact_rows refused: both from one two-channel filter (the same sums as one
     # filter each, a test)
-    return np.asarray(cv2.boxFilter(im, -1, (k, k), normalize=False, borderType=cv2.BORDER_CONSTANT), np.float32)
+    img = cv2.merge([im[0], im[1]])
+    return np.asarray(cv2.boxFilter(img, -1, (k, k), normalize=False, borderType=cv2.BORDER_CONSTANT), np.float32)
 
 
 def crease_state(
@@ -238,30 +239,25 @@ def crease_state(
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def _inverse(z: NDArray[np.float32], valid: NDArray[np.bool_]) -> NDArray[np.float32]:
-    # (H, W, 2): 1000 / z and 1 where there is a reading, else 0, as the channels of one image
-    # for the box filters. Every pixel divided and masked (numpy's division rule, no zero
-    # test) into row buffers, then interleaved, so that both loops vectorise
+    # (2, H, W): 1000 / z and 1 where there is a reading, else 0, as two planes (the window
+    # sums read each plane's rows: the readings' in float32, whole numbers). Every pixel
+    # divided and masked (numpy's division rule, no zero test), so that the loop vectorises
     h, w = z.shape
-    out = np.empty((h, 2 * w), np.float32)
-    inv = np.empty(w, np.float32)
-    m = np.empty(w, np.float32)
+    out = np.empty((2, h, w), np.float32)
     thousand = np.float32(1000.0)
     zero = np.float32(0.0)
     one = np.float32(1.0)
     for y in range(h):
         zr = z[y]
         vr = valid[y]
+        inv = out[0, y]
+        m = out[1, y]
         for x in range(w):
             ok = vr[x]
             q = thousand / zr[x]
             inv[x] = q if ok else zero
             m[x] = one if ok else zero
-        o = out[y]
-        for ux in range(np.uint64(w)):
-            j = np.uint64(2) * ux
-            o[j] = inv[ux]
-            o[j + np.uint64(1)] = m[ux]
-    return out.reshape((h, w, 2))
+    return out
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -294,7 +290,7 @@ def _creases_window(
     geom: np.float32,
     noise_scale: np.float32,
 ) -> tuple[NDArray[np.bool_], bool]:
-    # _creases of OpenCV's k x k window sums of `inverse` (H, W, 2), taken in the same call
+    # _creases of OpenCV's k x k window sums of `inverse` (2, H, W), taken in the same call
     # (_crease_means_window), and True; False (and nothing computed) where they could differ
     # from OpenCV's
     ws, has, bend, exact = _crease_means_window(inverse, valid, c, min_den, k, geom, noise_scale)
@@ -343,7 +339,7 @@ def _crease_state_window(
     geom: np.float32,
     noise_scale: np.float32,
 ) -> tuple[NDArray[np.int8], bool]:
-    # _crease_state of OpenCV's k x k window sums of `inverse` (H, W, 2), taken in the same
+    # _crease_state of OpenCV's k x k window sums of `inverse` (2, H, W), taken in the same
     # call (_crease_means_window), and True; False (and nothing computed) where they could
     # differ from OpenCV's
     ws, has, bend, exact = _crease_means_window(inverse, valid, c, min_den, k, geom, noise_scale)
@@ -418,68 +414,71 @@ def _crease_means_window(
     geom: np.float32,
     noise_scale: np.float32,
 ) -> tuple[NDArray[np.float32], NDArray[np.bool_], NDArray[np.float32], bool]:
-    # _crease_means of OpenCV's k x k window sums of `inverse` (zeros outside the frame), the
-    # sums taken row by row in float64 here (a column sum running down the rows, then the k
+    # _crease_means of OpenCV's k x k window sums of `inverse` (2, H, W) (zeros outside the
+    # frame), the sums taken row by row here (a column sum running down the rows, then the k
     # columns across), in an order of our own: OpenCV's to the last bit when
-    # window.exact_rows holds for the rows' ranges (both channels' together: the readings
-    # are 1 or 0). Otherwise nothing is computed and the flag is False (the caller takes
-    # OpenCV's filter)
+    # window.exact_rows holds for the rows' ranges of 1000 / z (the readings are 1 or 0).
+    # Otherwise nothing is computed and the flag is False (the caller takes OpenCV's filter)
     h, w = valid.shape
-    m = 2 * w
     r = k // 2
-    flat = inverse.reshape((h, m))
+    iv, rd = inverse[0], inverse[1]
     hi = np.empty(h, np.int64)
     lo = np.empty(h, np.int64)
-    for y in range(h):
-        hi[y], lo[y] = bits_range(flat[y])
+    for y in range(h):  # the readings (whole numbers) need no test
+        hi[y], lo[y] = bits_range(iv[y])
     ws = np.empty((h, w), np.float32)
     has = np.empty((h, w), np.bool_)
     bend = np.empty((h, w), np.float32)
     if not exact_rows(hi, lo, k * k, r + 1, r):
         return ws, has, bend, False
-    pad = np.zeros(m + 4 * r, np.float64)  # r pixels of zeros each side
-    mid = pad[2 * r : 2 * r + m]
+    # per plane: the column sums in the middle of a row padded by r zeros each side (the
+    # readings in float32, whole numbers up to k * k)
+    pad_i = np.zeros(w + 2 * r, np.float64)
+    pad_m = np.zeros(w + 2 * r, np.float32)
+    mid_i, mid_m = pad_i[r : r + w], pad_m[r : r + w]
     for d in range(min(r, h - 1) + 1):  # the rows above the first are zeros
-        row = flat[d]
-        for j in range(m):
-            mid[j] += row[j]
-    acc = np.empty(m, np.float64)
-    out = np.empty(m, np.float32)
+        a, b = iv[d], rd[d]
+        for x in range(w):
+            mid_i[x] += a[x]
+            mid_m[x] += b[x]
+    acc_i = np.empty(w, np.float64)
+    acc_m = np.empty(w, np.float32)
     dr = np.empty(w, np.float32)
     for y in range(h):
         if y > 0:
             add = y + r < h
             sub = y - r - 1 >= 0
             if add and sub:
-                new, old = flat[y + r], flat[y - r - 1]
-                for j in range(m):
-                    mid[j] = (mid[j] + new[j]) - old[j]
+                an, bn, ao, bo = iv[y + r], rd[y + r], iv[y - r - 1], rd[y - r - 1]
+                for x in range(w):
+                    mid_i[x] = (mid_i[x] + an[x]) - ao[x]
+                    mid_m[x] = (mid_m[x] + bn[x]) - bo[x]
             elif add:
-                new = flat[y + r]
-                for j in range(m):
-                    mid[j] += new[j]
+                an, bn = iv[y + r], rd[y + r]
+                for x in range(w):
+                    mid_i[x] += an[x]
+                    mid_m[x] += bn[x]
             elif sub:
-                old = flat[y - r - 1]
-                for j in range(m):
-                    mid[j] -= old[j]
-        if r == 1:
-            p0, p2, p4 = pad[0:m], pad[2 : m + 2], pad[4 : m + 4]
-            for j in range(m):
-                out[j] = np.float32((p0[j] + p2[j]) + p4[j])
-        else:
-            for j in range(m):
-                acc[j] = pad[j]
-            for d in range(1, 2 * r + 1):
-                pd = pad[2 * d : 2 * d + m]
-                for j in range(m):
-                    acc[j] += pd[j]
-            for j in range(m):
-                out[j] = np.float32(acc[j])
+                ao, bo = iv[y - r - 1], rd[y - r - 1]
+                for x in range(w):
+                    mid_i[x] -= ao[x]
+                    mid_m[x] -= bo[x]
         wr = ws[y]
-        for ux in range(np.uint64(w)):
-            i2 = np.uint64(2) * ux
-            wr[ux] = out[i2]
-            dr[ux] = out[i2 + np.uint64(1)]
+        if r == 1:
+            for x in range(w):
+                wr[x] = np.float32((pad_i[x] + pad_i[x + 1]) + pad_i[x + 2])
+                dr[x] = (pad_m[x] + pad_m[x + 1]) + pad_m[x + 2]
+        else:
+            for x in range(w):
+                acc_i[x] = pad_i[x]
+                acc_m[x] = pad_m[x]
+            for d in range(1, 2 * r + 1):
+                for x in range(w):
+                    acc_i[x] += pad_i[x + d]
+                    acc_m[x] += pad_m[x + d]
+            for x in range(w):
+                wr[x] = np.float32(acc_i[x])
+                dr[x] = acc_m[x]
         _crease_mean_row(wr, dr, valid[y], has[y], bend[y], c, min_den, geom, noise_scale)
     return ws, has, bend, True
 
