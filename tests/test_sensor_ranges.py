@@ -146,3 +146,11 @@ def test_counted_ranges_on_the_recordings(shared_data: Path) -> None:
     if not frames:
         pytest.skip("no recording found")
     _same_fit(frames)
+
+
+def test_a_frame_without_readings_gets_the_default_profile() -> None:
+    # no sample, so no fit: the ToF profile, as for a frame too narrow for a second difference
+    from depthgram.segmentation.sensor import PROFILES, estimate_sensor
+
+    for shape in ((0, 5), (5, 2), (5, 3), (4, 4), (132, 176)):
+        assert estimate_sensor(np.zeros(shape, np.float32), np.zeros(shape, bool)) is PROFILES["tof"]

@@ -157,8 +157,9 @@ def estimate_sensor(
     depth ranges, so a structured-light camera comes out with ``b`` and a ToF camera with ``a``.
     """
     h, w = depth_mm.shape
-    if w < 3 or not valid.any():
+    if w < 3:
         return PROFILES["tof"]
+    # (a frame without readings needs no test of its own: it has no samples, so no fit)
     rows = max(1, h * (w - 2) // max_samples)
     # the samples, their order, each depth range's estimates and both least squares in one
     # compiled call
@@ -379,39 +380,11 @@ def _ranges_from_counts(
             n2 += h2[v]
         if n1 < 20 or n2 < 20:
             continue
-        vi = (n1 - 1) * (20 / 100)
-        jj = math.floor(vi)
-        if vi >= n1 - 1:
-            step = float(_kth_count(h1, top1 + 1, n1 - 1))
-        else:
-            p_lo = float(_kth_count(h1, top1 + 1, jj))
-            p_hi = float(_kth_count(h1, top1 + 1, jj + 1))
-            tt = vi - jj
-            diff = p_hi - p_lo
-            step = p_hi - diff * (1.0 - tt) if tt >= 0.5 else p_lo + diff * tt
-        hb = n2 // 2
-        if n2 % 2:
-            med = float(_kth_count(h2, 2 * top2 + 1, hb) - top2)
-        else:
-            med = (
-                float(_kth_count(h2, 2 * top2 + 1, hb - 1) - top2) + float(_kth_count(h2, 2 * top2 + 1, hb) - top2)
-            ) / 2.0
-        size3 = 4 * top2 + 2
-        for v in range(2 * top2 + 1):
-            cnt = h2[v]
-            if cnt:
-                h3[int(abs(float(v - top2) - med) * 2.0)] += cnt
-        if n2 % 2:
-            dev = _kth_count(h3, size3, hb) / 2.0
-        else:
-            dev = (_kth_count(h3, size3, hb - 1) / 2.0 + _kth_count(h3, size3, hb) / 2.0) / 2.0
-        mad = dev * 1.4826
-        sigma2 = max(mad * mad - step * step / 2.0, 0.0) / 6.0
+        step, sigma = _count_statistics(h1, n1, top1, h2, n2, top2, h3)
         out[r, 0] = zc[r]
         out[r, 1] = step
-        out[r, 2] = math.sqrt(sigma2)
+        out[r, 2] = sigma
         out[r, 3] = 1.0
-        h3[:size3] = 0
     return out
 
 
@@ -672,49 +645,63 @@ def _range_estimates_whole(
                 n2 += 1
         lo = hi
         if n1 >= 20 and n2 >= 20:
-            # np.percentile(nz, 20) as _percentile20 takes it
-            vi = (n1 - 1) * (20 / 100)
-            jj = math.floor(vi)
-            if vi >= n1 - 1:
-                step = float(_kth_count(h1, top1 + 1, n1 - 1))
-            else:
-                p_lo = float(_kth_count(h1, top1 + 1, jj))
-                p_hi = float(_kth_count(h1, top1 + 1, jj + 1))
-                tt = vi - jj
-                diff = p_hi - p_lo
-                step = p_hi - diff * (1.0 - tt) if tt >= 0.5 else p_lo + diff * tt
-            # the median of b, then the median of |b - med| (whole or half numbers: counted
-            # at twice their value)
-            hb = n2 // 2
-            if n2 % 2:
-                med = float(_kth_count(h2, 2 * top2 + 1, hb) - top2)
-            else:
-                med = (
-                    float(_kth_count(h2, 2 * top2 + 1, hb - 1) - top2) + float(_kth_count(h2, 2 * top2 + 1, hb) - top2)
-                ) / 2.0
-            size3 = 4 * top2 + 2
-            for v in range(2 * top2 + 1):
-                cnt = h2[v]
-                if cnt:
-                    h3[int(abs(float(v - top2) - med) * 2.0)] += cnt
-            if n2 % 2:
-                dev = _kth_count(h3, size3, hb) / 2.0
-            else:
-                dev = (_kth_count(h3, size3, hb - 1) / 2.0 + _kth_count(h3, size3, hb) / 2.0) / 2.0
-            mad = dev * 1.4826
-            sigma2 = max(mad * mad - step * step / 2.0, 0.0) / 6.0
+            step, sigma = _count_statistics(h1, n1, top1, h2, n2, top2, h3)
             out[i, 0] = zc
             out[i, 1] = step
-            out[i, 2] = math.sqrt(sigma2)
+            out[i, 2] = sigma
             out[i, 3] = 1.0
-            h3[:size3] = 0
         h1[: top1 + 1] = 0
         h2[: 2 * top2 + 1] = 0
     return out
 
 
+@njit(cache=True, inline="always")
+def _count_statistics(
+    h1: NDArray[np.integer], n1: int, top1: int, h2: NDArray[np.integer], n2: int, top2: int, h3: NDArray[np.int64]
+) -> tuple[float, float]:
+    # One depth range's step and sigma from the counts of its differences, with
+    # _range_estimates' arithmetic (an order statistic is a value of the sample whatever finds
+    # it): h1[v] counts the first differences of value v (1..top1, n1 of them), h2[v + top2]
+    # the second differences of value v (-top2..top2, n2 of them), both at least 20. h3 is a
+    # zeroed scratch of 4 * top2 + 2 counts, left zeroed. The one place both counted routes
+    # (_range_estimates_counted, _range_estimates_whole) read their statistics.
+    # np.percentile(nz, 20) as _percentile20 takes it
+    vi = (n1 - 1) * (20 / 100)
+    jj = math.floor(vi)
+    if vi >= n1 - 1:
+        step = float(_kth_count(h1, top1 + 1, n1 - 1))
+    else:
+        p_lo = float(_kth_count(h1, top1 + 1, jj))
+        p_hi = float(_kth_count(h1, top1 + 1, jj + 1))
+        tt = vi - jj
+        diff = p_hi - p_lo
+        step = p_hi - diff * (1.0 - tt) if tt >= 0.5 else p_lo + diff * tt
+    # the median of b, then the median of |b - med| (whole or half numbers: counted at twice
+    # their value)
+    hb = n2 // 2
+    if n2 % 2:
+        med = float(_kth_count(h2, 2 * top2 + 1, hb) - top2)
+    else:
+        med = (
+            float(_kth_count(h2, 2 * top2 + 1, hb - 1) - top2) + float(_kth_count(h2, 2 * top2 + 1, hb) - top2)
+        ) / 2.0
+    size3 = 4 * top2 + 2
+    for v in range(2 * top2 + 1):
+        cnt = h2[v]
+        if cnt:
+            h3[int(abs(float(v - top2) - med) * 2.0)] += cnt
+    if n2 % 2:
+        dev = _kth_count(h3, size3, hb) / 2.0
+    else:
+        dev = (_kth_count(h3, size3, hb - 1) / 2.0 + _kth_count(h3, size3, hb) / 2.0) / 2.0
+    h3[:size3] = 0
+    mad = dev * 1.4826
+    sigma2 = max(mad * mad - step * step / 2.0, 0.0) / 6.0
+    return step, math.sqrt(sigma2)
+
+
 @njit(cache=True, nogil=True)
-def _kth_count(count: NDArray[np.int64], size: int, k: int) -> int:
+def _kth_count(count: NDArray[np.integer], size: int, k: int) -> int:
     # the index of the k-th (0-based) counted value among count[:size]
     seen = 0
     for v in range(size):
