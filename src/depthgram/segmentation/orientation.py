@@ -319,9 +319,7 @@ def _classify(
     sgy_r = np.empty(w, np.float32)
     den_r = np.empty(w, np.float32)
     cls = np.empty((h, w), np.int8)
-    ucol = np.empty(w, np.float32)  # u of each column once: the same float32 division
-    for x in range(w):
-        ucol[x] = (np.float32(x) - cx) / fx
+    ucol = _column_u(w, cx, fx)
     for y in range(h):
         sr = flat[y]
         for ux in range(np.uint64(w)):
@@ -331,6 +329,16 @@ def _classify(
             sgy_r[ux] = sr[j + np.uint64(2)]
         _classify_row(den_r, sgx_r, sgy_r, inv3, valid, edge, ucol, y, fx, fy, cy, cos_t, cls[y])
     return cls
+
+
+@njit(cache=True, inline="always")
+def _column_u(w: int, cx: np.float32, fx: np.float32) -> NDArray[np.float32]:
+    # u = (x - cx) / fx of each column, once per frame (the same float32 division the numpy
+    # expression makes per pixel): read by _classify_row
+    ucol = np.empty(w, np.float32)
+    for x in range(w):
+        ucol[x] = (np.float32(x) - cx) / fx
+    return ucol
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -441,9 +449,7 @@ def _classes_of_windows(
     sgy_r = np.empty(w, np.float32)
     den_r = np.empty(w, np.float32)
     cls = np.empty((h, w), np.int8)
-    ucol = np.empty(w, np.float32)
-    for x in range(w):
-        ucol[x] = (np.float32(x) - cx) / fx
+    ucol = _column_u(w, cx, fx)
     for y in range(h):
         if y > 0:
             # the three channels' column sums in one loop (next_columns' arithmetic): three

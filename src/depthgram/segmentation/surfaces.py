@@ -154,28 +154,41 @@ def concave_creases(
             focal_px=focal_px / 2.0,
         )
         return _upsample2(sub, np.ascontiguousarray(valid, np.bool_))
-    k = 2 * (scale_px // 2) + 1
-    geom = np.float32(scale_px * math.tan(math.radians(min_angle_deg)) / focal_px)
-    noise_scale = np.float32(math.sqrt(6.0) / (0.7 * k))
-    coefs = (sensor.step_0, sensor.step_2, sensor.sigma_0, sensor.sigma_2)
-    # a model's coefficients are float values: numpy float scalars (an estimated model's) are
-    # taken as the floats they hold, whose float32 arithmetic the compiled route repeats (the
-    # numpy route would compute in float64 with them: strong scalars). Only another model's
-    # arithmetic, or coefficients of another kind, go the numpy way
-    plain = all(type(c) in (int, float, np.float64, np.float32) for c in coefs)
-    if type(sensor).resolution is not SensorModel.resolution or not plain:
+    k, geom, noise_scale = _crease_factors(scale_px, min_angle_deg, focal_px)
+    if not _compiled_model(sensor):
         return _creases_numpy(depth_mm, valid, sensor, scale_px, k, geom, noise_scale)
-    im, ok, c32, min_den, r = _crease_inputs(depth_mm, valid, coefs, scale_px, k, inverse)
+    im, ok, c32, min_den, r = _crease_inputs(depth_mm, valid, sensor, scale_px, k, inverse)
     creases, exact = _creases_window(im, ok, c32, min_den, k, r, geom, noise_scale)
     if exact:
         return creases
     return _creases(_window_sums(im, k), ok, c32, min_den, r, geom, noise_scale)
 
 
+def _crease_factors(scale_px: int, min_angle_deg: float, focal_px: float) -> tuple[int, np.float32, np.float32]:
+    """Return the creases' window width (px), bend of ``min_angle_deg`` over the span, and noise factor."""
+    k = 2 * (scale_px // 2) + 1
+    geom = np.float32(scale_px * math.tan(math.radians(min_angle_deg)) / focal_px)
+    noise_scale = np.float32(math.sqrt(6.0) / (0.7 * k))
+    return k, geom, noise_scale
+
+
+def _compiled_model(sensor: SensorModel) -> bool:
+    """Whether the compiled creases repeat this model's arithmetic (else the numpy route).
+
+    A model's coefficients are float values: numpy float scalars are taken as the floats they
+    hold, whose float32 arithmetic the compiled route repeats (the numpy route would compute in
+    float64 with them: strong scalars). Only another model's arithmetic, or coefficients of
+    another kind, go the numpy way.
+    """
+    coefs = (sensor.step_0, sensor.step_2, sensor.sigma_0, sensor.sigma_2)
+    plain = all(type(c) in (int, float, np.float64, np.float32) for c in coefs)
+    return plain and type(sensor).resolution is SensorModel.resolution
+
+
 def _crease_inputs(
     depth_mm: NDArray[np.float32],
     valid: NDArray[np.bool_],
-    coefs: tuple[float, float, float, float],
+    sensor: SensorModel,
     scale_px: int,
     k: int,
     inverse: NDArray[np.float32] | None,
@@ -187,6 +200,7 @@ def _crease_inputs(
     im = inverse if inverse is not None else _inverse(z, ok)
     # the sensor's coefficients as float32, as numpy's scalar rules make Python floats in
     # _creases_numpy
+    coefs = (sensor.step_0, sensor.step_2, sensor.sigma_0, sensor.sigma_2)
     c32 = np.array([float(c) for c in coefs], np.float32)
     return im, ok, c32, np.float32(0.5 * k * k), int(scale_px)
 
@@ -216,18 +230,14 @@ def crease_state(
     compiled call where :func:`concave_creases` takes its compiled route: the creases go to
     the state row by row, without a crease map.
     """
-    coefs = (sensor.step_0, sensor.step_2, sensor.sigma_0, sensor.sigma_2)
-    plain = all(type(c) in (int, float, np.float64, np.float32) for c in coefs)
     wide = depth_mm.shape[1] > 320 and scale_px >= 4
-    if wide or type(sensor).resolution is not SensorModel.resolution or not plain:
+    if wide or not _compiled_model(sensor):
         creases = concave_creases(
             depth_mm, valid, sensor, scale_px=scale_px, min_angle_deg=min_angle_deg, focal_px=focal_px, inverse=inverse
         )
         return surface_state(np.ascontiguousarray(valid, np.bool_), np.ascontiguousarray(facing, np.bool_), creases)
-    k = 2 * (scale_px // 2) + 1
-    geom = np.float32(scale_px * math.tan(math.radians(min_angle_deg)) / focal_px)
-    noise_scale = np.float32(math.sqrt(6.0) / (0.7 * k))
-    im, ok, c32, min_den, r = _crease_inputs(depth_mm, valid, coefs, scale_px, k, inverse)
+    k, geom, noise_scale = _crease_factors(scale_px, min_angle_deg, focal_px)
+    im, ok, c32, min_den, r = _crease_inputs(depth_mm, valid, sensor, scale_px, k, inverse)
     face = np.ascontiguousarray(facing, np.bool_)
     # the window sums taken row by row in the same call, OpenCV's to the last bit where
     # window.exact_rows holds (always on real frames so far), else OpenCV's
