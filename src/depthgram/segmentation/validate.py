@@ -76,6 +76,8 @@ def _valid_pixels(
     ok = np.empty((h, w), np.bool_)
     ok8 = ok.view(np.uint8)
     v8 = valid.view(np.uint8)
+    # without a mask every row is read against a row of ones (the same loop either way)
+    ones = np.ones(w, np.uint8)
     f = _far_bound(far)
     one = np.uint8(1)
     dirty = np.uint8(0)
@@ -83,25 +85,16 @@ def _valid_pixels(
     for y in range(h):
         zr = depth[y]
         orow = ok8[y]
+        vr = v8[y] if use_valid else ones
         nf = 0
         dr = np.uint8(0)
-        if use_valid:
-            vr = v8[y]
-            for x in range(w):
-                z = zr[x]
-                seen = np.uint8(z > 0) & vr[x]
-                good = seen & np.uint8(z < f)
-                nf += int(seen & np.uint8(z >= f))
-                orow[x] = good
-                dr |= (good ^ one) & np.uint8(z != 0)  # NaN != 0 as well
-        else:
-            for x in range(w):
-                z = zr[x]
-                pos = np.uint8(z > 0)
-                near = pos & np.uint8(z < f)
-                nf += int(pos & np.uint8(z >= f))
-                orow[x] = near
-                dr |= (near ^ one) & np.uint8(z != 0)
+        for x in range(w):
+            z = zr[x]
+            seen = np.uint8(z > 0) & vr[x]
+            good = seen & np.uint8(z < f)
+            nf += int(seen & np.uint8(z >= f))
+            orow[x] = good
+            dr |= (good ^ one) & np.uint8(z != 0)  # NaN != 0 as well
         n_far += nf
         dirty |= dr
     return ok, dirty != 0, n_far
