@@ -184,19 +184,38 @@ def test_plane_sums_in_boxes_equal_plane_sums_of_the_wanted_labels() -> None:
         assert got[ids, 5].sum() == np.isin(labels, ids).sum()
 
 
-def test_sample_points_equal_numpy() -> None:
-    from depthgram.segmentation.planes import sample_points
+def test_shares_beneath_equal_numpy() -> None:
+    # the table of camera coordinates and one product per plane it replaced, as numpy gives them
+    from depthgram.segmentation.planes import shares_beneath
 
     rng = np.random.default_rng(13)
     depth = (rng.random((37, 53)) * 3000 + 400).astype(np.float32)
     depth[rng.random(depth.shape) < 0.2] = 0.0
     cam = Intrinsics(61.5, 59.0, 26.3, 17.9)
+    normal = rng.normal(size=(5, 3))
+    normal /= np.linalg.norm(normal, axis=1)[:, None]
+    off = rng.random(5) * 2000.0
     for step in (1, 3, 4):
         z = depth[::step, ::step]
         v, u = np.nonzero(z > 0)
         zz = z[v, u].astype(np.float64)
-        ref = np.stack(((u * step - cam.cx) / cam.fx * zz, (v * step - cam.cy) / cam.fy * zz, zz))
-        np.testing.assert_array_equal(sample_points(depth, step, cam), ref)
+        pts = np.stack(((u * step - cam.cx) / cam.fx * zz, (v * step - cam.cy) / cam.fy * zz, zz))
+        ref = [np.count_nonzero(normal[j] @ pts + off[j] < -150.0) / pts.shape[1] for j in range(5)]
+        got = shares_beneath(depth, step, cam, normal, off, 150.0)
+        np.testing.assert_array_equal(got, ref)
+        assert 0.0 < got.max() < 1.0  # the planes cut through the readings
+    assert shares_beneath(np.zeros((4, 4), np.float32), 1, cam, normal, off, 150.0).tolist() == [0.0] * 5
+
+
+def test_shares_beneath_by_hand() -> None:
+    # a wall 1 m away seen by a camera whose rows v lie at y = 10 v mm; the floor 500 mm below
+    # the camera (n = (0, -1, 0), d = 500): the rows with y > 650 mm lie more than 150 mm beneath it
+    from depthgram.segmentation.planes import shares_beneath
+
+    depth = np.full((100, 7), 1000.0, np.float32)
+    cam = Intrinsics(100.0, 100.0, 3.0, 0.0)
+    got = shares_beneath(depth, 1, cam, np.array([[0.0, -1.0, 0.0]]), np.array([500.0]), 150.0)
+    assert got.tolist() == [34 / 100]  # rows 66..99
 
 
 def test_keyed_labels_by_hand() -> None:

@@ -37,7 +37,7 @@ from depthgram.segmentation.planes import (
     plane_normal,
     plane_sums_in_boxes,
     planes_from_sums,
-    sample_points,
+    shares_beneath,
 )
 from depthgram.segmentation.region import region_grow
 from depthgram.segmentation.sensor import SensorModel, _median, estimate_sensor, sensor_model
@@ -628,12 +628,9 @@ def _below_camera(
     for j, i in enumerate(horizontal, start=1):
         out[i] = float(off[j]) if normal[j, 1] < 0 else -float(off[j])
     # every 4th pixel in 3-D: enough to tell whether anything lies beneath a plane
-    pts = sample_points(depth, 4, cam)
-    for j, i in enumerate(horizontal, start=1):
-        # n . P + d is the signed distance from the plane, positive on the camera's side
-        dist = normal[j] @ pts + off[j]
-        # np.mean of the test: the count over the points, the same division
-        beneath[i] = np.count_nonzero(dist < -_BENEATH_MM) / pts.shape[1] if pts.shape[1] else 0.0
+    shares = shares_beneath(depth, 4, cam, normal[1:], off[1:], _BENEATH_MM)
+    for j, i in enumerate(horizontal):
+        beneath[i] = float(shares[j])
     return out, beneath
 
 
