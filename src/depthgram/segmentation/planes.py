@@ -975,7 +975,7 @@ def shares_beneath(
     offset_mm: NDArray[np.float64],
     beneath_mm: float,
 ) -> NDArray[np.float64]:
-    """Share of the sampled readings lying more than ``beneath_mm`` beneath each plane.
+    """Return the share of the sampled readings lying more than ``beneath_mm`` beneath each plane.
 
     Parameters
     ----------
