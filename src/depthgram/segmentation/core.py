@@ -614,12 +614,11 @@ def _below_camera(
     """
     gy = stack.attrs[:, 6]
     out = {i: float(gy[i - 1]) for _, i in stack.supports}
-    beneath: dict[int, float] = {}
     # the planes of the horizontal supports only: the others' sums and solves were thrown away
     # (each row's sums and solve are those of a plane fit on the whole map)
     horizontal = [i for c, i in stack.supports if c == HORIZONTAL]
     if not horizontal:
-        return out, beneath
+        return out, {}
     ids = np.array(horizontal, np.intp)
     # each support's own box (inclusive) holds all its pixels: the frame outside is not read
     n = stack.next_id - 1
@@ -629,9 +628,7 @@ def _below_camera(
         out[i] = float(off[j]) if normal[j, 1] < 0 else -float(off[j])
     # every 4th pixel in 3-D: enough to tell whether anything lies beneath a plane
     shares = shares_beneath(depth, 4, cam, normal[1:], off[1:], _BENEATH_MM)
-    for j, i in enumerate(horizontal):
-        beneath[i] = float(shares[j])
-    return out, beneath
+    return out, dict(zip(horizontal, shares.tolist(), strict=True))
 
 
 def _add_support_planes(
