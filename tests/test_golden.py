@@ -11,7 +11,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
 from benchmarks import golden
 
 
@@ -52,7 +51,8 @@ def test_the_comparison_sees_a_moved_float_a_moved_pixel_and_last_bits() -> None
     last_bits = golden.Case(case.labels, None, case.bands * (1 + 4e-16), case.skeleton, case.floats * (1 + 4e-16))
     assert golden.compare("k", last_bits, case) == []
     moved = golden.Case(case.labels, None, case.bands, case.skeleton, case.floats * np.array([1, 1 + 1e-8]))
-    assert golden.compare("k", moved, case) == ["object floats differ beyond 9 significant digits (worst relative 1e-08)"]
+    want = ["object floats differ beyond 9 significant digits (worst relative 1e-08)"]
+    assert golden.compare("k", moved, case) == want
     pixel = case.labels.copy()
     pixel[1, 1] = 2
     got = golden.compare("k", golden.Case(pixel, None, case.bands, case.skeleton, case.floats), case)
