@@ -11,6 +11,7 @@ from __future__ import annotations
 import warnings
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -262,9 +263,18 @@ def make_frame(
     for v in invalid_values:
         valid &= arr != v
     valid &= arr > 0  # negative depth is no reading
-    depth = np.where(valid, arr, 0).astype(np.float32)
-    if scale_mm != 1.0:
-        depth *= np.float32(scale_mm)
+    with np.errstate(over="ignore"):  # an overflow is found and handled just below
+        depth = np.where(valid, arr, 0).astype(np.float32)
+        if scale_mm != 1.0:
+            depth *= np.float32(scale_mm)
+    if _may_overflow(arr.dtype, scale_mm):
+        # a reading beyond float32 once in mm (float64 1e300, float32's largest in metres) is
+        # no reading: left in, it is an infinite depth that every later stage would trip on
+        # (issue 32.2)
+        endless = np.isinf(depth)
+        if endless.any():
+            valid &= ~endless
+            depth[endless] = 0.0
     if max_mm is not None:
         too_far = depth > max_mm
         valid &= ~too_far
@@ -283,6 +293,15 @@ def make_frame(
             if found:
                 warn_units(where, found[0], _scale_hints(found[1]))
     return Frame(depth=depth, valid=valid, index=index, time_s=time_s, intrinsics=intrinsics, name=name)
+
+
+def _may_overflow(dtype: np.dtype[Any], scale_mm: float) -> bool:
+    # whether a finite raw value can leave float32's range once cast and scaled: checked so that
+    # the usual frames (16-bit mm, float32 read as they are) pay no pass for it
+    f32_max = float(np.finfo(np.float32).max)
+    if np.issubdtype(dtype, np.integer):
+        return float(np.iinfo(dtype).max) * scale_mm >= f32_max
+    return dtype != np.float32 or scale_mm > 1.0
 
 
 def depth_from_8bit(raw: ArrayLike, near_mm: float, far_mm: float) -> NDArray[np.float32]:
