@@ -87,7 +87,9 @@ def _label_maps(out: Path, n: int) -> list[NDArray[np.int32]]:
     return [cv2.imread(str(p), cv2.IMREAD_UNCHANGED).astype(np.int32) for p in maps]
 
 
-def _picture(depth_mm: NDArray[np.float32], truth: NDArray[np.integer], labels: NDArray[np.integer], path: Path) -> None:
+def _picture(
+    depth_mm: NDArray[np.float32], truth: NDArray[np.integer], labels: NDArray[np.integer], path: Path
+) -> None:
     def colour(lab: NDArray[np.integer]) -> NDArray[np.uint8]:
         rng = np.random.default_rng(7)
         lut = rng.integers(40, 255, (int(lab.max()) + 1, 3), dtype=np.uint8)
