@@ -24,7 +24,19 @@ BOXES = ((-250.0, 900.0, 160.0, 120.0, 200.0, 30.0), (150.0, 1000.0, 200.0, 90.0
 def render_tabletop(
     f_px: float, tilt_deg: float, size: tuple[int, int] = (640, 480), height_mm: float = 700.0, seed: int = 0
 ) -> np.ndarray:
-    """Depth (mm) of a table top with three yawed boxes, seen by a pinhole camera pitched down.
+    """Depth (mm) of a table top with three yawed boxes, seen by a pinhole camera pitched down."""
+    return render_tabletop_truth(f_px, tilt_deg, size, height_mm, seed)[0]
+
+
+def render_tabletop_truth(
+    f_px: float,
+    tilt_deg: float,
+    size: tuple[int, int] = (640, 480),
+    height_mm: float = 700.0,
+    seed: int = 0,
+    boxes: tuple[tuple[float, ...], ...] = BOXES,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Depth (mm) and truth (0 table or nothing, k the k-th box) of a table top with yawed boxes.
 
     World: x right, y down, z ahead; the camera at the origin looks down by ``tilt_deg``; the table
     is the plane y = ``height_mm``. Structured-light-like noise (1 mm + 1.5e-6 z^2), whole mm.
@@ -35,9 +47,10 @@ def render_tabletop(
     t = math.radians(tilt_deg)
     rot = np.array([[1, 0, 0], [0, math.cos(t), math.sin(t)], [0, -math.sin(t), math.cos(t)]])
     d = ray @ rot.T  # world direction of each pixel's ray, z component of ray = 1
+    truth = np.zeros((h, w), np.int32)
     with np.errstate(divide="ignore", invalid="ignore"):
         depth = np.where(d[..., 1] > 1e-9, height_mm / d[..., 1], np.inf)
-        for cx, cz, bw, bd, bh, yaw in BOXES:
+        for box_id, (cx, cz, bw, bd, bh, yaw) in enumerate(boxes, start=1):
             a = math.radians(yaw)
             # the ray in the box's own frame (turned about the vertical), from its centre
             c, s = math.cos(a), math.sin(a)
@@ -47,12 +60,14 @@ def render_tabletop(
             hi = [(bw / 2 - ox) / dx, height_mm / d[..., 1], (bd / 2 - oz) / dz]
             near = np.maximum.reduce([np.minimum(p, q) for p, q in zip(lo, hi, strict=True)])
             far = np.minimum.reduce([np.maximum(p, q) for p, q in zip(lo, hi, strict=True)])
-            hit = (near < far) & (near > 0)
-            depth = np.where(hit, np.minimum(depth, near), depth)
+            hit = (near < far) & (near > 0) & (near < depth)
+            depth = np.where(hit, near, depth)
+            truth[hit] = box_id
     depth[~np.isfinite(depth) | (depth > 6000)] = 0
     rng = np.random.default_rng(seed)
     noisy = depth + rng.normal(0, 1, depth.shape) * (1.0 + 1.5e-6 * depth**2)
-    return np.where(depth > 0, np.round(noisy), 0).astype(np.float32)
+    truth[depth == 0] = 0
+    return np.where(depth > 0, np.round(noisy), 0).astype(np.float32), truth
 
 
 @pytest.mark.parametrize("f_px", [300.0, 580.0, 1050.0])
