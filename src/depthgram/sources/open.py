@@ -19,6 +19,7 @@ from depthgram.sources.base import Source
 from depthgram.sources.config import SourceConfig
 from depthgram.sources.files import FilesSource, list_frames
 from depthgram.sources.images import IMAGE_SUFFIXES
+from depthgram.sources.own_mcap import OwnMcapSource, is_own_mcap
 from depthgram.sources.realsense import PREFIX as REALSENSE_PREFIX
 from depthgram.sources.realsense import RealSenseSource, parse_realsense_spec
 from depthgram.sources.sidecars import find_sidecar, natural_key
@@ -121,6 +122,8 @@ def open_source(
         return _files(list_frames(folder), cfg, text, "folder", folder, intrinsics)
     if path.is_file():
         suffix = path.suffix.lower()
+        if suffix == ".mcap" and is_own_mcap(path):  # describe --mcap's file, not a ROS 2 bag (issue 32.4)
+            return OwnMcapSource(path, cfg, name=text, intrinsics=intrinsics, fps=fps)
         if suffix in BAG_SUFFIXES:
             return BagSource(path, cfg, name=text, intrinsics=intrinsics, fps=fps)
         side = find_sidecar(path.parent)
