@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import atexit
 import os
 import re
 import struct
@@ -63,6 +64,8 @@ def _stderr_captured() -> Iterator[list[str]]:
     with _CAPTURE_LOCK:
         if not _CAPTURE_FILE:
             _CAPTURE_FILE.append(tempfile.TemporaryFile())
+            # closed at exit: left to the garbage collector it is a ResourceWarning (issue 32.6)
+            atexit.register(_CAPTURE_FILE[0].close)
         tmp = _CAPTURE_FILE[0]
         tmp.seek(0)
         tmp.truncate()
