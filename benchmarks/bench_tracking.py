@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import os
 import sys
 import time
 from collections.abc import Sequence
@@ -113,7 +114,11 @@ def real_rows(frames: int = 300) -> dict[str, float] | None:
     from depthgram.frame import Intrinsics, make_frame
     from depthgram.segmentation import segment
 
-    folder = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "7scenes_redkitchen_seq" / "depth"
+    folder = (
+        Path(os.environ.get("DEPTHGRAM_DATA") or Path(__file__).resolve().parents[1].parent / "shared" / "data")
+        / "7scenes_redkitchen_seq"
+        / "depth"
+    )
     paths = sorted(folder.glob("*.png"))[:frames]
     if not paths:
         return None
@@ -185,7 +190,10 @@ def truth_rows(
     from depthgram.frame import Intrinsics, make_frame
     from depthgram.segmentation import segment
 
-    root = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "7scenes_redkitchen_seq"
+    root = (
+        Path(os.environ.get("DEPTHGRAM_DATA") or Path(__file__).resolve().parents[1].parent / "shared" / "data")
+        / "7scenes_redkitchen_seq"
+    )
     paths = sorted((root / "depth").glob("*.png"))[:frames]
     if not paths:
         return None

@@ -18,6 +18,10 @@ if TYPE_CHECKING:
 NAME = "sonify"
 HELP = "render the scene to stereo audio for a listener (WAV): a recording at its real time, a still as a scan"
 
+#: The sound presets, for --preset: depthgram.sound.PRESETS's names (a test holds them equal),
+#: written out because importing the sound package would slow every command's start.
+PRESETS = ("calm", "default", "detailed")
+
 #: Silence (s) before each still after the first, so that one scene is heard ending.
 GAP_S = 0.3
 
@@ -32,7 +36,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     )
     add_pipeline_arguments(p)
     p.add_argument("--wav", required=True, metavar="OUT.wav", help="audio file to write")
-    p.add_argument("--preset", default=None, help="sound mapping preset (overrides the config's [sound])")
+    p.add_argument(
+        "--preset",
+        default=None,
+        choices=PRESETS,
+        help="sound mapping preset (overrides the config's [sound]): %(choices)s",
+    )
     p.add_argument("--samplerate", type=int, default=22050, help="samples per second")
     p.add_argument(
         "--still-duration",
