@@ -88,7 +88,7 @@ class Gravity:
         (0, 0, 1). Any length is accepted and normalised.
     source : str
         ``given`` (a vector from the user), ``tilt`` (a pitch from the user), ``imu`` (the
-        recording's accelerometer), ``file`` (a file beside the frames).
+        recording's accelerometer), ``file`` (a file beside the frames), ``simulator`` (exact).
     """
 
     vector: tuple[float, float, float]

@@ -784,7 +784,11 @@ def describe(
     from depthgram.frame import Frame, make_frame
 
     if isinstance(depth_mm, Frame):
-        frame = depth_mm if intrinsics is None else dataclasses.replace(depth_mm, intrinsics=intrinsics)
+        frame = (
+            depth_mm
+            if intrinsics is None
+            else dataclasses.replace(depth_mm, intrinsics=intrinsics, intrinsics_source="given")
+        )
     else:
         frame = make_frame(depth_mm, intrinsics=intrinsics, name="array")
     return Pipeline(config, track=False).process(frame)
