@@ -14,13 +14,12 @@ from numba import njit
 from numpy.typing import NDArray
 
 from depthgram.frame import Intrinsics
+from depthgram.segmentation._kernels.ransac import assign_planes, inliers_counted
 from depthgram.segmentation.attributes import Stats, label_stats
 from depthgram.segmentation.label import ACTIVE, BLOCK, HOLE, label_keyed, relabel
 from depthgram.segmentation.label.stats import N_COLUMNS, flush_run
 from depthgram.segmentation.planes import (
     Plane,
-    _assign,
-    _inliers_counted,
     coplanar_groups,
     near_planes,
     plane_residual_mask,
@@ -241,7 +240,7 @@ def plane_search_numpy(
     coefs = np.array([c for c, _, _ in found], np.float64)
     kernel = np.ones((3, 3), np.uint8)
     allowed = np.stack([np.asarray(cv2.dilate(m.view(np.uint8), kernel), np.uint8) for _, m, _ in found])
-    which = _assign(depth_mm, valid, coefs, allowed, s, float(tol_mm), float(tol_rel))
+    which = assign_planes(depth_mm, valid, coefs, allowed, s, float(tol_mm), float(tol_rel))
     masks = [(c, which == k, sp) for k, (c, _, sp) in enumerate(found, start=1)]
     return [Plane(c, m, int(m.sum()), sp) for c, m, sp in masks if m.sum() >= min_px]
 
@@ -469,7 +468,7 @@ def best_hypothesis_in_index_order(
     tol: NDArray[np.float64],
     ev: NDArray[np.int64],
 ) -> int:
-    """The RANSAC scoring ``planes._best_hypothesis`` replaced: hypotheses in index order.
+    """The RANSAC scoring ``_kernels.ransac.best_hypothesis`` replaced: hypotheses in index order.
 
     The first hypothesis with the most inliers among the points ``ev`` (``np.argmax`` of the
     scores), each scored by blocks of 256 points and left when it could not pass the best one
@@ -494,7 +493,7 @@ def best_hypothesis_in_index_order(
         for i0 in range(0, m, 256):
             if cnt + (m - i0) <= best:
                 break
-            cnt += _inliers_counted(a, b, c, ue[i0 : i0 + 256], ve[i0 : i0 + 256], ze[i0 : i0 + 256], te[i0 : i0 + 256])
+            cnt += inliers_counted(a, b, c, ue[i0 : i0 + 256], ve[i0 : i0 + 256], ze[i0 : i0 + 256], te[i0 : i0 + 256])
         if cnt > best:
             best = cnt
             arg = k

@@ -1102,15 +1102,11 @@ def test_load_rare_kernels_loads_the_kernels_of_the_rare_branches() -> None:
     # kernels before the stream. With the very argument types of segment's calls: a frame that
     # takes the branches afterwards compiles no new signature
     from depthgram.segmentation import segment
+    from depthgram.segmentation._kernels.coplanar import coplanar_join
+    from depthgram.segmentation._kernels.plane_sums import planes_from_sums as planes_from_sums_kernel
+    from depthgram.segmentation._kernels.ransac import assign_planes, dilate3, search_planes
     from depthgram.segmentation.core import load_rare_kernels
     from depthgram.segmentation.label import keyed, stats
-    from depthgram.segmentation.planes import (
-        _assign,
-        _coplanar_join,
-        _dilate3,
-        _planes_from_sums,
-        _search_planes,
-    )
     from depthgram.segmentation.slices import _class_state, _drop_classes, _merge_rows
     from depthgram.sensor import simulate
 
@@ -1121,11 +1117,11 @@ def test_load_rare_kernels_loads_the_kernels_of_the_rare_branches() -> None:
         _merge_rows,
         _drop_classes,
         stats._stats,
-        _search_planes,
-        _planes_from_sums,
-        _coplanar_join,
-        _dilate3,
-        _assign,
+        search_planes,
+        planes_from_sums_kernel,
+        coplanar_join,
+        dilate3,
+        assign_planes,
     )
     before = [len(k.signatures) for k in kernels]
     assert all(before)
@@ -1206,7 +1202,7 @@ def test_compiled_3x3_solve_is_numpys_within_the_conditioning() -> None:
     # position)
     from numba import njit
 
-    from depthgram.segmentation.planes import _lu_solve3
+    from depthgram.segmentation._kernels.solve3 import lu_solve3 as _lu_solve3
 
     @njit(cache=False)
     def solve_all(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -1313,7 +1309,7 @@ def test_small_supports_are_numpys_test() -> None:
 def test_large_pieces_are_opencvs_8_connected_pieces() -> None:
     # the pieces of a found plane on the search grid: 8-connected (diagonal touches join),
     # those under the size dropped; OpenCV's labelling gives the same pixels
-    from depthgram.segmentation.planes import _large_pieces
+    from depthgram.segmentation._kernels.ransac import large_pieces as _large_pieces
     from reference import large_pieces_opencv
 
     rng = np.random.default_rng(15)
@@ -1349,7 +1345,7 @@ def test_prominent_peaks_are_scipys_find_peaks() -> None:
 def test_dilate3_is_opencvs_3x3_dilation() -> None:
     import cv2
 
-    from depthgram.segmentation.planes import _dilate3
+    from depthgram.segmentation._kernels.ransac import dilate3 as _dilate3
 
     rng = np.random.default_rng(17)
     for _ in range(100):

@@ -138,7 +138,7 @@ class SegmentConfig:
         Deprecated (one release): pixels when >= 1, a fraction when < 1.
     support_planes : bool
         ``slices`` method: also find the dominant oblique planes with a robust fit of
-        ``1/Z = a u + b v + c`` (:func:`depthgram.segmentation.planes.find_planes`), so that a table
+        ``1/Z = a u + b v + c`` (:func:`depthgram.segmentation.ransac.find_planes`), so that a table
         top seen from above at a slant is a support whatever the camera's pitch; its pixels join
         the horizontal (or wall) supports of the orientation field. Planes are searched among
         the pixels the field left facing, so the two complement each other: planes alone lose

@@ -14,6 +14,7 @@ from depthgram.segmentation.attributes import ObjectSpec, Stats, attribute_rows,
 from depthgram.segmentation.coarse import grid_frame, grid_step, to_full_resolution
 from depthgram.segmentation.config import SegmentConfig
 from depthgram.segmentation.contacts import front_faces, side_faces
+from depthgram.segmentation.coplanar import class_window, coplanar_groups, join_near
 from depthgram.segmentation.histogram import Bands, bin_index, depth_bands, log_bin_counts
 from depthgram.segmentation.label import label_bands_stats, label_stats_fused, label_two_classes, relabel
 from depthgram.segmentation.label.stats import COUNT, KEY, N_COLUMNS, N_SUMS, SUM_Z, add_rows
@@ -28,17 +29,9 @@ from depthgram.segmentation.orientation import (
     upsample_classes,
 )
 from depthgram.segmentation.paper_slices import paper_slices
-from depthgram.segmentation.planes import _assign as assign_planes
-from depthgram.segmentation.planes import (
-    class_window,
-    coplanar_groups,
-    find_planes,
-    join_near,
-    plane_normal,
-    plane_sums_in_boxes,
-    planes_from_sums,
-    shares_beneath,
-)
+from depthgram.segmentation.plane_sums import plane_sums_in_boxes, planes_from_sums, shares_beneath
+from depthgram.segmentation.ransac import find_planes, plane_normal
+from depthgram.segmentation.ransac import warm_up as warm_up_ransac
 from depthgram.segmentation.region import region_grow
 from depthgram.segmentation.sensor import SensorModel, _median, estimate_sensor, sensor_model
 from depthgram.segmentation.slices import (
@@ -188,7 +181,7 @@ def load_rare_kernels() -> None:
     coplanar_groups(np.eye(3), np.ones(3), np.ones(3))
     # the pixels of the planes found (a 2 x 2 frame finds none; 7-Scenes on the grid of a
     # 640 px frame first found one at frame 5: 367 ms on a fresh install)
-    assign_planes(z, ok, np.zeros((1, 3), np.float64), np.ones((1, 1, 1), np.uint8), 2, 8.0, 0.01)
+    warm_up_ransac()
     # the window sums of a frame whose values span too many octaves for float64 (OpenCV's)
     load_opencv_routes()
 

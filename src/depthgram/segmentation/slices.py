@@ -22,11 +22,12 @@ from numpy.typing import NDArray
 
 from depthgram.frame import Intrinsics
 from depthgram.segmentation.attributes import _attribute_table
+from depthgram.segmentation.coplanar import coplanar_groups
 from depthgram.segmentation.label import ACTIVE, BLOCK, HOLE, label_keyed_planes, relabel
 from depthgram.segmentation.label.stats import COUNT, KEY, N_SUMS, SUM_X, SUM_XZ, SUM_Y, SUM_YZ, SUM_Z, SUM_ZZ
 from depthgram.segmentation.objects import SceneObject, new_object
 from depthgram.segmentation.orientation import HORIZONTAL, VERTICAL
-from depthgram.segmentation.planes import coplanar_groups, planes_from_sums
+from depthgram.segmentation.plane_sums import planes_from_sums
 
 __all__ = [
     "add_through",
@@ -485,7 +486,7 @@ def support_pieces(
     The pixels of class ``cls`` are labelled while depth stays continuous between neighbours
     (within ``jump_rel`` of the depth, across at most ``bridge`` px of holes), and pieces of one
     plane cut apart by occluders are joined
-    (:func:`depthgram.segmentation.planes.coplanar_groups`). One labelling pass gathers the
+    (:func:`depthgram.segmentation.coplanar.coplanar_groups`). One labelling pass gathers the
     statistics table (:mod:`depthgram.segmentation.label.stats`), its relabelling pass the
     plane sums (:func:`depthgram.segmentation.label.keyed.label_keyed_planes`);
     pieces joined into one plane add their rows (the sums are additive), so neither is taken
@@ -533,7 +534,7 @@ def support_pieces_lazy(
     (dropping small supports) does it once, and does not solve the same planes again.
 
     ``window`` ``(y0, y1, x0, x1)`` (half-open, px), when it holds every pixel of the class
-    (:func:`depthgram.segmentation.planes.class_window`), gives the same results reading these
+    (:func:`depthgram.segmentation.coplanar.class_window`), gives the same results reading these
     rows and columns alone; the labels are 0 outside it.
     """
     h, w = valid.shape
