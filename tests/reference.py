@@ -412,7 +412,7 @@ def best_contact_numpy(contact: NDArray[np.int64], needed: NDArray[np.float64]) 
 def sensor_samples(
     depth: NDArray[np.float32], valid: NDArray[np.bool_], rows: int
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
-    """The sensor estimate's samples alone, as ``sensor._triples_span`` takes them without the span.
+    """The sensor estimate's samples alone, as ``noise_model._triples_span`` takes them without the span.
 
     Every ``rows``-th row: the depth of each pixel whose two row neighbours also have a reading,
     its first difference z[x+1] - z[x] (absolute) and its second difference
@@ -441,13 +441,13 @@ def sensor_samples(
 def sensor_ranges(depth: NDArray[np.float32], valid: NDArray[np.bool_], rows: int) -> NDArray[np.float64]:
     """Each depth range's row of the sensor estimate (median depth, step, sigma, 1), the steps one by one.
 
-    The route ``sensor._range_estimates_counted`` replaced: the samples (:func:`sensor_samples`),
+    The route ``noise_model._range_estimates_counted`` replaced: the samples (:func:`sensor_samples`),
     their stable order (numpy's), and the range estimates, counted
-    (``sensor._range_estimates_whole``) when every depth is a whole number of millimetres from
+    (``noise_model._range_estimates_whole``) when every depth is a whole number of millimetres from
     the smallest within 2**20 of it, else from masked copies and selections
-    (``sensor._range_estimates``). No rows below 200 samples.
+    (``noise_model._range_estimates``). No rows below 200 samples.
     """
-    from depthgram.segmentation.sensor import _range_estimates, _range_estimates_whole
+    from depthgram.segmentation.noise_model import _range_estimates, _range_estimates_whole
 
     z, d1, d2 = sensor_samples(depth, valid, rows)
     if z.size < 200:

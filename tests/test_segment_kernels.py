@@ -400,8 +400,8 @@ def test_slopes_match_the_passes_they_replaced() -> None:
     # occlusion edges along rows or columns
     import cv2
 
+    from depthgram.segmentation._kernels.creases import inverse_depth as _inverse
     from depthgram.segmentation.orientation import _slopes
-    from depthgram.segmentation.surfaces import _inverse
 
     f32 = np.float32
     fx, fy = f32(60.0), f32(58.0)
@@ -480,8 +480,8 @@ def test_orientation_inverse_and_mean_match_numpy() -> None:
     # the float32 numpy expressions they replaced
     import cv2
 
+    from depthgram.segmentation._kernels.creases import inverse_depth as _inverse
     from depthgram.segmentation.orientation import _box3_mean
-    from depthgram.segmentation.surfaces import _inverse
 
     rng = np.random.default_rng(16)
     z = rng.uniform(300, 6000, (41, 57)).astype(np.float32)
@@ -529,7 +529,7 @@ def test_upsample_classes_repeats_and_clears_holes(k: int) -> None:
 
 @pytest.mark.parametrize("shape", [(19, 23), (20, 24), (1, 1), (2, 7)])
 def test_crease_upsampling_repeats_where_there_is_a_reading(shape: tuple[int, int]) -> None:
-    from depthgram.segmentation.surfaces import _upsample2
+    from depthgram.segmentation._kernels.creases import upsample2 as _upsample2
 
     rng = np.random.default_rng(shape[0])
     valid = rng.random(shape) < 0.8
@@ -768,7 +768,8 @@ def test_sensor_order_statistics_equal_numpy(seed: int) -> None:
     # the estimator's median and 20th percentile replace np.median / np.percentile for speed:
     # on quantised values (many ties, as a sensor's differences are) and on odd and even sizes
     # they must give numpy's numbers exactly
-    from depthgram.segmentation.sensor import _median, _percentile20
+    from depthgram.segmentation.noise_model import _percentile20
+    from depthgram.segmentation.order_stats import median_inplace as _median
 
     rng = np.random.default_rng(seed)
     for n in (20, 21, 22, 37, 400, 1001):
@@ -783,7 +784,7 @@ def test_sensor_order_statistics_equal_numpy(seed: int) -> None:
 def test_stable_order_equals_numpy_stable_argsort(seed: int) -> None:
     # the radix sort of the sensor estimate against numpy's stable sort: millimetre depths
     # (many ties), tenths of a millimetre (scaled recordings) and any positive float32 depths
-    from depthgram.segmentation.sensor import stable_order
+    from depthgram.segmentation.noise_model import stable_order
 
     rng = np.random.default_rng(seed)
     for n in (1, 2, 17, 5000, 23_000):
@@ -801,7 +802,7 @@ def test_sensor_estimate_keeps_tied_depths_in_raster_order() -> None:
     # estimate; numpy's default sort left that to the CPU's SIMD level (three different models
     # on one frame with AVX-512, AVX2 and without). The estimate is the one with ties in raster
     # order, computed here from the same steps with numpy's stable sort.
-    from depthgram.segmentation.sensor import _fit_a_bz2, _range_estimates, estimate_sensor
+    from depthgram.segmentation.noise_model import _fit_a_bz2, _range_estimates, estimate_sensor
     from depthgram.sensor import simulate
 
     f = next(iter(simulate("table", 1, size=(176, 132), seed=0))).frame
@@ -819,7 +820,7 @@ def test_sensor_ranges_counted_for_whole_depths_equal_the_general_route() -> Non
     # whole-millimetre depths take the counting route of the per-range order statistics: the
     # same steps, medians and spreads to the last bit as the masked copies and selections, also
     # for a range too wide to count (falls back) and ranges with too few differences
-    from depthgram.segmentation.sensor import _range_estimates, _range_estimates_whole
+    from depthgram.segmentation.noise_model import _range_estimates, _range_estimates_whole
 
     rng = np.random.default_rng(21)
     for t in range(600):
@@ -899,8 +900,10 @@ def test_label_surfaces_equals_pairwise_definition(seed: int) -> None:
 def test_creases_compiled_equal_numpy(seed: int) -> None:
     # the compiled crease pass against the numpy one it replaced, on a tilted, bent surface with
     # noise, steps and holes, under a structured-light, a ToF and an estimated sensor model
-    from depthgram.segmentation.sensor import PROFILES, SensorModel
-    from depthgram.segmentation.surfaces import _creases_numpy, _inverse, concave_creases
+    from depthgram.segmentation._kernels.creases import inverse_depth as _inverse
+    from depthgram.segmentation.creases import _creases_numpy
+    from depthgram.segmentation.noise_model import PROFILES, SensorModel
+    from depthgram.segmentation.surfaces import concave_creases
 
     rng = np.random.default_rng(seed)
     h, w = 60, 80
@@ -1266,7 +1269,7 @@ def test_planes_from_sums_is_the_numpy_route_within_the_conditioning() -> None:
 def test_sensor_fit_least_squares_is_numpys_to_the_last_bit() -> None:
     # the fits of step and noise against depth squared over 2-12 depth ranges: the compiled
     # least squares (LAPACK's dgelsd through numba, numpy's rcond) gives numpy's numbers
-    from depthgram.segmentation.sensor import _lstsq_a_bz2
+    from depthgram.segmentation.noise_model import _lstsq_a_bz2
 
     rng = np.random.default_rng(13)
     for _ in range(2000):
@@ -1416,7 +1419,7 @@ def test_sensor_ranges_in_one_call_equal_the_steps_one_by_one() -> None:
     # _range_fit (samples with their depth span, order, range estimates in one call) against
     # the samples, the stable order and the range estimates called one by one: whole-millimetre
     # depths (counting route), tenths of a millimetre (radix route), holes, too few samples
-    from depthgram.segmentation.sensor import (
+    from depthgram.segmentation.noise_model import (
         _lstsq_a_bz2,
         _range_estimates,
         _range_estimates_whole,
@@ -1564,7 +1567,7 @@ def test_sensor_estimate_holds_python_floats() -> None:
     # the estimated model's coefficients are Python floats, as the compiled solve returned
     # them before the fit moved into one call (numpy scalars once sent the creases to their
     # numpy route: the same numbers, 0.35 ms slower at 176 x 132)
-    from depthgram.segmentation.sensor import estimate_sensor
+    from depthgram.segmentation.noise_model import estimate_sensor
     from depthgram.sensor import simulate
 
     f = next(iter(simulate("table", 1, size=(176, 132), seed=0))).frame
@@ -1577,8 +1580,8 @@ def test_creases_of_an_estimated_model_take_the_compiled_route(monkeypatch: pyte
     # estimate_sensor's coefficients are numpy float64 scalars: the compiled route must take
     # them as the floats they hold (the numpy route, about 0.5 ms at 176 x 132, was taken for
     # every frame of the default method when the estimate began returning numpy scalars)
-    import depthgram.segmentation.surfaces as surfaces
-    from depthgram.segmentation.sensor import SensorModel, estimate_sensor
+    import depthgram.segmentation.creases as surfaces
+    from depthgram.segmentation.noise_model import SensorModel, estimate_sensor
     from depthgram.sensor import simulate
 
     frame = next(iter(simulate("table", 1, size=(176, 132), seed=0))).frame
@@ -1608,8 +1611,9 @@ def test_creases_of_an_estimated_model_take_the_compiled_route(monkeypatch: pyte
 def test_crease_state_is_surface_state_of_the_creases(seed: int) -> None:
     # the fused call against the two it replaced, on frames narrow and wide (the wide one
     # takes the half-resolution route), spans 1-4 and frames narrower than the span
-    from depthgram.segmentation.sensor import PROFILES
-    from depthgram.segmentation.surfaces import _inverse, concave_creases, crease_state, surface_state
+    from depthgram.segmentation._kernels.creases import inverse_depth as _inverse
+    from depthgram.segmentation.noise_model import PROFILES
+    from depthgram.segmentation.surfaces import concave_creases, crease_state, surface_state
 
     rng = np.random.default_rng(seed)
     for h, w, r in ((60, 80, 2), (61, 79, 3), (40, 400, 4), (5, 3, 2), (3, 9, 4), (30, 50, 1)):
@@ -1634,7 +1638,7 @@ def test_sensor_model_holds_python_floats_whatever_it_is_given() -> None:
     # estimate_sensor's least squares come out of a compiled call as numpy float64; the
     # creases' compiled route takes Python numbers only, and numpy promotes a float32 frame
     # by a numpy float64 scalar but not by a Python float
-    from depthgram.segmentation.sensor import SensorModel, estimate_sensor
+    from depthgram.segmentation.noise_model import SensorModel, estimate_sensor
     from depthgram.sensor import simulate
 
     m = SensorModel("x", np.float64(1.5), np.float64(2e-6), 3, np.float64(1e-6))

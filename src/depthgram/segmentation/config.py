@@ -9,7 +9,7 @@ from functools import lru_cache
 from typing import Any
 
 from depthgram.errors import InputError
-from depthgram.segmentation.sensor import PROFILES
+from depthgram.segmentation.noise_model import PROFILES
 
 __all__ = ["METHODS", "SegmentConfig"]
 
@@ -158,8 +158,8 @@ class SegmentConfig:
         Most support planes searched for per frame.
     sensor : str
         ``auto`` (default): the depth step and noise are estimated from each frame
-        (:func:`depthgram.segmentation.sensor.estimate_sensor`); or a named profile of
-        :data:`depthgram.segmentation.sensor.PROFILES` (``kinect-v1``, ``xtion``,
+        (:func:`depthgram.segmentation.noise_model.estimate_sensor`); or a named profile of
+        :data:`depthgram.segmentation.noise_model.PROFILES` (``kinect-v1``, ``xtion``,
         ``primesense``, ``realsense-d400``, ``azure-kinect``, ``tof``). Sets every depth
         tolerance of the ``surfaces`` method and the width of its histogram bins.
     join_resolutions : float
