@@ -18,7 +18,7 @@ from depthgram.segmentation.coplanar import class_window, coplanar_groups, join_
 from depthgram.segmentation.creases import crease_scale_px, crease_state, inverse_depth
 from depthgram.segmentation.histogram import Bands, bin_index, depth_bands, log_bin_counts
 from depthgram.segmentation.label import label_bands_stats, label_stats_fused, label_two_classes, relabel
-from depthgram.segmentation.label.stats import COUNT, KEY, N_COLUMNS, N_SUMS, SUM_Z, add_rows
+from depthgram.segmentation.label.stats import COUNT, KEY, N_SUMS, SUM_Z, add_rows
 from depthgram.segmentation.noise_model import SensorModel, estimate_sensor, sensor_model
 from depthgram.segmentation.objects import Histogram, SceneObject, Segmentation
 from depthgram.segmentation.openings import merge_openings
@@ -38,7 +38,6 @@ from depthgram.segmentation.ransac import find_planes, plane_normal
 from depthgram.segmentation.ransac import warm_up as warm_up_ransac
 from depthgram.segmentation.region import region_grow
 from depthgram.segmentation.slices import (
-    _merge_rows,
     add_through,
     compound_parts,
     drop_classes,
@@ -47,6 +46,7 @@ from depthgram.segmentation.slices import (
     support_kind,
     support_pieces_lazy,
 )
+from depthgram.segmentation.slices import warm_up as warm_up_slices
 from depthgram.segmentation.surfaces import facing_halves, surfaces_kept
 from depthgram.segmentation.validate import check_depth_far
 
@@ -154,8 +154,7 @@ def warm_up() -> None:
         np.zeros((2, 2), np.int32), np.zeros(1, np.int32), 0, classes.copy(), FACING, np.zeros((0, 4), np.int64)
     )
     # coplanar pieces joined: their rows added
-    rows = np.zeros((3, N_COLUMNS), np.float64)
-    _merge_rows(np.array([0, 1, 1], np.int32), 1, rows, np.zeros((3, 9), np.float64), np.zeros((3, 4), np.int64))
+    warm_up_slices()
     # merged openings: the statistics of the joined surfaces
     label_stats_fused(np.zeros((2, 2), np.int32), 0, z, np.zeros((2, 2), np.float32))
     # a front or side face of a support: the contacts, and its row added to the support's
