@@ -16,16 +16,11 @@ from numpy.typing import NDArray
 from depthgram.frame import Intrinsics
 from depthgram.segmentation._kernels.ransac import assign_planes, inliers_counted
 from depthgram.segmentation.attributes import Stats, label_stats
+from depthgram.segmentation.coplanar import coplanar_groups, near_planes
 from depthgram.segmentation.label import ACTIVE, BLOCK, HOLE, label_keyed, relabel
 from depthgram.segmentation.label.stats import N_COLUMNS, flush_run
-from depthgram.segmentation.planes import (
-    Plane,
-    coplanar_groups,
-    near_planes,
-    plane_residual_mask,
-    plane_sums,
-    planes_from_sums,
-)
+from depthgram.segmentation.plane_sums import plane_sums, planes_from_sums
+from depthgram.segmentation.ransac import Plane, plane_residual_mask
 
 __all__ = [
     "best_contact_numpy",

@@ -17,6 +17,7 @@ from depthgram.frame import Intrinsics
 from depthgram.segmentation.attributes import label_stats
 from depthgram.segmentation.binning import band_state, bin_pixels, depth_range
 from depthgram.segmentation.contacts import front_faces
+from depthgram.segmentation.coplanar import near_planes
 from depthgram.segmentation.label import (
     ACTIVE,
     BLOCK,
@@ -29,7 +30,7 @@ from depthgram.segmentation.label import (
 from depthgram.segmentation.label.keyed import label_two_classes
 from depthgram.segmentation.objects import SceneObject
 from depthgram.segmentation.orientation import _jumps, _jumps_cols, _one_sided, _one_sided_cols, upsample_classes
-from depthgram.segmentation.planes import near_planes, plane_sums, planes_from_sums
+from depthgram.segmentation.plane_sums import plane_sums, planes_from_sums
 from depthgram.segmentation.slices import slice_parts, support_pieces
 from depthgram.segmentation.validate import check_depth
 from reference import (
@@ -164,7 +165,7 @@ def test_two_classes_in_one_pass_equal_one_labelling_per_class_exactly() -> None
 
 def test_plane_sums_in_boxes_equal_plane_sums_of_the_wanted_labels() -> None:
     # reading each wanted label's box alone gives the rows of the full pass to the last bit
-    from depthgram.segmentation.planes import plane_sums_in_boxes
+    from depthgram.segmentation.plane_sums import plane_sums_in_boxes
 
     rng = np.random.default_rng(12)
     for t in range(60):
@@ -186,7 +187,7 @@ def test_plane_sums_in_boxes_equal_plane_sums_of_the_wanted_labels() -> None:
 
 def test_shares_beneath_equal_numpy() -> None:
     # the table of camera coordinates and one product per plane it replaced, as numpy gives them
-    from depthgram.segmentation.planes import shares_beneath
+    from depthgram.segmentation.plane_sums import shares_beneath
 
     rng = np.random.default_rng(13)
     depth = (rng.random((37, 53)) * 3000 + 400).astype(np.float32)
@@ -210,7 +211,7 @@ def test_shares_beneath_equal_numpy() -> None:
 def test_shares_beneath_by_hand() -> None:
     # a wall 1 m away seen by a camera whose rows v lie at y = 10 v mm; the floor 500 mm below
     # the camera (n = (0, -1, 0), d = 500): the rows with y > 650 mm lie more than 150 mm beneath it
-    from depthgram.segmentation.planes import shares_beneath
+    from depthgram.segmentation.plane_sums import shares_beneath
 
     depth = np.full((100, 7), 1000.0, np.float32)
     cam = Intrinsics(100.0, 100.0, 3.0, 0.0)
@@ -935,7 +936,7 @@ def test_coplanar_groups_are_the_components_of_the_coplanar_pairs(seed: int) -> 
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components
 
-    from depthgram.segmentation.planes import coplanar_groups
+    from depthgram.segmentation.coplanar import coplanar_groups
 
     rng = np.random.default_rng(seed)
     for _ in range(50):
@@ -995,7 +996,7 @@ def test_merged_rows_equal_numpy_add_at() -> None:
 def test_join_near_is_near_planes_then_the_class_written() -> None:
     # the supports take the facing pixels on their planes straight into the class map: the
     # classes of near_planes on the facing candidates followed by a masked write
-    from depthgram.segmentation.planes import join_near
+    from depthgram.segmentation.coplanar import join_near
 
     rng = np.random.default_rng(8)
     for t in range(40):
@@ -1019,7 +1020,7 @@ def test_join_near_is_near_planes_then_the_class_written() -> None:
 def test_support_labelled_again_in_its_window_equals_the_whole_frame() -> None:
     # after join_near a class is labelled again inside class_window alone: its pixels all lie
     # there, and the pieces, tables and joined supports are those of the whole frame's pass
-    from depthgram.segmentation.planes import class_window, join_near
+    from depthgram.segmentation.coplanar import class_window, join_near
     from depthgram.segmentation.slices import support_pieces_lazy
 
     rng = np.random.default_rng(9)

@@ -11,7 +11,7 @@ from numpy.typing import NDArray
 from depthgram.errors import InputError
 from depthgram.frame import Intrinsics
 from depthgram.segmentation import SegmentConfig, segment
-from depthgram.segmentation.planes import find_planes, plane_distance_mm, plane_normal, plane_residual_mask
+from depthgram.segmentation.ransac import find_planes, plane_distance_mm, plane_normal, plane_residual_mask
 
 W, H = 320, 240
 CAM = Intrinsics(300.0, 300.0, (W - 1) / 2.0, (H - 1) / 2.0)

@@ -12,7 +12,7 @@
 from depthgram.segmentation.config import METHODS, SegmentConfig
 from depthgram.segmentation.core import segment, warm_up
 from depthgram.segmentation.evaluate import Evaluation, ObjectScore, evaluate
-from depthgram.segmentation.noise_model import SensorModel, estimate_sensor
+from depthgram.segmentation.noise_model import SensorModel, estimate_sensor, sensor_model
 from depthgram.segmentation.objects import KINDS, Histogram, SceneObject, Segmentation
 from depthgram.segmentation.region import region_grow
 
@@ -30,5 +30,6 @@ __all__ = [
     "evaluate",
     "region_grow",
     "segment",
+    "sensor_model",
     "warm_up",
 ]

@@ -604,7 +604,8 @@ def _range_estimates_whole(
     out = np.zeros((k, 4), np.float64)
     each, extra = divmod(n, k)
     # the ranges follow depth: the last one has the widest tolerance
-    top = min(math.ceil(0.05 * z[order[n - 1]]), _MAX_WHOLE_LIM) if n else 0
+    # capped before the ceiling: math.ceil of a far reading (1e30 mm) overflows int64 (issue 32.2)
+    top = math.ceil(min(0.05 * z[order[n - 1]], _MAX_WHOLE_LIM)) if n else 0
     h1 = np.zeros(top + 1, np.int64)
     h2 = np.zeros(2 * top + 1, np.int64)
     h3 = np.zeros(4 * top + 2, np.int64)

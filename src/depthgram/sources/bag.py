@@ -95,6 +95,7 @@ class BagSource(Source):
     """
 
     kind = "bag"
+    intrinsics_source = "bag"  # its CameraInfo
 
     def __init__(
         self,
@@ -200,6 +201,6 @@ class BagSource(Source):
                         f"{where}: image is {frame.size[0]}x{frame.size[1]} px but frame 0 is "
                         f"{first[0]}x{first[1]} px; all frames of a sequence must have one size"
                     )
-                yield frame
+                yield self.calibrated(frame)
         finally:
             reader.close()

@@ -13,9 +13,10 @@ from urllib.parse import parse_qs
 import numpy as np
 
 from depthgram.errors import InputError
-from depthgram.frame import Intrinsics
+from depthgram.frame import Gravity, Intrinsics, as_gravity
 from depthgram.sources.bag import BAG_SUFFIXES, BagSource
 from depthgram.sources.base import Source
+from depthgram.sources.camera import Camera, resolve_camera
 from depthgram.sources.config import SourceConfig
 from depthgram.sources.files import FilesSource, list_frames
 from depthgram.sources.images import IMAGE_SUFFIXES
@@ -49,8 +50,11 @@ def open_source(
     depth_range_mm: tuple[float, float] | None = None,
     encoding: str = "auto",
     topic: str | None = None,
-    intrinsics: Intrinsics | None = None,
+    intrinsics: Intrinsics | Sequence[float] | None = None,
     key: str | None = None,
+    camera: str | os.PathLike[str] | Camera | None = None,
+    gravity: Gravity | Sequence[float] | None = None,
+    tilt_deg: float | None = None,
 ) -> Source:
     """Open any depth source; nothing is read beyond headers and sidecars until iteration.
 
@@ -81,11 +85,21 @@ def open_source(
         ``auto``, ``raw``, ``8bit``, ``sun`` (SUN RGB-D) or ``kinect-disparity`` (NYU raw).
     topic : str, optional
         Bag topic; required when a bag has several depth-like Image topics.
-    intrinsics : Intrinsics, optional
-        Overrides any sidecar (``camera.json``, ``camera_params.json``, ``camera-intrinsics.txt``
-        in the folder or its parent).
+    intrinsics : Intrinsics or (fx, fy, cx, cy), optional
+        Pinhole intrinsics (px) of the frames as read (``--intrinsics``). They, and ``camera``,
+        override any sidecar (``camera.json``, ``camera_params.json``, ``camera-intrinsics.txt``
+        in the folder or its parent), a bag's CameraInfo and a camera's own calibration.
     key : str, optional
         Array name in an ``.npz``.
+    camera : str or path, optional
+        A calibration file or a camera profile (``--camera``, see
+        :func:`depthgram.sources.camera.resolve_camera`): intrinsics scaled to the frames' size,
+        and for a profile the sensor model of the segmentation.
+    gravity : Gravity or (x, y, z), optional
+        Which way is down in camera coordinates (x right, y down, z forward; any length):
+        ``--gravity``. Overrides a recording's IMU.
+    tilt_deg : float, optional
+        The camera looks down by this many degrees, without roll (``--tilt``); instead of ``gravity``.
 
     Returns
     -------
@@ -96,7 +110,30 @@ def open_source(
     InputError
         Missing path, empty folder, glob matching nothing, bad options.
     """
-    text = os.fspath(spec)
+    cam = resolve_camera(intrinsics, camera)
+    grav = as_gravity(gravity, tilt_deg)
+    src = _open(os.fspath(spec), scale_mm, invalid, fps, timestamps, depth_range_mm, encoding, topic, key)
+    src.camera, src.gravity = cam, grav
+    if cam is not None:
+        size = src.spec.size if isinstance(src, SimSource) else None
+        if cam.size is None or size is not None:
+            src.intrinsics = cam.for_size(size) if size is not None else cam.intrinsics
+            src.intrinsics_source = cam.source
+    return src
+
+
+def _open(
+    text: str,
+    scale_mm: float | None,
+    invalid: Sequence[float],
+    fps: float | None,
+    timestamps: str | os.PathLike[str] | None,
+    depth_range_mm: tuple[float, float] | None,
+    encoding: str,
+    topic: str | None,
+    key: str | None,
+) -> Source:
+    intrinsics = None  # the user's camera is put on each frame by Source.calibrated
     if text.startswith(REALSENSE_PREFIX):
         return RealSenseSource(parse_realsense_spec(text), name=text)
     if text.startswith("sim:"):
@@ -171,7 +208,7 @@ def _files(
             if cand.is_file():
                 cfg = dataclasses.replace(cfg, timestamps=str(cand))
                 break
-    return FilesSource(
+    src = FilesSource(
         paths,
         cfg,
         name=name,
@@ -179,6 +216,9 @@ def _files(
         intrinsics=intrinsics or side.intrinsics,
         fps=cfg.fps or side.fps,
     )
+    if intrinsics is None and side.intrinsics is not None:
+        src.intrinsics_from = side.source
+    return src
 
 
 def read(spec: str | os.PathLike[str], **options: object) -> Source:

@@ -127,6 +127,7 @@ class SimSource(Source):
     """
 
     kind = "sim"
+    intrinsics_source = "simulator"  # exact: the scene was rendered through them
 
     def __init__(self, spec: SimSpec, *, name: str, intrinsics: Intrinsics | None = None) -> None:
         self.spec = spec
@@ -144,7 +145,7 @@ class SimSource(Source):
         simulate = simulator()
         s = self.spec
         for sim_frame in simulate(s.scene, s.frames, **self._options()):
-            yield sim_frame.frame
+            yield self.calibrated(sim_frame.frame)
 
     def _options(self) -> dict[str, Any]:
         s = self.spec

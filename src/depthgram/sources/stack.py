@@ -54,6 +54,8 @@ def npz_member_header(path: Path, key: str | None) -> tuple[str, tuple[int, ...]
 
 
 class _StackSource(Source):
+    intrinsics_source = "file"  # a sidecar beside the stack
+
     def __init__(
         self, path: Path, cfg: SourceConfig, n: int, *, name: str, intrinsics: Intrinsics | None, fps: float | None
     ) -> None:
@@ -118,7 +120,7 @@ class NpyStackSource(_StackSource):
     def __iter__(self) -> Iterator[Frame]:
         for i in range(self.n):
             # Copy one frame out of the map so that pages of earlier frames can be dropped.
-            yield self._frame(np.array(self.stack[i]), i)
+            yield self.calibrated(self._frame(np.array(self.stack[i]), i))
 
 
 class NpzStackSource(_StackSource):
@@ -164,10 +166,10 @@ class NpzStackSource(_StackSource):
                 # Fortran order interleaves frames; rare enough to accept a full load.
                 full = npformat.read_array(fh, allow_pickle=False)
                 for i in range(self.n):
-                    yield self._frame(np.ascontiguousarray(full[i]), i)
+                    yield self.calibrated(self._frame(np.ascontiguousarray(full[i]), i))
                 return
             for i in range(self.n):
                 buf = fh.read(nbytes)
                 if len(buf) != nbytes:
                     raise InputError(f"{self.path}[{self.member}] (frame {i}): truncated stack")
-                yield self._frame(np.frombuffer(buf, self.dtype).reshape(h, w), i)
+                yield self.calibrated(self._frame(np.frombuffer(buf, self.dtype).reshape(h, w), i))
