@@ -83,7 +83,7 @@ def run_bench(
     best: on a shared virtual machine whole seconds can run 15-45 % slow, and one long window
     per case would give that case alone the slow spell.
     """
-    from depthgram.segmentation.sensor import estimate_sensor
+    from depthgram.segmentation.noise_model import estimate_sensor
     from depthgram.sensor import simulate
 
     frames = {size: next(iter(simulate("table", 1, size=size, seed=seed))).frame for size in sizes}

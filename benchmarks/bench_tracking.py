@@ -110,7 +110,7 @@ def real_rows(frames: int = 300) -> dict[str, float] | None:
 
     import cv2
 
-    from depthgram.dynamics.core import FramePixels
+    from depthgram.dynamics.camera_motion import FramePixels
     from depthgram.frame import Intrinsics, make_frame
     from depthgram.segmentation import segment
 
@@ -185,7 +185,7 @@ def truth_rows(
 
     import cv2
 
-    from depthgram.dynamics.core import FramePixels
+    from depthgram.dynamics.camera_motion import FramePixels
     from depthgram.dynamics.evaluate import radial_velocity_from_poses
     from depthgram.frame import Intrinsics, make_frame
     from depthgram.segmentation import segment

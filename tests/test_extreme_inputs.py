@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from depthgram.cli import main
-from depthgram.segmentation.sensor import PROFILES, estimate_sensor
+from depthgram.segmentation.noise_model import PROFILES, estimate_sensor
 
 EXTREMES = {
     "all_1e30": np.full((48, 64), 1e30, np.float32),

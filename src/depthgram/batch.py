@@ -153,7 +153,7 @@ def process_recording(
     of an earlier run in ``out_dir`` are replaced; nothing of it is left that could pass for
     this run's (the summary and an old ``error.txt`` go first, label maps are swapped in whole).
     """
-    from depthgram.commands.describe import label_file_name, write_label_map
+    from depthgram.label_maps import label_file_name, write_label_map
     from depthgram.pipeline import Config, Pipeline
     from depthgram.sources import open_source
 

@@ -25,18 +25,17 @@ from numpy.typing import NDArray
 from depthgram.act import ActConfig, Plan
 from depthgram.act import plan as plan_scene
 from depthgram.dynamics import FramePixels, Tracker, TrackerConfig
-from depthgram.dynamics.core import load_rare_kernels as load_rare_dynamics_kernels
+from depthgram.dynamics import warm_up as warm_up_dynamics
 from depthgram.errors import InputError
 from depthgram.focal_length import estimate_focal_length
 from depthgram.frame import Frame, Gravity, Intrinsics, as_gravity
 from depthgram.scene import TreeConfig, build_tree, to_sentence, tree_to_dict
 from depthgram.scene.tree import Motion, SceneTree
-from depthgram.segmentation import SegmentConfig, segment
-from depthgram.segmentation.core import load_rare_kernels
+from depthgram.segmentation import SegmentConfig, SensorModel, estimate_sensor, segment, sensor_model
+from depthgram.segmentation import warm_up as warm_up_segmentation
 from depthgram.segmentation.label import relabel
 from depthgram.segmentation.objects import SceneObject, Segmentation
 from depthgram.segmentation.orientation import default_intrinsics
-from depthgram.segmentation.sensor import SensorModel, estimate_sensor, sensor_model
 from depthgram.sound import SoundMapping
 from depthgram.sources.camera import Camera, IntrinsicsWarning, resolve_camera
 from depthgram.sources.prefetch import prefetch
@@ -533,8 +532,8 @@ class Pipeline:
                 throwaway._tracker.update((), t, frame.size)
         # Kernels that only rare branches of the segmentation reach compiled, on a fresh install,
         # at the first frame taking them: 470 ms in the middle of a 7-Scenes stream.
-        load_rare_kernels()
-        load_rare_dynamics_kernels()
+        warm_up_segmentation()
+        warm_up_dynamics()
         return time.perf_counter() - t0
 
     def process(self, frame: Frame) -> SceneResult:
