@@ -27,7 +27,15 @@ from depthgram.sensor.geometry import (
 )
 from depthgram.sensor.tof import ToFConfig
 
-__all__ = ["APPROACH_SPEED_MM_S", "SCENES", "WALK_SPEED_MM_S", "SceneSpec", "build_scene"]
+__all__ = [
+    "APPROACH_SPEED_MM_S",
+    "RUSH_SPEED_MM_S",
+    "SCENES",
+    "STEADY_SPEED_MM_S",
+    "WALK_SPEED_MM_S",
+    "SceneSpec",
+    "build_scene",
+]
 
 #: Speed (mm/s) of the hand in ``approach``: toward the sensor for 2 s, then away for 2 s.
 APPROACH_SPEED_MM_S = 600.0
@@ -268,6 +276,68 @@ def _chest_walk(w: int, h: int) -> SceneSpec:
     return SceneSpec("chest_walk", cam, bodies, ToFConfig(f_mod2_hz=40e6))
 
 
+#: Speeds (mm/s) of the balls of ``ball_approach`` and ``ball_rush``, straight at the sensor at a
+#: constant speed (issue 30: 600 mm/s is judged at 30 frames/s, 1.5 m/s at 15 frames/s).
+STEADY_SPEED_MM_S = 600.0
+RUSH_SPEED_MM_S = 1500.0
+
+
+def _straight_at(w: int, h: int, name: str, speed: float) -> SceneSpec:
+    # A ball coming straight at the camera from 2.5 m at a constant speed, before a wall at 2.7 m
+    # (radial distance at the corners under the 50 MHz ambiguity range).
+    cam = Camera(w, h, position=(0.0, 1000.0, 0.0), pitch_deg=0.0)
+    ball = Ellipsoid((60.0, 1040.0, 2500.0), (100.0, 100.0, 100.0))
+    bodies = (
+        Body(1, "floor", "floor", (FLOOR,), 0.5),
+        Body(2, "back_wall", "wall", (_back_wall(2700.0),), 0.7),
+        Body(3, "ball", "object", (ball,), 0.7, Linear(v=(0.0, 0.0, -speed))),
+    )
+    return SceneSpec(name, cam, bodies, ToFConfig())
+
+
+def _ball_approach(w: int, h: int) -> SceneSpec:
+    return _straight_at(w, h, "ball_approach", STEADY_SPEED_MM_S)
+
+
+def _ball_rush(w: int, h: int) -> SceneSpec:
+    return _straight_at(w, h, "ball_rush", RUSH_SPEED_MM_S)
+
+
+def _pass_behind(w: int, h: int) -> SceneSpec:
+    # A far ball rolls from right to left behind a nearer ball (hidden around t = 1.1 s) and then
+    # behind a box (around t = 2.0 s) while the nearer ball closes slowly; it enters the view at
+    # about t = 0.2 s and leaves at about t = 2.9 s (issue 30: identity through occlusion).
+    cam = Camera(w, h, position=(0.0, 1000.0, 0.0), pitch_deg=0.0)
+    box = Box((-420.0, 860.0, 1400.0), (-160.0, 1140.0, 1550.0))
+    near = Ellipsoid((300.0, 1000.0, 1750.0), (120.0, 120.0, 120.0))
+    far = Ellipsoid((1100.0, 1000.0, 2300.0), (110.0, 110.0, 110.0))
+    bodies = (
+        Body(1, "floor", "floor", (FLOOR,), 0.5),
+        Body(2, "back_wall", "wall", (_back_wall(2600.0),), 0.7),
+        Body(3, "box", "object", (box,), 0.6),
+        Body(4, "near_ball", "object", (near,), 0.7, Linear(v=(0.0, 0.0, -150.0))),
+        Body(5, "far_ball", "object", (far,), 0.6, Linear(v=(-700.0, 0.0, 0.0))),
+    )
+    return SceneSpec("pass_behind", cam, bodies, ToFConfig())
+
+
+def _cross_front(w: int, h: int) -> SceneSpec:
+    # A near ball crosses from left to right in front of a still box and a receding ball while
+    # it closes on the camera: the occluder moves, the hidden ones do not (or slowly).
+    cam = Camera(w, h, position=(0.0, 1000.0, 0.0), pitch_deg=0.0)
+    mover = Ellipsoid((-700.0, 1000.0, 1500.0), (110.0, 110.0, 110.0))
+    box = Box((-330.0, 870.0, 2000.0), (-90.0, 1130.0, 2150.0))
+    ball = Ellipsoid((260.0, 1020.0, 2000.0), (120.0, 120.0, 120.0))
+    bodies = (
+        Body(1, "floor", "floor", (FLOOR,), 0.5),
+        Body(2, "back_wall", "wall", (_back_wall(2600.0),), 0.7),
+        Body(3, "box", "object", (box,), 0.6),
+        Body(4, "far_ball", "object", (ball,), 0.7, Linear(v=(0.0, 0.0, 150.0))),
+        Body(5, "mover", "object", (mover,), 0.6, Linear(v=(600.0, 0.0, -200.0))),
+    )
+    return SceneSpec("cross_front", cam, bodies, ToFConfig())
+
+
 _BUILDERS = {
     "table": _table,
     "corridor": _corridor,
@@ -278,6 +348,10 @@ _BUILDERS = {
     "arm_down": _arm_down,
     "arm_45": _arm_45,
     "chest_walk": _chest_walk,
+    "ball_approach": _ball_approach,
+    "ball_rush": _ball_rush,
+    "pass_behind": _pass_behind,
+    "cross_front": _cross_front,
 }
 
 #: Names of the scenes :func:`depthgram.sensor.simulate` knows.
