@@ -6,7 +6,8 @@ and go; voicing every frame's nearest few makes a churn of short-lived voices. A
 seen for ``confirm_frames`` frames in a row, keeps it while the object stays, and fills a free
 place by priority: an object with a time to collision under ``ttc_alert`` first (soonest
 first), then the nearest, then the largest. An approaching object may take the place of a
-voice without one.
+voice without one. An object covering ``facing_area`` of the view or more is a surface facing
+the camera (a wall ahead): it hums, steady, among the surfaces instead of beeping.
 
 Concurrent voices are kept apart for the ear: any two differ by at least ``min_semitones`` in
 pitch, or ``min_pan`` in pan position, or a factor ``min_rate_ratio`` in beep rate. Pitch
@@ -55,64 +56,96 @@ def distinguishable(a: Voice, b: Voice, mapping: SoundMapping) -> bool:
 
 
 @dataclass
-class _Track:
-    seen: int = 0  # frames in a row the object has been in the scene
+class _Slot:
+    track: int  # the tracked object it voices now
+    node: Node  # the object as last seen
+    missing: int = 0  # frames in a row its object has been missing
+    prev_depth: float | None = None  # the object's depth (mm) the frame before
     step: int | None = None  # pitch step last given (index on the ladder)
 
 
 class Chooser:
     """Chooses a stream's voices frame after frame (see the module's notes).
 
+    A voice has an id of its own (its key is ``("o", voice id)``): when the tracker loses an
+    object and finds a new one where it was (within ``1 / 10`` of the view and a quarter of
+    its depth) during the ``hold_frames`` after, the voice goes on with the new track instead
+    of one voice ending and another starting. Meanwhile it keeps its last parameters.
+
     Parameters
     ----------
     mapping : SoundMapping
-        Its ``max_voices``, ``max_glides``, ``confirm_frames`` and separation settings apply.
+        Its ``max_voices``, ``max_glides``, ``confirm_frames``, ``hold_frames`` and separation
+        settings apply.
     """
 
     def __init__(self, mapping: SoundMapping) -> None:
         self.mapping = mapping
-        self._tracks: dict[int, _Track] = {}
-        self._held: list[int] = []  # ids with a beeping voice, in the order they entered
-        self.distinct: set[int] = set()  # every id that has had a beeping voice
+        self._seen: dict[int, int] = {}  # track id -> frames in a row it has been in the scene
+        self._slots: dict[int, _Slot] = {}  # voice id -> its slot, in the order the voices entered
+        self._next_voice = 1
+        self.distinct = 0  # voices started so far
 
-    def choose(self, tree: SceneTree) -> tuple[list[Node], list[Node]]:
-        """Return the beeping objects (held ones first, then newcomers by priority) and humming surfaces."""
+    def _urgent(self, n: Node) -> bool:
+        return n.ttc is not None and 0 < n.ttc < self.mapping.ttc_alert
+
+    def _priority(self, n: Node) -> tuple[float, float, float, int]:
+        """Sort key: time to collision when it warns, then depth (mm), then larger area, then id."""
+        return (n.ttc if self._urgent(n) and n.ttc is not None else math.inf, n.depth, -n.area, n.id)
+
+    def choose(self, tree: SceneTree, frame_size: tuple[int, int]) -> tuple[list[tuple[int, Node]], list[Node]]:
+        """Return the beeping objects as (voice id, node), most important first, and the humming surfaces."""
         m = self.mapping
+        w, h = frame_size
         nodes = list(tree.nodes())
-        objs = {n.id: n for n in nodes if n.kind in BEEP_KINDS}
-        for i in list(self._tracks):
-            if i not in objs:
-                del self._tracks[i]
-        for i in objs:
-            self._tracks.setdefault(i, _Track()).seen += 1
-        held = [i for i in self._held if i in objs]
-
-        def urgent(n: Node) -> bool:
-            return n.ttc is not None and 0 < n.ttc < m.ttc_alert
-
-        def priority(n: Node) -> tuple[float, float, float, int]:
-            return (n.ttc if urgent(n) and n.ttc is not None else math.inf, n.depth, -n.area, n.id)
-
+        facing = [n for n in nodes if n.kind in BEEP_KINDS and n.area >= m.facing_area * w * h]
+        objs = {n.id: n for n in nodes if n.kind in BEEP_KINDS and n.area < m.facing_area * w * h}
+        self._seen = {i: self._seen.get(i, 0) + 1 for i in objs}
+        taken = {s.track for s in self._slots.values() if s.track in objs}
+        for vid, slot in list(self._slots.items()):
+            if slot.track in objs:
+                slot.prev_depth = slot.node.depth if slot.missing == 0 else None
+                slot.node, slot.missing = objs[slot.track], 0
+                continue
+            # Lost: take up a new track where the object was, else wait, then end.
+            near = [
+                n
+                for i, n in objs.items()
+                if i not in taken
+                and abs(n.center_xy[0] - slot.node.center_xy[0]) <= 0.1 * w
+                and abs(n.center_xy[1] - slot.node.center_xy[1]) <= 0.1 * h
+                and abs(n.depth - slot.node.depth) <= 0.25 * slot.node.depth
+            ]
+            if near:
+                n = min(near, key=lambda n: abs(n.depth - slot.node.depth))
+                slot.track, slot.node, slot.missing, slot.prev_depth = n.id, n, 0, None
+                taken.add(n.id)
+                continue
+            slot.missing += 1
+            if slot.missing > m.hold_frames:
+                del self._slots[vid]
         ready = sorted(
-            (n for i, n in objs.items() if i not in held and (self._tracks[i].seen >= m.confirm_frames or urgent(n))),
-            key=priority,
+            (n for i, n in objs.items() if i not in taken and (self._seen[i] >= m.confirm_frames or self._urgent(n))),
+            key=self._priority,
         )
         for n in ready:
-            if len(held) < m.max_voices:
-                held.append(n.id)
-                continue
-            if not urgent(n):
-                break
-            # An approaching object takes the place of the least important voice without a warning.
-            calm = [i for i in held if not urgent(objs[i])]
-            if not calm:
-                break
-            worst = max(calm, key=lambda i: priority(objs[i]))
-            held[held.index(worst)] = n.id
-        self._held = held
-        self.distinct.update(held)
-        surfs = sorted((n for n in nodes if n.kind in OBLIQUE_KINDS), key=lambda n: (n.depth, n.id))
-        return [objs[i] for i in held], surfs[: m.max_glides]
+            if len(self._slots) >= m.max_voices:
+                if not self._urgent(n):
+                    break
+                # An approaching object takes the place of the least important voice without a warning.
+                calm = [v for v, s in self._slots.items() if not self._urgent(s.node)]
+                if not calm:
+                    break
+                del self._slots[max(calm, key=lambda v: self._priority(self._slots[v].node))]
+            self._slots[self._next_voice] = _Slot(n.id, n)
+            self._next_voice += 1
+            self.distinct += 1
+        order = list(self._slots)  # the order the voices entered
+        beeps = sorted(
+            ((v, s.node) for v, s in self._slots.items()), key=lambda t: (not self._urgent(t[1]), order.index(t[0]))
+        )
+        surfs = sorted((n for n in nodes if n.kind in OBLIQUE_KINDS or n in facing), key=lambda n: (n.depth, n.id))
+        return beeps, surfs[: m.max_glides]
 
     def voices(
         self,
@@ -141,27 +174,28 @@ class Chooser:
         from depthgram.sound.synth import beep_voice
 
         m = self.mapping
-        beeps, glides = self.choose(tree)
+        beeps, glides = self.choose(tree, frame_size)
         by_id: Mapping[int, SceneObject] = {o.id: o for o in objects}
         placed: list[Voice] = []
         out: dict[tuple[str, int], Voice] = {}
-        urgent_first = sorted(
-            beeps, key=lambda n: (not (n.ttc is not None and 0 < n.ttc < m.ttc_alert), self._held.index(n.id))
-        )
-        for n in urgent_first:
-            v = beep_voice(n, frame_size, m, intrinsics)
-            v = self._apart(n.id, v, placed)
+        for vid, n in beeps:
+            slot = self._slots[vid]
+            if n.ttc is not None and slot.prev_depth is not None and n.depth > slot.prev_depth + 0.01 * n.depth + 5:
+                # It has turned away: the tracker's speed still reads the approach for a frame or
+                # two (a slope over several frames), the sound stops warning at once.
+                n = replace(n, ttc=None)
+            v = replace(beep_voice(n, frame_size, m, intrinsics), key=("o", vid))
+            v = self._apart(slot, v, placed)
             placed.append(v)
             out[v.key] = v
         for n in glides:
-            g = glide_voice(n, frame_size, m, by_id, intrinsics)
+            g = glide_voice(n, frame_size, m, by_id, intrinsics, facing=n.kind in BEEP_KINDS)
             out[g.key] = g
         return out
 
-    def _apart(self, track: int, v: Voice, placed: Sequence[Voice]) -> Voice:
-        """``v`` on the pitch ladder, moved to the nearest step no placed voice is confused with."""
+    def _apart(self, st: _Slot, v: Voice, placed: Sequence[Voice]) -> Voice:
+        """Return ``v`` on the pitch ladder, at the nearest step no placed voice is confused with."""
         m = self.mapping
-        st = self._tracks.setdefault(track, _Track())
         ladder = 12 * math.log2(m.pitch_high_hz / m.pitch_low_hz) / m.min_semitones
         top = max(0, math.floor(ladder + 1e-9))
         want = 12 * math.log2(v.freq_a / m.pitch_low_hz) / m.min_semitones

@@ -152,12 +152,16 @@ class BlockEvent:
         Output underflows reported by the device so far.
     callback_ms : float
         Time spent in that block's callback (ms).
+    sample : int
+        Position of the block's first sample in the stream (samples since it started): where
+        the frame starts in a copy of what was played.
     """
 
     frame: int
     latency_ms: float | None
     underflows: int
     callback_ms: float
+    sample: int = 0
 
     def record(self) -> dict[str, Any]:
         """Return the JSON line of ``depthgram listen --log``."""
@@ -167,6 +171,7 @@ class BlockEvent:
             "latency_ms": lat,
             "underflows": self.underflows,
             "callback_ms": round(self.callback_ms, 4),
+            "sample": self.sample,
         }
 
 
@@ -209,6 +214,7 @@ class LivePlayer:
         self.block = block
         self.underflows = 0
         self.blocks = 0
+        self.samples = 0  # samples played so far
         self.callback_s: list[float] = []  # time spent in each callback (s)
         self.events: queue.SimpleQueue[BlockEvent] = queue.SimpleQueue()
         self._copy = copy
@@ -241,13 +247,15 @@ class LivePlayer:
         t1 = time.perf_counter()
         self.callback_s.append(t1 - t0)
         self.blocks += 1
+        at = self.samples
+        self.samples += frames
         if self._copy is not None:
             self._copies.put(audio)
         if taken is not None and taken.frame >= 0:
             now_dev = time_info.currentTime
             ahead = time_info.outputBufferDacTime - now_dev if now_dev > 0 else self.stream.latency
             lat = None if taken.arrival_s is None else (t0 + ahead - taken.arrival_s) * 1e3
-            self.events.put(BlockEvent(taken.frame, lat, self.underflows, (t1 - t0) * 1e3))
+            self.events.put(BlockEvent(taken.frame, lat, self.underflows, (t1 - t0) * 1e3, at))
 
     def _write_copies(self) -> None:
         assert self._copy is not None

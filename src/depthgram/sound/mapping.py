@@ -86,6 +86,12 @@ class SoundMapping:
     confirm_frames : int
         Frames in a row a tracked object must be seen before it gets a voice in a stream (an
         approaching object gets one at once).
+    facing_area : float
+        Fraction of the view from which an object is a surface facing the camera (a wall
+        ahead): in a stream it hums steadily among the surfaces instead of beeping.
+    hold_frames : int
+        Frames a stream's voice waits, on its last parameters, for its lost object to be found
+        again (by the tracker, or as a new track where it was) before it fades out.
     min_semitones, min_pan, min_rate_ratio : float
         Two voices sounding together differ by at least ``min_semitones`` in pitch, or
         ``min_pan`` in pan position (0 left .. 1 right), or a factor ``min_rate_ratio`` in beep
@@ -114,13 +120,15 @@ class SoundMapping:
     pan_width: float = 1.0
     scan: str = "left_to_right"
     scan_s: float = 0.25
-    max_voices: int = 6
+    max_voices: int = 4
     max_glides: int = 3
     master_gain: float = 0.35
     ramp_s: float = 0.02
     ttc_floor_s: float = 0.5
     pan_azimuth_deg: float = 45.0
     confirm_frames: int = 3
+    hold_frames: int = 10
+    facing_area: float = 0.4
     min_semitones: float = 3.0
     min_pan: float = 0.2
     min_rate_ratio: float = 1.5
@@ -179,6 +187,10 @@ class SoundMapping:
             raise bad(f"pan_azimuth_deg must be in (0, 90], got {self.pan_azimuth_deg}")
         if int(self.confirm_frames) != self.confirm_frames or not 1 <= self.confirm_frames <= 300:
             raise bad(f"confirm_frames must be an integer in 1..300, got {self.confirm_frames!r}")
+        if int(self.hold_frames) != self.hold_frames or not 0 <= self.hold_frames <= 300:
+            raise bad(f"hold_frames must be an integer in 0..300, got {self.hold_frames!r}")
+        if not 0 < self.facing_area <= 1:
+            raise bad(f"facing_area must be in (0, 1], got {self.facing_area}")
         if not 0 <= self.min_pan <= 1 or self.min_rate_ratio < 1:
             raise bad(f"min_pan must be in [0, 1] and min_rate_ratio >= 1, got {self.min_pan}, {self.min_rate_ratio}")
         if self.scan not in SCANS:

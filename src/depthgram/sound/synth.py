@@ -220,6 +220,8 @@ def glide_voice(
     mapping: SoundMapping,
     objects: Mapping[int, SceneObject] | None = None,
     intrinsics: Any = None,
+    *,
+    facing: bool = False,
 ) -> Voice:
     """Return the gliding hum of one surface node, between its near and far ends.
 
@@ -234,12 +236,18 @@ def glide_voice(
         farthest slices when given, else an assumed extent.
     intrinsics : Intrinsics, optional
         The camera's, for the azimuth of the ends.
+    facing : bool
+        A surface facing the camera (all at one depth): a steady hum at its centre, no glide.
 
     Returns
     -------
     Voice
     """
-    d_near, d_far, x_near, x_far = _extent(n, objects or {})
+    if facing:
+        d_near = d_far = n.depth
+        x_near = x_far = n.center_xy[0]
+    else:
+        d_near, d_far, x_near, x_far = _extent(n, objects or {})
     fc = mapping.pitch(n.center_xy[1], frame_size[1])
     span = mapping.glide_octaves * (mapping.nearness(d_near) - mapping.nearness(d_far))
     k = 10.0 ** (mapping.glide_gain_db / 20.0)
