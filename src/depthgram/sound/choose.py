@@ -84,6 +84,8 @@ class Chooser:
         self._seen: dict[int, int] = {}  # track id -> frames in a row it has been in the scene
         self._slots: dict[int, _Slot] = {}  # voice id -> its slot, in the order the voices entered
         self._next_voice = 1
+        self._entered: list[int] = []  # voices that entered with the last frame
+        self._frames = 0  # frames chosen so far
         self.distinct = 0  # voices started so far
 
     def _urgent(self, n: Node) -> bool:
@@ -124,8 +126,12 @@ class Chooser:
             slot.missing += 1
             if slot.missing > m.hold_frames:
                 del self._slots[vid]
+        self._entered = []  # voices that enter this frame
+        self._frames += 1
+        # The first frame of a stream has no history to confirm against: its objects enter at once.
+        need = 1 if self._frames == 1 else m.confirm_frames
         ready = sorted(
-            (n for i, n in objs.items() if i not in taken and (self._seen[i] >= m.confirm_frames or self._urgent(n))),
+            (n for i, n in objs.items() if i not in taken and (self._seen[i] >= need or self._urgent(n))),
             key=self._priority,
         )
         for n in ready:
@@ -138,6 +144,7 @@ class Chooser:
                     break
                 del self._slots[max(calm, key=lambda v: self._priority(self._slots[v].node))]
             self._slots[self._next_voice] = _Slot(n.id, n)
+            self._entered.append(self._next_voice)
             self._next_voice += 1
             self.distinct += 1
         order = list(self._slots)  # the order the voices entered
@@ -178,13 +185,18 @@ class Chooser:
         by_id: Mapping[int, SceneObject] = {o.id: o for o in objects}
         placed: list[Voice] = []
         out: dict[tuple[str, int], Voice] = {}
+        # Voices entering together first sound in scan order over scan_s (left to right by default).
+        new = [(vid, n) for vid, n in beeps if vid in self._entered]
+        if m.scan == "left_to_right":
+            new.sort(key=lambda t: (t[1].center_xy[0], t[1].id))
+        order = {vid: i / max(len(new) - 1, 1) if m.scan != "none" else 0.0 for i, (vid, _) in enumerate(new)}
         for vid, n in beeps:
             slot = self._slots[vid]
             if n.ttc is not None and slot.prev_depth is not None and n.depth > slot.prev_depth + 0.01 * n.depth + 5:
                 # It has turned away: the tracker's speed still reads the approach for a frame or
                 # two (a slope over several frames), the sound stops warning at once.
                 n = replace(n, ttc=None)
-            v = replace(beep_voice(n, frame_size, m, intrinsics), key=("o", vid))
+            v = replace(beep_voice(n, frame_size, m, intrinsics, order=order.get(vid, 0.0)), key=("o", vid))
             v = self._apart(slot, v, placed)
             placed.append(v)
             out[v.key] = v

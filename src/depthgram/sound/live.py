@@ -379,6 +379,11 @@ class AudioProcess:
     ) -> None:
         import multiprocessing
 
+        from depthgram._optional import needs_extra
+
+        with needs_extra("listen", "playing sound live"):
+            import sounddevice  # noqa: F401 - the audio process uses it; a missing one is named here
+
         self.mapping = mapping or SoundMapping()
         self.samplerate = samplerate
         self.frame_size = frame_size

@@ -507,17 +507,25 @@ class Sonifier:
         self._seconds = 0.0
         self._samples = 0
         self._bank = _Bank(self.mapping, self.samplerate)
+        from depthgram.sound.choose import Chooser  # choose imports this module's voice makers
+
+        self.chooser = Chooser(self.mapping)
 
     @property
     def seconds(self) -> float:
         """Total duration (s) pushed so far."""
         return self._seconds
 
-    def push(self, tree: SceneTree, duration_s: float, objects: Sequence[SceneObject] = ()) -> NDArray[np.float32]:
+    def push(
+        self, tree: SceneTree, duration_s: float, objects: Sequence[SceneObject] = (), intrinsics: Any = None
+    ) -> NDArray[np.float32]:
         """Audio for one frame of ``duration_s`` seconds.
 
         ``objects`` are the frame's segmented objects (``SceneResult.segmentation.objects``):
-        with them a surface's glide spans its real near and far ends.
+        with them a surface's glide spans its real near and far ends. ``intrinsics`` (the
+        frame's) make the pan follow each object's azimuth. The voices are chosen frame after
+        frame by :attr:`chooser` (:class:`depthgram.sound.choose.Chooser`): a voice belongs to a
+        tracked object, and concurrent voices are kept apart.
 
         The number of samples is chosen so that the total over all pushes is the rounded total
         duration: a sequence's audio lasts exactly as long as the sequence.
@@ -529,13 +537,15 @@ class Sonifier:
         """
         if not isinstance(duration_s, (int, float)) or not math.isfinite(duration_s) or duration_s < 0:
             raise InputError(f"frame duration must be a finite number of seconds >= 0, got {duration_s!r}")
+        return self._push_targets(self.chooser.voices(tree, self._size_of(tree), objects, intrinsics), duration_s)
+
+    def _push_targets(self, targets: dict[tuple[str, int], Voice], duration_s: float) -> NDArray[np.float32]:
         total = round((self._seconds + duration_s) * self.samplerate)
         n = total - self._samples
         self._seconds += duration_s
         if n <= 0:
             return np.zeros((0, 2), np.float32)
         self._samples = total
-        targets = {v.key: v for v in voices(tree, self._size_of(tree), self.mapping, objects)}
         return self._render(targets, n).astype(np.float32)
 
     def _size_of(self, tree: SceneTree) -> tuple[int, int]:
@@ -586,9 +596,13 @@ def render_scene(
     ndarray of float32, shape (round(duration_s * samplerate), 2)
     """
     s = Sonifier(mapping, samplerate, frame_size)
+    # A still is one scene heard whole: its nearest objects, no stream's history to choose by.
+    still = voices(tree, s._size_of(tree), s.mapping, objects)
     if duration_s is None:
-        duration_s = still_seconds(voices(tree, s._size_of(tree), s.mapping, objects), s.mapping)
-    audio = s.push(tree, duration_s, objects)
+        duration_s = still_seconds(still, s.mapping)
+    if not isinstance(duration_s, (int, float)) or not math.isfinite(duration_s) or duration_s < 0:
+        raise InputError(f"duration must be a finite number of seconds >= 0, got {duration_s!r}")
+    audio = s._push_targets({v.key: v for v in still}, duration_s)
     r = min(len(audio), max(1, round(s.mapping.ramp_s * samplerate)))
     if r:
         audio[-r:] *= np.linspace(1.0, 0.0, r, dtype=np.float32)[:, None]
