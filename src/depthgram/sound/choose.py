@@ -27,7 +27,13 @@ from depthgram.segmentation.objects import SceneObject
 from depthgram.sound.mapping import SoundMapping
 from depthgram.sound.synth import BEEP_KINDS, OBLIQUE_KINDS, Voice, glide_voice
 
-__all__ = ["Chooser", "distinguishable", "pan_position"]
+__all__ = ["MATCH_DEPTH", "MATCH_VIEW", "Chooser", "distinguishable", "pan_position"]
+
+#: A lost object's voice goes on with a new track within this share of the view's width and
+#: height of where it was ...
+MATCH_VIEW = 0.15
+#: ... and this share of its depth.
+MATCH_DEPTH = 0.35
 
 
 def pan_position(v: Voice) -> float:
@@ -68,8 +74,9 @@ class Chooser:
     """Chooses a stream's voices frame after frame (see the module's notes).
 
     A voice has an id of its own (its key is ``("o", voice id)``): when the tracker loses an
-    object and finds a new one where it was (within ``1 / 10`` of the view and a quarter of
-    its depth) during the ``hold_frames`` after, the voice goes on with the new track instead
+    object and finds a new one where it was (within :data:`MATCH_VIEW` of the view and
+    :data:`MATCH_DEPTH` of its depth) during the ``hold_frames`` after, the voice goes on with
+    the new track instead
     of one voice ending and another starting. Meanwhile it keeps its last parameters.
 
     Parameters
@@ -114,9 +121,9 @@ class Chooser:
                 n
                 for i, n in objs.items()
                 if i not in taken
-                and abs(n.center_xy[0] - slot.node.center_xy[0]) <= 0.1 * w
-                and abs(n.center_xy[1] - slot.node.center_xy[1]) <= 0.1 * h
-                and abs(n.depth - slot.node.depth) <= 0.25 * slot.node.depth
+                and abs(n.center_xy[0] - slot.node.center_xy[0]) <= MATCH_VIEW * w
+                and abs(n.center_xy[1] - slot.node.center_xy[1]) <= MATCH_VIEW * h
+                and abs(n.depth - slot.node.depth) <= MATCH_DEPTH * slot.node.depth
             ]
             if near:
                 n = min(near, key=lambda n: abs(n.depth - slot.node.depth))

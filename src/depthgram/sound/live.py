@@ -30,7 +30,10 @@ from depthgram.sound.choose import Chooser
 from depthgram.sound.mapping import SoundMapping
 from depthgram.sound.synth import Voice, _Bank
 
-__all__ = ["AudioProcess", "BlockEvent", "LivePlayer", "LiveSonifier", "percentiles"]
+#: Seconds the audio process has to fade out, stop its device and report.
+STOP_TIMEOUT_S = 15.0
+
+__all__ = ["STOP_TIMEOUT_S", "AudioProcess", "BlockEvent", "LivePlayer", "LiveSonifier", "percentiles"]
 
 
 @dataclass(frozen=True)
@@ -446,7 +449,14 @@ class AudioProcess:
         """
         if self._proc.is_alive() and not self.stats:
             self._conn.send(("stop",))
+            deadline = time.monotonic() + STOP_TIMEOUT_S
             while not self.stats:
+                if not self._conn.poll(max(0.0, deadline - time.monotonic())):
+                    self._proc.kill()
+                    self._proc.join()
+                    raise InputError(
+                        f"the audio process did not stop within {STOP_TIMEOUT_S:g} s (is the audio device stuck?)"
+                    )
                 kind, value = self._recv()
                 if kind == "events":
                     self._inbox += value

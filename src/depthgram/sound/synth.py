@@ -510,6 +510,7 @@ class Sonifier:
         from depthgram.sound.choose import Chooser  # choose imports this module's voice makers
 
         self.chooser = Chooser(self.mapping)
+        self.voices_now: dict[tuple[str, int], Voice] = {}  # the voices of the last push, by key
 
     @property
     def seconds(self) -> float:
@@ -537,7 +538,8 @@ class Sonifier:
         """
         if not isinstance(duration_s, (int, float)) or not math.isfinite(duration_s) or duration_s < 0:
             raise InputError(f"frame duration must be a finite number of seconds >= 0, got {duration_s!r}")
-        return self._push_targets(self.chooser.voices(tree, self._size_of(tree), objects, intrinsics), duration_s)
+        self.voices_now = self.chooser.voices(tree, self._size_of(tree), objects, intrinsics)
+        return self._push_targets(self.voices_now, duration_s)
 
     def _push_targets(self, targets: dict[tuple[str, int], Voice], duration_s: float) -> NDArray[np.float32]:
         total = round((self._seconds + duration_s) * self.samplerate)
