@@ -19,6 +19,7 @@ EXTRAS = {
     "rosbags": "bags",
     "matplotlib": "report",
     "soundfile": "sound",
+    "sounddevice": "listen",
     "fastapi": "view",
     "starlette": "view",
     "uvicorn": "view",
