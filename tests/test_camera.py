@@ -280,7 +280,7 @@ def test_gravity_from_vector_and_tilt() -> None:
         as_gravity((0, 1, 0), 10.0)
     with pytest.raises(InputError, match="non-zero"):
         as_gravity((0, 0, 0))
-    with pytest.raises(InputError, match="between -90"):
+    with pytest.raises(InputError, match=r"--tilt DEG.*-90 \(up\) to 90"):
         as_gravity(None, 120.0)
 
 
