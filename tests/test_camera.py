@@ -195,7 +195,8 @@ def test_profile_of_another_aspect_warns_and_names_the_option() -> None:
     assert cam is not None
     with pytest.warns(IntrinsicsWarning, match="--intrinsics"):
         k = cam.for_size((640, 360))
-    assert_allclose(k_tuple(k), (525.0, 525.0 * 0.75, 319.5, (239.5 + 0.5) * 0.75 - 0.5))
+    # square pixels kept: the width's scale (1) for both axes, the 360 rows a centred crop of the 480
+    assert_allclose(k_tuple(k), (525.0, 525.0, 319.5, 239.5 - 60.0))
 
 
 def test_calibration_file_scaled_to_the_frames(tmp_path: Path) -> None:

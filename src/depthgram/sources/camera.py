@@ -78,8 +78,9 @@ class CameraProfile:
         """Return the intrinsics (px) for frames of ``size`` = (width, height) px.
 
         The mode of that size when there is one; else the mode of the nearest aspect ratio,
-        scaled (:meth:`~depthgram.frame.Intrinsics.scaled`), with an :class:`IntrinsicsWarning`
-        when the aspect ratios differ (the frames are a crop, whose principal point no profile knows).
+        scaled (:meth:`~depthgram.frame.Intrinsics.scaled`); when the aspect ratios differ (a
+        crop, whose principal point no profile knows) scaled by the width and centred, with an
+        :class:`IntrinsicsWarning`.
         """
         return _fit(self.modes, size, f"camera profile {self.name!r}")
 
@@ -91,14 +92,19 @@ def _fit(modes: Sequence[tuple[tuple[int, int], Intrinsics]], size: tuple[int, i
             return k
     aspect = w / h
     (mw, mh), k = min(modes, key=lambda m: (abs(math.log(m[0][0] / m[0][1] / aspect)), -m[0][0]))
-    if abs(mw / mh / aspect - 1.0) > _ASPECT_TOL:
-        warnings.warn(
-            f"{what} is for {mw}x{mh} px frames, these are {w}x{h} px (another aspect ratio: a crop?); "
-            "its intrinsics were stretched to fit, give the true ones with --intrinsics FX FY CX CY",
-            IntrinsicsWarning,
-            stacklevel=3,
-        )
-    return k.scaled(w / mw, h / mh)
+    if abs(mw / mh / aspect - 1.0) <= _ASPECT_TOL:
+        return k.scaled(w / mw, h / mh)
+    # Another aspect ratio is a crop (or another sensor): pixels stay square, so the width sets the
+    # scale, and the crop is taken as centred vertically.
+    warnings.warn(
+        f"{what} is for {mw}x{mh} px frames, these are {w}x{h} px (another aspect ratio: a crop?); its "
+        "intrinsics were scaled by the width and centred, give the true ones with --intrinsics FX FY CX CY",
+        IntrinsicsWarning,
+        stacklevel=3,
+    )
+    s = w / mw
+    scaled = k.scaled(s, s)
+    return Intrinsics(scaled.fx, scaled.fy, scaled.cx, scaled.cy + (h - mh * s) / 2.0)
 
 
 def _k(fx: float, fy: float, cx: float, cy: float) -> Intrinsics:
