@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -34,6 +34,7 @@ from depthgram.segmentation.orientation import (
 )
 from depthgram.segmentation.paper_slices import paper_slices
 from depthgram.segmentation.plane_sums import plane_sums_in_boxes, planes_from_sums, shares_beneath
+from depthgram.segmentation.raised import raised_pieces
 from depthgram.segmentation.ransac import find_planes, plane_normal
 from depthgram.segmentation.ransac import warm_up as warm_up_ransac
 from depthgram.segmentation.region import region_grow
@@ -380,6 +381,8 @@ def _slices(
     else:
         labels, bands, fsums, fboxes = _facing_objects(depth, ok, facing, cfg)
     stack = _stack_supports(labels, fsums, fboxes, support_maps, cam)
+    if cfg.method == "surfaces" and cfg.raised_sigmas > 0 and sensor is not None:
+        stack = _cut_raised(labels, depth, ok, classes, stack, sensor, bands, cam, cfg, min_px)
     below, beneath = _below_camera(labels, depth, cam, stack)
     fronts = _fold_faces(labels, depth, stack, below, cfg)
     labels, specs, rows, boxes = _compound_objects(
@@ -426,6 +429,8 @@ class _Stack:
     supports: list[tuple[int, int]]  # (orientation class, id) per support with pixels
     #: (next_id - 1, 8) the attributes of ids 1.. (attributes.attribute_rows), before faces fold
     attrs: NDArray[np.float64]
+    #: objects cut out of the supports (:func:`_cut_raised`): ids after the supports'
+    raised: list[int] = field(default_factory=list)
 
 
 def _stack_supports(
@@ -463,6 +468,53 @@ def _stack_supports(
     supports = [(c, i) for c, i in supports if attrs[i - 1, 0] > 0]
     keys = fsums[:, KEY].astype(np.int64)
     return _Stack(total, total_boxes, keys, first_support, next_id, supports, attrs)
+
+
+def _cut_raised(
+    labels: NDArray[np.int32],
+    depth: NDArray[np.float32],
+    ok: NDArray[np.bool_],
+    classes: NDArray[np.int8],
+    stack: _Stack,
+    sensor: SensorModel,
+    bands: Bands,
+    cam: Intrinsics,
+    cfg: SegmentConfig,
+    min_px: int,
+) -> _Stack:
+    """Cut what lies on each horizontal support above its noise into objects of their own (in place).
+
+    The pieces (:func:`depthgram.segmentation.raised.raised_pieces`) take ids after the last
+    support's; their statistics come out of their support's row, which stays additive.
+    """
+    tops = [i for c, i in stack.supports if c == HORIZONTAL]
+    if not tops:
+        return stack
+    pieces, of_support = raised_pieces(
+        labels, depth, ok, classes == HORIZONTAL, tops, stack.boxes[tops], sensor, min_px=min_px,
+        k_sigma=cfg.raised_sigmas,
+    )  # fmt: skip
+    k = len(of_support)
+    if not k:
+        return stack
+    sums, boxes = label_stats_fused(pieces, k, depth, np.zeros(depth.shape, np.float32))
+    new = np.arange(stack.next_id, stack.next_id + k)
+    cut = pieces > 0
+    labels[cut] = pieces[cut] + np.int32(stack.next_id - 1)
+    total = np.concatenate([stack.sums, sums[1:, :N_SUMS]])
+    for j, sid in enumerate(of_support, start=1):
+        total[sid] -= sums[j, :N_SUMS]
+    mean = sums[1:, SUM_Z] / np.maximum(sums[1:, COUNT], 1.0)
+    keys = np.concatenate([stack.keys, np.zeros(new[0] - stack.keys.size, np.int64), bands.depth_label(mean)])
+    return replace(
+        stack,
+        sums=total,
+        boxes=np.concatenate([stack.boxes, boxes[1:]]),
+        keys=keys.astype(np.int64),
+        next_id=stack.next_id + k,
+        attrs=attribute_rows(total, cam),
+        raised=new.tolist(),
+    )
 
 
 def _fold_faces(
@@ -541,7 +593,7 @@ def _compound_objects(
     with_front = set(fronts.values())
     n_facing = stack.first_support - 1
     before = stack.attrs
-    facing = [i for i in range(1, n_facing + 1) if before[i - 1, 0] > 0 and i not in fronts]
+    facing = [i for i in range(1, n_facing + 1) if before[i - 1, 0] > 0 and i not in fronts] + stack.raised
     old = facing + [i for _, i in supports]
     remap = {oid: new for new, oid in enumerate(old, start=1)}
     # without a folded face or a missing id the ids stay 1..n: no pass over the label map

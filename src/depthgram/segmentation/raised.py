@@ -1,0 +1,191 @@
+"""What lies on a support, however flat: readings standing above its plane by more than the noise.
+
+A dish, a book, a screwdriver or a banana lying on a table rises 10-30 mm above it. Seen at an
+angle, its edge is a depth step that a ToF camera's noise at a metre (several millimetres a
+reading) and the surfaces' join allowance bridge, so it joins the table. One reading cannot tell
+it from noise, but the table's plane, fitted over tens of thousands of readings, is known far
+better than any reading, and a window of readings averages their noise down: a patch whose mean
+stands above the plane by several of the sensor's sigmas over the window's root count (plus one
+quantisation step) is not the table.
+
+Only a support's horizontal readings are read and fitted (a folded front face is not on its
+plane). A piece is kept when it is large enough to be an object and the ring around it lies on
+the plane: the edge of a non-planar support (a ramp, a sagging cloth) rises gradually and has no
+flat ring, an object lying on the table has one.
+"""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from depthgram.segmentation.noise_model import SensorModel
+
+__all__ = ["raised_pieces"]
+
+#: readings a support needs before its plane says anything
+_MIN_SUPPORT_PX = 500
+#: rounds of the plane fit: two robust ones (median and MAD), then ones at the sensor's noise
+_ROUNDS = 4
+#: readings the plane is fitted on, spread over the support
+_FIT_READINGS = 1000
+
+
+def raised_pieces(
+    labels: NDArray[np.int32],
+    depth_mm: NDArray[np.float32],
+    valid: NDArray[np.bool_],
+    horizontal: NDArray[np.bool_],
+    support_ids: list[int],
+    boxes: NDArray[np.int64],
+    sensor: SensorModel,
+    *,
+    min_px: int,
+    k_sigma: float = 4.0,
+    window_px: int = 5,
+    ring_share: float = 0.6,
+    step_resolutions: float = 3.0,
+) -> tuple[NDArray[np.int32], list[int]]:
+    """Find the pieces of each horizontal support that stand above its plane by more than the noise.
+
+    Parameters
+    ----------
+    labels : ndarray of int32, shape (H, W)
+        Label map holding the supports' ids.
+    depth_mm : ndarray of float32, shape (H, W)
+        Depth (mm).
+    valid : ndarray of bool, shape (H, W)
+        Pixels with a reading.
+    horizontal : ndarray of bool, shape (H, W)
+        Pixels of the horizontal orientation class: a support's plane is fitted on these.
+    support_ids : list of int
+        The horizontal supports' ids in ``labels``.
+    boxes : ndarray of int, shape (len(support_ids), 4)
+        Each support's box (x0, y0, x1, y1, inclusive), holding all its pixels: nothing outside
+        is read.
+    sensor : SensorModel
+        The camera's depth noise and quantisation step against depth.
+    min_px : int
+        Fewest pixels of a piece.
+    k_sigma : float
+        How many of the window mean's noise sigmas a piece must stand above the plane.
+    window_px : int
+        Side of the window (px) whose readings are averaged.
+    ring_share : float
+        Least share (0..1) of the ring around a piece lying on the plane.
+    step_resolutions : float
+        How many of the sensor's resolutions (:meth:`SensorModel.resolution`) the piece's median
+        height must stand above its ring's.
+
+    Returns
+    -------
+    pieces : ndarray of int32, shape (H, W)
+        0, or the piece 1..k of each pixel (pixels with a reading only).
+    of_support : list of int
+        The support id each piece was cut from (``of_support[j - 1]`` for piece ``j``).
+    """
+    h, w = depth_mm.shape
+    out = np.zeros((h, w), np.int32)
+    of_support: list[int] = []
+    win = (window_px, window_px)
+    square = np.ones(win, np.uint8)
+    pad = window_px + 4
+    for sid, box in zip(support_ids, boxes, strict=True):
+        # the support's own box (inclusive), grown by the windows and the ring: nothing else is read
+        bx0, by0 = max(int(box[0]) - pad, 0), max(int(box[1]) - pad, 0)
+        bx1, by1 = min(int(box[2]) + pad + 1, w), min(int(box[3]) + pad + 1, h)
+        lab, z_box = labels[by0:by1, bx0:bx1], depth_mm[by0:by1, bx0:bx1]
+        on = (lab == sid) & valid[by0:by1, bx0:bx1] & horizontal[by0:by1, bx0:bx1]
+        n_on = int(np.count_nonzero(on))
+        if n_on < max(_MIN_SUPPORT_PX, min_px):
+            continue
+        height = _height_over_plane(on, z_box, sensor)
+        # each window's mean height and depth over the support's readings in it
+        count = cv2.boxFilter(on.astype(np.float32), -1, win, normalize=False)
+        n = np.maximum(count, 1.0)
+        mean = cv2.boxFilter(height, -1, win, normalize=False) / n
+        zmean = cv2.boxFilter(np.where(on, z_box, 0).astype(np.float32), -1, win, normalize=False) / n
+        limit = k_sigma * sensor.sigma(zmean) / np.sqrt(n) + sensor.step(zmean)
+        # holes (a structured-light camera's sieve of dropouts) are bridged: a window counts
+        # wherever a quarter of it has the support's readings
+        area = cv2.morphologyEx(on.astype(np.uint8), cv2.MORPH_CLOSE, square).astype(bool)
+        area &= count >= window_px * window_px / 4
+        high = cv2.morphologyEx((area & (mean > limit)).astype(np.uint8), cv2.MORPH_OPEN, np.ones((3, 3), np.uint8))
+        k, comp, stats, _ = cv2.connectedComponentsWithStats(high, connectivity=8)
+        if k <= 1:
+            continue
+        flat = area & (np.abs(mean) <= limit)
+        hh, ww = on.shape
+        ring_kernel = np.ones((7, 7), np.uint8)
+        for j in range(1, k):
+            if stats[j, cv2.CC_STAT_AREA] < min_px:
+                continue
+            x, y, bw, bh = (int(v) for v in stats[j, :4])
+            # the piece's box grown by the ring's width: the ring is read there only
+            x0, y0, x1, y1 = max(x - 4, 0), max(y - 4, 0), min(x + bw + 4, ww), min(y + bh + 4, hh)
+            piece = comp[y0:y1, x0:x1] == j
+            ring = cv2.dilate(piece.astype(np.uint8), ring_kernel).astype(bool) & ~piece
+            if flat[y0:y1, x0:x1][ring].sum() < ring_share * max(int(ring.sum()), 1):
+                continue
+            on_here = on[y0:y1, x0:x1]
+            inside_height = height[y0:y1, x0:x1]
+            # its edge where the readings pass half its height: the window's mean reaches past it
+            half = 0.5 * float(np.median(inside_height[piece & on_here]))
+            mine = piece & on_here & (inside_height > half)
+            if int(mine.sum()) < min_px:
+                continue
+            # a step over the ring, not a swell of the surface: a real camera's depth bends by a
+            # few resolutions over a table (lens and baseline calibration), smoothly, so that the
+            # ring of a swell rises with it; an object lying on the table steps up from a flat ring
+            near = ring & on_here
+            around = float(np.median(inside_height[near])) if near.any() else 0.0
+            z_piece = float(np.median(z_box[y0:y1, x0:x1][mine]))
+            if float(np.median(inside_height[mine])) - around < step_resolutions * float(sensor.resolution(z_piece)):
+                continue
+            of_support.append(sid)
+            out[by0 + y0 : by0 + y1, bx0 + x0 : bx0 + x1][mine] = len(of_support)
+    return out, of_support
+
+
+def _height_over_plane(on: NDArray[np.bool_], z_box: NDArray[np.float32], sensor: SensorModel) -> NDArray[np.float32]:
+    """Depth (mm) by which each reading lies nearer than the support's plane (positive: above it).
+
+    The plane is linear in inverse depth over pixels, ``1000/Z = a u + b v + c``, whatever the
+    intrinsics; it is fitted robustly, first against the readings' own spread (what lies on the
+    support pulls a least-squares fit up), then against the sensor's noise, on about a thousand
+    readings spread over the support on a grid (the plane has three numbers). Pixels outside
+    ``on`` get 0.
+    """
+    n_on = int(np.count_nonzero(on))
+    every = max(1, int(np.sqrt(n_on / _FIT_READINGS)))
+    rows, cols = np.nonzero(on[::every, ::every])
+    z = z_box[::every, ::every][rows, cols].astype(np.float64)
+    # coordinates about the box's centre keep the normal equations well conditioned
+    cu, cv = (on.shape[1] - 1) / 2.0, (on.shape[0] - 1) / 2.0
+    design = np.stack([cols * float(every) - cu, rows * float(every) - cv, np.ones_like(z)], axis=1)
+    q = 1000.0 / z
+    noise = 3.0 * sensor.sigma(z) + sensor.step(z)
+    keep = np.ones(z.size, bool)
+    coef = np.zeros(3)
+    for r in range(_ROUNDS):
+        d = design[keep]
+        coef = np.linalg.solve(d.T @ d + np.eye(3) * 1e-9, d.T @ q[keep])
+        plane_q = design @ coef
+        above = np.where(plane_q > 0, 1000.0 / np.maximum(plane_q, 1e-12) - z, 0.0)
+        if r < _ROUNDS // 2:
+            res = above[keep]
+            mid = float(np.median(res))
+            spread = 1.4826 * float(np.median(np.abs(res - mid)))
+            new_keep = np.abs(above - mid) < np.maximum(2.5 * spread, noise)
+        else:
+            new_keep = np.abs(above) < noise
+        if int(new_keep.sum()) < 3:
+            break
+        keep = new_keep
+    u = (np.arange(on.shape[1], dtype=np.float32) - np.float32(cu))[None, :]
+    v = (np.arange(on.shape[0], dtype=np.float32) - np.float32(cv))[:, None]
+    plane = np.float32(coef[0]) * u + np.float32(coef[1]) * v + np.float32(coef[2])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        height = np.float32(1000.0) / plane - z_box
+    return np.where(on & (plane > 0), height, np.float32(0.0)).astype(np.float32)
