@@ -380,12 +380,18 @@ class AudioProcess:
         block: int = 256,
         wav: str | None = None,
     ) -> None:
+        import importlib.util
         import multiprocessing
+        import sys
 
-        from depthgram._optional import needs_extra
+        # Only looked for, not imported: importing it starts PortAudio (and a JACK client) in
+        # this process too, which the audio process alone needs.
+        if sys.modules.get("sounddevice", ...) is None or importlib.util.find_spec("sounddevice") is None:
+            from depthgram.errors import MissingExtraError
 
-        with needs_extra("listen", "playing sound live"):
-            import sounddevice  # noqa: F401 - the audio process uses it; a missing one is named here
+            raise MissingExtraError(
+                "playing sound live needs the optional package 'sounddevice': pip install 'depthgram[listen]'"
+            )
 
         self.mapping = mapping or SoundMapping()
         self.samplerate = samplerate
