@@ -8,6 +8,7 @@ skip with the reason when jackd, jack_rec, PortAudio or sounddevice is missing.
 from __future__ import annotations
 
 import io
+import itertools
 import json
 import os
 import re
@@ -17,6 +18,7 @@ import sys
 import time
 from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -263,3 +265,28 @@ def test_a_hand_held_recording_sounds_like_a_few_steady_things(shared_data: Path
     m = re.search(r"up to (\d+) object\(s\) beeping .* (\d+) distinct object voice\(s\)", summary)
     assert m, summary
     assert int(m.group(1)) <= 4 and int(m.group(2)) <= 15, summary
+
+
+@pytest.mark.parametrize(
+    ("name", "opts"),
+    [
+        ("azure_kinect_tof_mug_single/depth.png", {}),
+        ("ycbv_0000_labelled", {"scale_mm": 0.1}),
+        ("sim:approach?frames=60", {}),
+    ],
+)
+def test_every_pair_of_concurrent_voices_can_be_told_apart(name: str, opts: dict[str, float], request: Any) -> None:
+    from depthgram import Pipeline, read
+
+    path = name if name.startswith("sim:") else request.getfixturevalue("shared_data") / name
+    if not name.startswith("sim:") and not Path(path).exists():
+        pytest.skip(f"{path} not found")
+    m = SoundMapping()
+    c = Chooser(m)
+    heard = 0
+    for r in Pipeline().run(read(path, **opts)):
+        vs = list(c.voices(r.tree, r.frame.size, r.segmentation.objects, r.frame.intrinsics).values())
+        heard = max(heard, len(vs))
+        for a, b in itertools.combinations(vs, 2):
+            assert distinguishable(a, b, m), f"{name} frame {r.frame.index}: {a} and {b} sound alike"
+    assert heard >= 2
