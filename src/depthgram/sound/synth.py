@@ -97,25 +97,32 @@ class Selection:
         return [f"o_{n.id} ({n.kind}, {n.depth / 1000:.2f} m): {why}" for n, why in self.left_out]
 
 
-def select(tree: SceneTree, mapping: SoundMapping) -> Selection:
+def select(tree: SceneTree, mapping: SoundMapping, frame_size: tuple[int, int] | None = None) -> Selection:
     """Return the nodes a scene voices: the nearest ``max_voices`` objects and ``max_glides`` surfaces.
 
     Every node of the tree counts on its own, whatever its parent: an object standing on a
     table or inside a compound support is voiced like one standing on the floor. (A compound's
     ``parts`` are depth labels of its slices, not node ids, so they never name other nodes.)
 
+    An object covering ``facing_area`` of the view or more (a wall ahead) hums among the
+    surfaces.
+
     Parameters
     ----------
     tree : SceneTree
     mapping : SoundMapping
+    frame_size : tuple of int, optional
+        (width, height) of the frame (px); the tree's own when omitted.
 
     Returns
     -------
     Selection
     """
     nodes = sorted(tree.nodes(), key=lambda n: (n.depth, n.id))
-    objs = [n for n in nodes if n.kind in BEEP_KINDS]
-    surfs = [n for n in nodes if n.kind in OBLIQUE_KINDS]
+    size = frame_size or tree.frame_size
+    big = mapping.facing_area * size[0] * size[1] if size else math.inf
+    objs = [n for n in nodes if n.kind in BEEP_KINDS and n.area < big]
+    surfs = [n for n in nodes if n.kind in OBLIQUE_KINDS or (n.kind in BEEP_KINDS and n.area >= big)]
     left: list[tuple[Node, str]] = []
     for n in nodes:
         if n.kind not in BEEP_KINDS and n.kind not in OBLIQUE_KINDS:
@@ -167,7 +174,7 @@ def voices(
         Beeping objects first (nearest first), then glides; :func:`select` says which nodes
         were left out and why.
     """
-    sel = select(tree, mapping)
+    sel = select(tree, mapping, frame_size)
     by_id = {o.id: o for o in objects}
     if mapping.scan == "left_to_right":
         ranked = sorted(sel.beeps, key=lambda n: (n.center_xy[0], n.id))
@@ -175,7 +182,7 @@ def voices(
         ranked = list(sel.beeps)  # already nearest first; "none" ignores the order
     rank = {n.id: i / max(len(ranked) - 1, 1) for i, n in enumerate(ranked)}
     out = [beep_voice(n, frame_size, mapping, order=rank[n.id] if mapping.scan != "none" else 0.0) for n in sel.beeps]
-    out += [glide_voice(n, frame_size, mapping, by_id) for n in sel.glides]
+    out += [glide_voice(n, frame_size, mapping, by_id, facing=n.kind in BEEP_KINDS) for n in sel.glides]
     return out
 
 
