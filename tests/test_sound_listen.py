@@ -292,3 +292,14 @@ def test_every_pair_of_concurrent_voices_can_be_told_apart(name: str, opts: dict
         for a, b in itertools.combinations(vs, 2):
             assert distinguishable(a, b, m), f"{name} frame {r.frame.index}: {a} and {b} sound alike"
     assert heard >= 2
+
+
+def test_listen_names_a_missing_folder_before_opening_any_device(tmp_path: Path, capsys: Any) -> None:
+    from depthgram.cli import main
+
+    missing = tmp_path / "nowhere" / "log.jsonl"
+    assert main(["listen", "sim:table?frames=2", "--log", str(missing)]) == 2
+    err = capsys.readouterr().err
+    assert f"--log {missing}" in err and "does not exist" in err
+    assert main(["listen", "sim:table?frames=2", "--block", "8"]) == 2
+    assert "--block must be between 16 and 16384" in capsys.readouterr().err

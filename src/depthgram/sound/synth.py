@@ -194,7 +194,13 @@ def _pan(x: float, frame_size: tuple[int, int], mapping: SoundMapping, intrinsic
 
 
 def beep_voice(
-    n: Node, frame_size: tuple[int, int], mapping: SoundMapping, intrinsics: Any = None, *, order: float = 0.0
+    n: Node,
+    frame_size: tuple[int, int],
+    mapping: SoundMapping,
+    intrinsics: Any = None,
+    *,
+    order: float = 0.0,
+    key: tuple[str, int] | None = None,
 ) -> Voice:
     """Return the beeping voice of one object node.
 
@@ -208,6 +214,8 @@ def beep_voice(
         The camera's: the pan then follows the object's azimuth (``pan_azimuth_deg``).
     order : float
         Scan position in 0..1 (when it first sounds).
+    key : tuple of (str, int), optional
+        The voice's key; ``("o", n.id)`` by default.
 
     Returns
     -------
@@ -218,7 +226,7 @@ def beep_voice(
     g = mapping.gain(n.depth)
     pan = _pan(n.center_xy[0], frame_size, mapping, intrinsics)
     harm, beep = mapping.weight(n.area / float(w * h))
-    return Voice(("o", n.id), f, f, g, g, pan, pan, mapping.rate(n.depth, n.ttc), beep, harm, order)
+    return Voice(key or ("o", n.id), f, f, g, g, pan, pan, mapping.rate(n.depth, n.ttc), beep, harm, order)
 
 
 def glide_voice(
