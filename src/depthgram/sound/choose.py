@@ -25,7 +25,7 @@ from typing import Any
 from depthgram.scene.tree import Node, SceneTree
 from depthgram.segmentation.objects import SceneObject
 from depthgram.sound.mapping import SoundMapping
-from depthgram.sound.synth import BEEP_KINDS, OBLIQUE_KINDS, Voice, glide_voice
+from depthgram.sound.voice import BEEP_KINDS, OBLIQUE_KINDS, Voice, beep_voice, glide_voice
 
 __all__ = ["MATCH_DEPTH", "MATCH_VIEW", "Chooser", "distinguishable", "pan_position"]
 
@@ -185,8 +185,6 @@ class Chooser:
         dict
             Voice key -> Voice; beeps in order of importance, then glides.
         """
-        from depthgram.sound.synth import beep_voice
-
         m = self.mapping
         beeps, glides = self.choose(tree, frame_size)
         by_id: Mapping[int, SceneObject] = {o.id: o for o in objects}
