@@ -19,8 +19,8 @@ def test_lesson_writes_each_cue_with_its_line(tmp_path: Path, capsys: pytest.Cap
     m = SoundMapping.preset("calm")
     lines = (tmp_path / "calm" / "lesson.txt").read_text().splitlines()[1:]
     names = [ln.split(":")[0] for ln in lines]
-    assert names == sorted(p.name for p in (tmp_path / "calm").glob("*.wav")) and len(names) == 8
-    assert capsys.readouterr().out.count(".wav:") == 8
+    assert names == sorted(p.name for p in (tmp_path / "calm").glob("*.wav")) and len(names) == 9
+    assert capsys.readouterr().out.count(".wav:") == 9
     sr = 22050
 
     def wav(name: str) -> np.ndarray:
@@ -50,3 +50,11 @@ def test_lesson_writes_each_cue_with_its_line(tmp_path: Path, capsys: pytest.Cap
     assert halves[0].rate_hz == pytest.approx(m.rate(1150.0, 1.15), rel=0.15)
     assert halves[1].rate_hz == pytest.approx(m.rate(650.0, 0.65), rel=0.15)
     assert halves[1].rate_hz > 1.15 * halves[0].rate_hz
+    # The wall ahead hums: one steady tone at the middle row's pitch, no beeps, level all along.
+    ahead = wav("09-wall-ahead")
+    assert "steady hum" in lines[8]
+    body = ahead[sr // 10 : -sr // 10, 0]
+    frames = np.abs(body[: len(body) // 512 * 512]).reshape(-1, 512).max(axis=1)
+    assert frames.min() > 0.9 * frames.max() > 0  # a hum, not beeps
+    spectrum = np.abs(np.fft.rfft(body * np.hanning(len(body))))
+    assert np.fft.rfftfreq(len(body), 1 / sr)[np.argmax(spectrum)] == pytest.approx(m.pitch(239.5, 480), rel=0.01)

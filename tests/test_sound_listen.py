@@ -8,6 +8,7 @@ skip with the reason when jackd, jack_rec, PortAudio or sounddevice is missing.
 from __future__ import annotations
 
 import io
+import itertools
 import json
 import os
 import re
@@ -17,6 +18,7 @@ import sys
 import time
 from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -114,20 +116,22 @@ def test_listen_plays_the_approach_through_jack(jack: dict[str, str], tmp_path: 
     assert player.returncode == 0, err
 
     played, sr = sf.read(copy, dtype="float64")
-    assert sr == SR and len(played) > 4 * SR  # 75 frames at 15 frames/s: 5 s (some may be dropped late)
+    # 75 frames at 15 frames/s: 5 s of wall time, fewer samples when a busy machine makes JACK skip cycles
+    assert sr == SR and len(played) > 2.5 * SR
     # What JACK received is what listen says it played: one stretch of the copy, sample for sample.
     heard, rsr = sf.read(rec, dtype="float64")
     assert rsr == SR and np.abs(heard).max() > 0.01, "JACK received silence"
 
-    # Where each stretch of 4096 samples starts in the copy: among the samples equal to its
-    # first, one whose next 4095 match too (a tone repeats, so a correlation peak would be
+    # Where each stretch of 1024 samples starts in the copy: among the samples equal to its
+    # first, one whose next 1023 match too (a tone repeats, so a correlation peak would be
     # ambiguous). On a busy machine JACK may drop a cycle (an xrun), so most, not all, match.
     def found(chunk: np.ndarray) -> bool:
         starts = np.flatnonzero(np.abs(played[: len(played) - len(chunk), 0] - chunk[0, 0]) < 1e-6)
         return any(np.abs(played[a : a + len(chunk)] - chunk).max() < 1e-6 for a in starts)
 
-    loud = [heard[k : k + 4096] for k in range(0, len(heard) - 4096, 4096) if np.abs(heard[k : k + 4096]).max() > 0.01]
-    assert len(loud) >= 10, "JACK received silence"
+    n = 1024
+    loud = [heard[k : k + n] for k in range(0, len(heard) - n, n) if np.abs(heard[k : k + n]).max() > 0.01]
+    assert len(loud) >= 20, "JACK received silence"
     matched = sum(found(c) for c in loud)
     assert matched >= 0.5 * len(loud), f"{matched} of {len(loud)} stretches recorded from JACK are in the copy"
 
@@ -153,11 +157,16 @@ def test_listen_plays_the_approach_through_jack(jack: dict[str, str], tmp_path: 
     assert back.rate_hz == pytest.approx(m.rate(1100), rel=0.12) and back.rate_hz < late.rate_hz / 1.3
 
     assert [x["frame"] for x in lines] == sorted(x["frame"] for x in lines)
-    assert len(lines) >= 50  # every frame heard but those dropped or replaced (the summary says how many)
+    # Every frame is in the log but those dropped late or replaced before a block carried them.
+    counts = re.search(r"played (\d+) frame\(s\), dropped (\d+) late, (\d+) replaced", out)
+    assert counts, out
+    played_n, dropped_n, replaced_n = map(int, counts.groups())
+    assert played_n + dropped_n == 75 and len(lines) == played_n - replaced_n
     assert all(x["latency_ms"] > 0 for x in lines)  # the DAC plays a frame after it arrived
     under = [x["underflows"] for x in lines]
     assert under == sorted(under) and all(isinstance(u, int) for u in under)
-    assert f"{under[-1]} underflow" in out or int(out.split(" underflow")[0].split()[-1]) >= under[-1]
+    total = re.search(r"(\d+) underflow\(s\) in (\d+) blocks", out)
+    assert total and int(total.group(1)) >= under[-1], out  # the summary counts to the end
     assert all(x["callback_ms"] > 0 for x in lines)
 
 
@@ -263,3 +272,39 @@ def test_a_hand_held_recording_sounds_like_a_few_steady_things(shared_data: Path
     m = re.search(r"up to (\d+) object\(s\) beeping .* (\d+) distinct object voice\(s\)", summary)
     assert m, summary
     assert int(m.group(1)) <= 4 and int(m.group(2)) <= 15, summary
+
+
+@pytest.mark.parametrize(
+    ("name", "opts"),
+    [
+        ("azure_kinect_tof_mug_single/depth.png", {}),
+        ("ycbv_0000_labelled", {"scale_mm": 0.1}),
+        ("sim:approach?frames=60", {}),
+    ],
+)
+def test_every_pair_of_concurrent_voices_can_be_told_apart(name: str, opts: dict[str, float], request: Any) -> None:
+    from depthgram import Pipeline, read
+
+    path = name if name.startswith("sim:") else request.getfixturevalue("shared_data") / name
+    if not name.startswith("sim:") and not Path(path).exists():
+        pytest.skip(f"{path} not found")
+    m = SoundMapping()
+    c = Chooser(m)
+    heard = 0
+    for r in Pipeline().run(read(path, **opts)):
+        vs = list(c.voices(r.tree, r.frame.size, r.segmentation.objects, r.frame.intrinsics).values())
+        heard = max(heard, len(vs))
+        for a, b in itertools.combinations(vs, 2):
+            assert distinguishable(a, b, m), f"{name} frame {r.frame.index}: {a} and {b} sound alike"
+    assert heard >= 2
+
+
+def test_listen_names_a_missing_folder_before_opening_any_device(tmp_path: Path, capsys: Any) -> None:
+    from depthgram.cli import main
+
+    missing = tmp_path / "nowhere" / "log.jsonl"
+    assert main(["listen", "sim:table?frames=2", "--log", str(missing)]) == 2
+    err = capsys.readouterr().err
+    assert f"--log {missing}" in err and "does not exist" in err
+    assert main(["listen", "sim:table?frames=2", "--block", "8"]) == 2
+    assert "--block must be between 16 and 16384" in capsys.readouterr().err

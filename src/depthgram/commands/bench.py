@@ -14,7 +14,9 @@ import sys
 from pathlib import Path
 
 NAME = "bench"
-HELP = "run the benchmarks (speed per stage and resolution, Table 1 accuracy, tracking, sound, real accuracy)"
+HELP = (
+    "run the benchmarks (speed per stage and resolution, Table 1 accuracy, tracking, sound, live sound, real accuracy)"
+)
 
 #: Benchmark name -> script in benchmarks/ (each defines main(argv) -> int).
 SUITES = {
@@ -24,6 +26,7 @@ SUITES = {
     "scene": "bench_scene.py",
     "tracking": "bench_tracking.py",
     "sound": "bench_sound.py",
+    "listen": "bench_listen.py",
     "real": "real.py",
 }
 

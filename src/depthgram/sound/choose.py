@@ -25,7 +25,7 @@ from typing import Any
 from depthgram.scene.tree import Node, SceneTree
 from depthgram.segmentation.objects import SceneObject
 from depthgram.sound.mapping import SoundMapping
-from depthgram.sound.synth import BEEP_KINDS, OBLIQUE_KINDS, Voice, glide_voice
+from depthgram.sound.voice import BEEP_KINDS, OBLIQUE_KINDS, Voice, beep_voice, glide_voice
 
 __all__ = ["MATCH_DEPTH", "MATCH_VIEW", "Chooser", "distinguishable", "pan_position"]
 
@@ -185,12 +185,10 @@ class Chooser:
         dict
             Voice key -> Voice; beeps in order of importance, then glides.
         """
-        from depthgram.sound.synth import beep_voice
-
         m = self.mapping
         beeps, glides = self.choose(tree, frame_size)
         by_id: Mapping[int, SceneObject] = {o.id: o for o in objects}
-        placed: list[Voice] = []
+        placed: list[tuple[int, float, float]] = []
         out: dict[tuple[str, int], Voice] = {}
         # Voices entering together first sound in scan order over scan_s (left to right by default).
         new = [(vid, n) for vid, n in beeps if vid in self._entered]
@@ -203,36 +201,43 @@ class Chooser:
                 # It has turned away: the tracker's speed still reads the approach for a frame or
                 # two (a slope over several frames), the sound stops warning at once.
                 n = replace(n, ttc=None)
-            v = replace(beep_voice(n, frame_size, m, intrinsics, order=order.get(vid, 0.0)), key=("o", vid))
+            v = beep_voice(n, frame_size, m, intrinsics, order=order.get(vid, 0.0), key=("o", vid))
             v = self._apart(slot, v, placed)
-            placed.append(v)
             out[v.key] = v
         for n in glides:
             g = glide_voice(n, frame_size, m, by_id, intrinsics, facing=n.kind in BEEP_KINDS)
             out[g.key] = g
         return out
 
-    def _apart(self, st: _Slot, v: Voice, placed: Sequence[Voice]) -> Voice:
-        """Return ``v`` on the pitch ladder, at the nearest step no placed voice is confused with."""
+    def _apart(self, st: _Slot, v: Voice, placed: list[tuple[int, float, float]]) -> Voice:
+        """Return ``v`` on the pitch ladder, at the nearest step no placed voice is confused with.
+
+        ``placed`` holds the (step, pan position, rate) of the voices already placed, and gets
+        this one's. Two voices on different steps are at least ``min_semitones`` apart, so a
+        step is taken only by a placed voice that is also near in pan and in rate.
+        """
         m = self.mapping
-        ladder = 12 * math.log2(m.pitch_high_hz / m.pitch_low_hz) / m.min_semitones
-        top = max(0, math.floor(ladder + 1e-9))
+        top = max(0, math.floor(12 * math.log2(m.pitch_high_hz / m.pitch_low_hz) / m.min_semitones + 1e-9))
         want = 12 * math.log2(v.freq_a / m.pitch_low_hz) / m.min_semitones
         step = round(want)
-        # Hysteresis: a voice keeps its step until its height is half a step beyond it, so an
-        # object near a boundary does not warble between two pitches.
+        # Hysteresis: a voice keeps its step until its height is a whole step away, so an object
+        # near a boundary does not warble between two pitches.
         if st.step is not None and abs(want - st.step) < 1.0:
             step = st.step
         step = min(max(step, 0), top)
-
-        def at(k: int) -> Voice:
-            f = m.pitch_low_hz * 2.0 ** (k * m.min_semitones / 12)
-            return replace(v, freq_a=f, freq_b=f)
-
-        for dist in range(0, 2 * top + 2):
-            for k in (step - dist, step + dist) if dist else (step,):
-                if 0 <= k <= top and all(distinguishable(at(k), p, m) for p in placed):
-                    st.step = k
-                    return at(k)
-        st.step = step  # more voices than the ladder can hold apart: keep its own height
-        return at(step)
+        pan = pan_position(v)
+        taken = {
+            k
+            for k, p, r in placed
+            if abs(p - pan) < m.min_pan - 1e-9 and max(r, v.rate) < m.min_rate_ratio * min(r, v.rate) - 1e-9
+        }
+        best = step  # more voices than the ladder can hold apart: keep its own height
+        for dist in range(0, top + 1):
+            free = [k for k in ((step - dist, step + dist) if dist else (step,)) if 0 <= k <= top and k not in taken]
+            if free:
+                best = free[0]
+                break
+        st.step = best
+        placed.append((best, pan, v.rate))
+        f = m.pitch_low_hz * 2.0 ** (best * m.min_semitones / 12)
+        return replace(v, freq_a=f, freq_b=f)

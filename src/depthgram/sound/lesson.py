@@ -45,7 +45,7 @@ def _steps(m: SoundMapping, sr: int, trees: list[SceneTree], each_s: float) -> N
 
 
 def lesson(mapping: SoundMapping, samplerate: int = 22050) -> list[Cue]:
-    """Return the cues of ``mapping``, each alone: pan, nearness, height, size, glides, approach, scan.
+    """Return the cues of ``mapping``, each alone: pan, nearness, height, size, glides, approach, scan, wall ahead.
 
     Parameters
     ----------
@@ -132,6 +132,15 @@ def lesson(mapping: SoundMapping, samplerate: int = 22050) -> list[Cue]:
             f"Three objects appear together: their first beeps sweep {m.scan.replace('_', ' ')} "
             f"within {m.scan_s:g} s, then each keeps its own beat.",
             render_scene(three, mapping=m, duration_s=2.0, samplerate=sr),
+        )
+    )
+    ahead = _obj(_W / 2, mid, 2000.0, area=int(0.6 * _W * _H))
+    cues.append(
+        Cue(
+            "09-wall-ahead",
+            f"A wall straight ahead, facing you ({100 * m.facing_area:.0f} % of the view or more): no beeps, a "
+            "steady hum, as one surface at one distance; louder as you come nearer.",
+            render_scene(_tree(ahead), mapping=m, duration_s=2.0, samplerate=sr),
         )
     )
     return cues

@@ -311,6 +311,11 @@ def _serve(
     conn: Connection, mapping: SoundMapping, samplerate: int, device: int | str | None, block: int, wav: str | None
 ) -> None:
     """Play the targets sent on ``conn``; send back block events and, at the end, statistics."""
+    import signal
+
+    # Ctrl-C reaches the whole process group: the pipeline's process decides when to stop (it
+    # sends "stop"), so the sound fades out instead of breaking off mid-block.
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
     try:
         out: Any = None
         if wav is not None:
@@ -327,7 +332,10 @@ def _serve(
     try:
         while True:
             if conn.poll(0.005):
-                msg = conn.recv()
+                try:
+                    msg = conn.recv()
+                except EOFError:  # the pipeline's process is gone: stop too
+                    break
                 if msg[0] == "stop":
                     break
                 live.set_targets(msg[1], frame=msg[2], arrival_s=msg[3])
@@ -344,8 +352,11 @@ def _serve(
             "callback_s": player.callback_s,
             "superseded": live.superseded,
         }
-        conn.send(("events", player.drain()))
-        conn.send(("done", stats))
+        try:
+            conn.send(("events", player.drain()))
+            conn.send(("done", stats))
+        except OSError:  # nobody left to tell
+            pass
 
 
 class AudioProcess:
@@ -380,12 +391,18 @@ class AudioProcess:
         block: int = 256,
         wav: str | None = None,
     ) -> None:
+        import importlib.util
         import multiprocessing
+        import sys
 
-        from depthgram._optional import needs_extra
+        # Only looked for, not imported: importing it starts PortAudio (and a JACK client) in
+        # this process too, which the audio process alone needs.
+        if sys.modules.get("sounddevice", ...) is None or importlib.util.find_spec("sounddevice") is None:
+            from depthgram.errors import MissingExtraError
 
-        with needs_extra("listen", "playing sound live"):
-            import sounddevice  # noqa: F401 - the audio process uses it; a missing one is named here
+            raise MissingExtraError(
+                "playing sound live needs the optional package 'sounddevice': pip install 'depthgram[listen]'"
+            )
 
         self.mapping = mapping or SoundMapping()
         self.samplerate = samplerate

@@ -25,7 +25,9 @@ from numpy.typing import NDArray
 from depthgram.errors import InputError
 from depthgram.scene.tree import Node, SceneTree
 from depthgram.segmentation.objects import SceneObject
+from depthgram.sound.choose import Chooser
 from depthgram.sound.mapping import SoundMapping
+from depthgram.sound.voice import BEEP_KINDS, OBLIQUE_KINDS, Voice, beep_voice, glide_voice
 
 __all__ = [
     "BEEP_KINDS",
@@ -41,37 +43,10 @@ __all__ = [
     "voices",
 ]
 
-#: Node kinds heard as a gliding tone rather than beeps.
-OBLIQUE_KINDS = ("floor", "wall", "ceiling", "compound")
 
 _TABLE = 4096  # wavetable length (power of two: the index wraps with a mask)
 _HANN = 1024  # beep envelope table length
 _KNEE = 0.8  # the soft limiter is the identity below this level
-
-
-@dataclass(frozen=True)
-class Voice:
-    """Target parameters of one voice for one frame (what the mapping made of one node).
-
-    For a beeping object, the ``*_b`` fields equal the ``*_a`` ones; for a glide, ``a`` is the
-    surface's near end and ``b`` its far end.
-    """
-
-    key: tuple[str, int]
-    freq_a: float
-    freq_b: float
-    gain_a: float
-    gain_b: float
-    pan_a: tuple[float, float]
-    pan_b: tuple[float, float]
-    rate: float  # beeps per second; 0 for a glide
-    beep_s: float
-    harmonics: int
-    order: float  # scan position in 0..1 (when the voice first sounds)
-
-
-#: Node kinds heard as beeps.
-BEEP_KINDS = ("object",)
 
 
 @dataclass(frozen=True)
@@ -97,25 +72,32 @@ class Selection:
         return [f"o_{n.id} ({n.kind}, {n.depth / 1000:.2f} m): {why}" for n, why in self.left_out]
 
 
-def select(tree: SceneTree, mapping: SoundMapping) -> Selection:
+def select(tree: SceneTree, mapping: SoundMapping, frame_size: tuple[int, int] | None = None) -> Selection:
     """Return the nodes a scene voices: the nearest ``max_voices`` objects and ``max_glides`` surfaces.
 
     Every node of the tree counts on its own, whatever its parent: an object standing on a
     table or inside a compound support is voiced like one standing on the floor. (A compound's
     ``parts`` are depth labels of its slices, not node ids, so they never name other nodes.)
 
+    An object covering ``facing_area`` of the view or more (a wall ahead) hums among the
+    surfaces.
+
     Parameters
     ----------
     tree : SceneTree
     mapping : SoundMapping
+    frame_size : tuple of int, optional
+        (width, height) of the frame (px); the tree's own when omitted.
 
     Returns
     -------
     Selection
     """
     nodes = sorted(tree.nodes(), key=lambda n: (n.depth, n.id))
-    objs = [n for n in nodes if n.kind in BEEP_KINDS]
-    surfs = [n for n in nodes if n.kind in OBLIQUE_KINDS]
+    size = frame_size or tree.frame_size
+    big = mapping.facing_area * size[0] * size[1] if size else math.inf
+    objs = [n for n in nodes if n.kind in BEEP_KINDS and n.area < big]
+    surfs = [n for n in nodes if n.kind in OBLIQUE_KINDS or (n.kind in BEEP_KINDS and n.area >= big)]
     left: list[tuple[Node, str]] = []
     for n in nodes:
         if n.kind not in BEEP_KINDS and n.kind not in OBLIQUE_KINDS:
@@ -128,19 +110,6 @@ def select(tree: SceneTree, mapping: SoundMapping) -> Selection:
             left.append((n, f"{cap} nearer {what} already sound ({setting} = {cap})"))
     left.sort(key=lambda t: (t[0].depth, t[0].id))
     return Selection(tuple(objs[: mapping.max_voices]), tuple(surfs[: mapping.max_glides]), tuple(left))
-
-
-def _extent(n: Node, objects: Mapping[int, SceneObject]) -> tuple[float, float, float, float]:
-    """(near depth mm, far depth mm, near column px, far column px) of an oblique surface."""
-    o = objects.get(n.id)
-    parts = o.parts if o is not None else ()
-    if len(parts) >= 2:
-        near_p = min(parts, key=lambda p: p.depth)
-        far_p = max(parts, key=lambda p: p.depth)
-        return near_p.depth, far_p.depth, near_p.center_xy[0], far_p.center_xy[0]
-    # Without its parts (a tree read back from text) the extent is unknown: assume the
-    # surface runs from half to one and a half times its mean depth, at its center column.
-    return 0.5 * n.depth, 1.5 * n.depth, n.center_xy[0], n.center_xy[0]
 
 
 def voices(
@@ -167,7 +136,7 @@ def voices(
         Beeping objects first (nearest first), then glides; :func:`select` says which nodes
         were left out and why.
     """
-    sel = select(tree, mapping)
+    sel = select(tree, mapping, frame_size)
     by_id = {o.id: o for o in objects}
     if mapping.scan == "left_to_right":
         ranked = sorted(sel.beeps, key=lambda n: (n.center_xy[0], n.id))
@@ -175,95 +144,8 @@ def voices(
         ranked = list(sel.beeps)  # already nearest first; "none" ignores the order
     rank = {n.id: i / max(len(ranked) - 1, 1) for i, n in enumerate(ranked)}
     out = [beep_voice(n, frame_size, mapping, order=rank[n.id] if mapping.scan != "none" else 0.0) for n in sel.beeps]
-    out += [glide_voice(n, frame_size, mapping, by_id) for n in sel.glides]
+    out += [glide_voice(n, frame_size, mapping, by_id, facing=n.kind in BEEP_KINDS) for n in sel.glides]
     return out
-
-
-def _pan(x: float, frame_size: tuple[int, int], mapping: SoundMapping, intrinsics: Any) -> tuple[float, float]:
-    """Equal-power gains of an image column: from its azimuth when the intrinsics are known."""
-    if intrinsics is None:
-        return mapping.pan(x, frame_size[0])
-    return mapping.pan_azimuth(math.atan2(x - intrinsics.cx, intrinsics.fx))
-
-
-def beep_voice(
-    n: Node, frame_size: tuple[int, int], mapping: SoundMapping, intrinsics: Any = None, *, order: float = 0.0
-) -> Voice:
-    """Return the beeping voice of one object node.
-
-    Parameters
-    ----------
-    n : Node
-    frame_size : tuple of int
-        (width, height) of the frame (px).
-    mapping : SoundMapping
-    intrinsics : Intrinsics, optional
-        The camera's: the pan then follows the object's azimuth (``pan_azimuth_deg``).
-    order : float
-        Scan position in 0..1 (when it first sounds).
-
-    Returns
-    -------
-    Voice
-    """
-    w, h = frame_size
-    f = mapping.pitch(n.center_xy[1], h)
-    g = mapping.gain(n.depth)
-    pan = _pan(n.center_xy[0], frame_size, mapping, intrinsics)
-    harm, beep = mapping.weight(n.area / float(w * h))
-    return Voice(("o", n.id), f, f, g, g, pan, pan, mapping.rate(n.depth, n.ttc), beep, harm, order)
-
-
-def glide_voice(
-    n: Node,
-    frame_size: tuple[int, int],
-    mapping: SoundMapping,
-    objects: Mapping[int, SceneObject] | None = None,
-    intrinsics: Any = None,
-    *,
-    facing: bool = False,
-) -> Voice:
-    """Return the gliding hum of one surface node, between its near and far ends.
-
-    Parameters
-    ----------
-    n : Node
-    frame_size : tuple of int
-        (width, height) of the frame (px).
-    mapping : SoundMapping
-    objects : mapping of int to SceneObject, optional
-        The segmentation's objects by id: the glide spans the surface's real nearest and
-        farthest slices when given, else an assumed extent.
-    intrinsics : Intrinsics, optional
-        The camera's, for the azimuth of the ends.
-    facing : bool
-        A surface facing the camera (all at one depth): a steady hum at its centre, no glide.
-
-    Returns
-    -------
-    Voice
-    """
-    if facing:
-        d_near = d_far = n.depth
-        x_near = x_far = n.center_xy[0]
-    else:
-        d_near, d_far, x_near, x_far = _extent(n, objects or {})
-    fc = mapping.pitch(n.center_xy[1], frame_size[1])
-    span = mapping.glide_octaves * (mapping.nearness(d_near) - mapping.nearness(d_far))
-    k = 10.0 ** (mapping.glide_gain_db / 20.0)
-    return Voice(
-        ("g", n.id),
-        fc * 2.0 ** (span / 2),
-        fc * 2.0 ** (-span / 2),
-        k * mapping.gain(d_near),
-        k * mapping.gain(d_far),
-        _pan(x_near, frame_size, mapping, intrinsics),
-        _pan(x_far, frame_size, mapping, intrinsics),
-        0.0,
-        0.0,
-        1,
-        0.0,
-    )
 
 
 def still_seconds(voices_: Sequence[Voice], mapping: SoundMapping, *, beeps: int = 2) -> float:
@@ -507,8 +389,6 @@ class Sonifier:
         self._seconds = 0.0
         self._samples = 0
         self._bank = _Bank(self.mapping, self.samplerate)
-        from depthgram.sound.choose import Chooser  # choose imports this module's voice makers
-
         self.chooser = Chooser(self.mapping)
         self.voices_now: dict[tuple[str, int], Voice] = {}  # the voices of the last push, by key
 

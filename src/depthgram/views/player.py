@@ -830,4 +830,6 @@ class Player:
                 self._sound_error = f"sound unavailable: {exc}"
                 return None
             self._sonifier = Sonifier(self.config.sound, self.viewer.samplerate, result.frame.size)
-        return _pcm16_b64(self._sonifier.push(result.tree, duration_s))
+        # With the objects' extents and the camera's intrinsics, as sonify and listen hear them.
+        audio = self._sonifier.push(result.tree, duration_s, result.segmentation.objects, result.frame.intrinsics)
+        return _pcm16_b64(audio)

@@ -11,7 +11,9 @@ let name = null;
 let socket = null;
 let audio = null; // AudioContext, created on the user's click (browsers require a gesture)
 let audioNext = 0; // time at which the next audio chunk starts (s, AudioContext clock)
-let audioTotal = 0; // seconds of sound scheduled so far (exposed as data-audio)
+let audioTotal = 0; // seconds of sound received so far (exposed as data-audio)
+let audioSkipped = 0; // of which skipped to keep the queue short (data-audio-skipped)
+const AUDIO_AHEAD_S = 0.25; // most sound queued ahead of the speaker (s): the worst added latency
 const shown = []; // arrival times of recent frames, for the displayed rate
 
 function fmt(v, nd = 0) {
@@ -193,10 +195,18 @@ function playAudio(a) {
     src.connect(audio.destination);
     // Chunks are queued back to back; after a stall restart a little ahead to avoid clicks.
     audioNext = Math.max(audioNext, audio.currentTime + 0.05);
-    src.start(audioNext);
-    audioNext += buf.duration;
+    // Never more than AUDIO_AHEAD_S queued: the catch-up chunk after a stall (as long as the
+    // stall, all of it the newest scene) and a server clock running ahead of the audio clock
+    // would otherwise make every later sound late. The start of such a chunk is skipped.
+    const skip = Math.min(buf.duration, Math.max(0, audioNext + buf.duration - audio.currentTime - AUDIO_AHEAD_S));
+    if (skip < buf.duration) {
+      src.start(audioNext, skip);
+      audioNext += buf.duration - skip;
+    }
     audioTotal += buf.duration;
+    audioSkipped += skip;
     view.dataset.audio = audioTotal.toFixed(3);
+    view.dataset.audioSkipped = audioSkipped.toFixed(3);
   }
 }
 

@@ -1,0 +1,218 @@
+"""Live sound (`depthgram listen`): frame-to-DAC latency, underflows, callback time and CPU share.
+
+Run: ``.venv/bin/python benchmarks/bench_listen.py [--seconds S] [--device D]`` (``depthgram bench
+listen``; ``--quick`` plays 10 s). The whole loop runs as ``depthgram listen`` runs it: a 640x480
+recording (7-Scenes red kitchen from ``../shared/data``, looped; ``sim:corridor?size=640x480``
+without it) through the pipeline at 30 frames/s, each frame's voices sent to the audio process,
+which plays 256-sample blocks at 48 kHz. Without ``--device`` the sound goes to a JACK dummy
+server the benchmark starts (``jackd --no-realtime -d dummy``; Debian ``jackd2``), a real clocked
+device on a machine with no sound card.
+
+Targets (issue 29): latency p50 <= 60 ms, p95 <= 100 ms, max <= 150 ms; 0 underflows at a
+256-sample block; synthesis <= 5 % of one core with 6 voices and 3 surfaces.
+"""
+
+from __future__ import annotations
+
+import argparse
+import itertools
+import os
+import shutil
+import subprocess
+import time
+from collections.abc import Iterator, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+SEVEN_SCENES = ROOT.parent / "shared" / "data" / "7scenes_redkitchen_seq"
+SR, BLOCK = 48000, 256
+
+
+def _jack() -> subprocess.Popen[bytes] | None:
+    """Start a JACK dummy server for this process and its children; None when jackd is missing."""
+    if shutil.which("jackd") is None or shutil.which("jack_lsp") is None:
+        return None
+    os.environ["JACK_DEFAULT_SERVER"] = f"depthgram-bench-{os.getpid()}"
+    os.environ["JACK_NO_AUDIO_RESERVATION"] = "1"
+    proc = subprocess.Popen(
+        ["jackd", "--no-realtime", "-d", "dummy", "-r", str(SR), "-p", str(BLOCK)],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
+    for _ in range(100):
+        if "system:playback_1" in subprocess.run(["jack_lsp"], capture_output=True, text=True).stdout:
+            return proc
+        time.sleep(0.1)
+    proc.kill()
+    return None
+
+
+def _frames(seconds: float) -> tuple[str, Iterator[Any]]:
+    """(what, frames): a 640x480 recording looped for at least ``seconds`` at 30 frames/s."""
+    from depthgram import read
+
+    spec = str(SEVEN_SCENES) if SEVEN_SCENES.is_dir() else "sim:corridor?size=640x480&frames=300"
+    n = int(seconds * 30) + 1
+
+    def loop() -> Iterator[Any]:
+        while True:
+            yield from read(spec)
+
+    return spec, itertools.islice(loop(), n)
+
+
+def synthesis_share(reps: int = 2000) -> dict[str, float]:
+    """CPU share of one core (thread time / audio time) to render 6 beeps and 3 glides in 256-sample blocks."""
+    from depthgram.sound import SoundMapping
+    from depthgram.sound.synth import Voice, _Bank
+
+    m = SoundMapping(max_voices=6)
+    bank = _Bank(m, SR)
+    bank.warm_up()
+    targets = {}
+    for i in range(6):
+        v = Voice(
+            ("o", i),
+            220.0 * 2 ** (i / 2),
+            220.0 * 2 ** (i / 2),
+            0.5,
+            0.5,
+            (0.8, 0.6),
+            (0.8, 0.6),
+            3.0 + i,
+            0.08,
+            3,
+            0.0,
+        )
+        targets[v.key] = v
+    for j in range(3):
+        g = Voice(("g", j), 500.0, 300.0, 0.2, 0.1, (0.9, 0.3), (0.3, 0.9), 0.0, 0.0, 1, 0.0)
+        targets[g.key] = g
+    for _ in range(50):
+        bank.render(targets, BLOCK)
+    t0 = time.thread_time()
+    for k in range(reps):
+        if k % 9 == 0:  # a new frame every ~9 blocks (30 frames/s): every voice ramps
+            targets = {key: _nudge(v, k) for key, v in targets.items()}
+        bank.render(targets, BLOCK)
+    cpu = time.thread_time() - t0
+    return {"block_us": 1e6 * cpu / reps, "share": cpu / (reps * BLOCK / SR)}
+
+
+def _nudge(v: Any, k: int) -> Any:
+    from dataclasses import replace
+
+    f = 1.0 + 0.001 * (k % 7)
+    return replace(v, freq_a=v.freq_a * f, freq_b=v.freq_b * f, gain_a=v.gain_a * 0.999)
+
+
+def live(seconds: float, device: int | str | None) -> dict[str, Any]:
+    """Play ``seconds`` of the loop; return the figures."""
+    import gc
+
+    import psutil
+
+    from depthgram.pipeline import Pipeline
+    from depthgram.sound.live import AudioProcess, percentiles
+    from depthgram.sources.prefetch import prefetch
+    from depthgram.views.player import Pacer
+
+    spec, frames = _frames(seconds)
+    src = prefetch(frames, ahead=2)
+    first = next(src)
+    pipe = Pipeline()
+    pipe.warm_up(first)
+    audio = AudioProcess(None, SR, first.size, device, BLOCK)
+    child = psutil.Process(audio._proc.pid)
+    me = psutil.Process()
+    latencies: list[float] = []
+    dropped = played = 0
+    gc.freeze()
+    c0, m0, t0 = child.cpu_times(), me.cpu_times(), time.perf_counter()
+    pacer = Pacer(1 / 30, clock=time.perf_counter)
+    try:
+        for frame in itertools.chain([first], src):
+            if played + dropped:
+                pacer.advance()
+            if pacer.late():
+                dropped += 1
+                continue
+            wait = pacer.wait_s()
+            if wait > 0:
+                time.sleep(wait)
+            arrival = time.perf_counter()
+            r = pipe.process(frame)
+            audio.update(r.tree, r.segmentation.objects, frame=played, arrival_s=arrival, intrinsics=frame.intrinsics)
+            played += 1
+            latencies += [e.latency_ms for e in audio.drain() if e.latency_ms is not None]
+        c1, m1, t1 = child.cpu_times(), me.cpu_times(), time.perf_counter()
+    finally:
+        gc.unfreeze()
+        stats = audio.stop()
+    latencies += [e.latency_ms for e in audio.drain() if e.latency_ms is not None]
+    wall = t1 - t0
+    cb = np.asarray(stats["callback_s"]) * 1e3
+    return {
+        "input": spec,
+        "seconds": wall,
+        "frames": played,
+        "dropped": dropped,
+        "latency": percentiles(latencies),
+        "underflows": stats["underflows"],
+        "blocks": stats["blocks"],
+        "callback": {"p50": float(np.median(cb)), "p95": float(np.percentile(cb, 95)), "max": float(cb.max())},
+        "callback_share": float(cb.sum() / 1e3 / max(wall, 1e-9)),
+        "audio_process_share": (c1.user + c1.system - c0.user - c0.system) / wall,
+        "loop_share": (m1.user + m1.system - m0.user - m0.system) / wall,
+        "distinct_voices": audio.chooser.distinct,
+    }
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Print the live figures; exit 0 (1 when no audio device could be used)."""
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0] if __doc__ else None)
+    p.add_argument("--quick", action="store_true", help="10 s of play instead of --seconds")
+    p.add_argument("--seconds", type=float, default=60.0, help="seconds of play (default 60)")
+    p.add_argument("--device", default=None, help="PortAudio output device (default: a JACK dummy server)")
+    args = p.parse_args(argv)
+    seconds = 10.0 if args.quick else args.seconds
+    syn = synthesis_share()
+    print(
+        f"synthesis, 6 beeps + 3 glides, {BLOCK}-sample blocks at {SR} Hz: {syn['block_us']:.0f} us a block, "
+        f"{100 * syn['share']:.1f} % of one core (target <= 5 %)"
+    )
+    jack = None
+    if args.device is None:
+        jack = _jack()
+        if jack is None:
+            print("listen: no --device and no jackd (Debian jackd2) to start a dummy device: live part skipped")
+            return 0
+    device = int(args.device) if args.device and args.device.isdigit() else args.device
+    try:
+        r = live(seconds, device)
+    finally:
+        if jack is not None:
+            jack.terminate()
+            jack.wait(timeout=10)
+    lat, cb = r["latency"], r["callback"]
+    where = args.device or "JACK dummy (jackd --no-realtime -d dummy -r 48000 -p 256)"
+    print(f"input {r['input']} (640x480) at 30 frames/s for {r['seconds']:.1f} s to {where}")
+    print(f"  frames played {r['frames']}, dropped late {r['dropped']}; {r['distinct_voices']} distinct voices")
+    print(
+        f"  latency frame -> DAC: p50 {lat['p50']:.1f} ms, p95 {lat['p95']:.1f} ms, max {lat['max']:.1f} ms "
+        "(targets 60 / 100 / 150)"
+    )
+    print(f"  underflows {r['underflows']} in {r['blocks']} blocks (target 0)")
+    print(
+        f"  callback p50 {cb['p50']:.3f} ms, p95 {cb['p95']:.3f} ms, max {cb['max']:.3f} ms; "
+        f"callbacks {100 * r['callback_share']:.1f} % of a core, audio process {100 * r['audio_process_share']:.1f} %, "
+        f"pipeline process {100 * r['loop_share']:.1f} %"
+    )
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
