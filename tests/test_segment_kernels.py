@@ -29,11 +29,15 @@ from depthgram.segmentation.label import (
 )
 from depthgram.segmentation.label.keyed import label_two_classes
 from depthgram.segmentation.objects import SceneObject
-from depthgram.segmentation.orientation import _jumps, _jumps_cols, _one_sided, _one_sided_cols, upsample_classes
+from depthgram.segmentation.orientation import upsample_classes
 from depthgram.segmentation.plane_sums import plane_sums, planes_from_sums
 from depthgram.segmentation.slices import slice_parts, support_pieces
 from depthgram.segmentation.validate import check_depth
 from reference import (
+    _jumps,
+    _jumps_cols,
+    _one_sided,
+    _one_sided_cols,
     label_stats_bincount,
     merge_coplanar,
     on_support_planes,
