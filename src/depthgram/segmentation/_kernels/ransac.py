@@ -18,25 +18,6 @@ from depthgram.segmentation.order_stats import percentile32
 
 
 @njit(cache=True, nogil=True)
-def dilate3(masks: NDArray[np.bool_]) -> NDArray[np.uint8]:
-    """Return each of the stacked masks dilated by a 3 x 3 square, as 0 / 1.
-
-    ``cv2.dilate(mask, np.ones((3, 3)))`` per mask (outside the grid counts as unset): one
-    compiled call for the planes of a frame instead of two OpenCV and numpy calls per plane.
-    """
-    p, h, w = masks.shape
-    out = np.zeros((p, h, w), np.uint8)
-    for k in range(p):
-        for y in range(h):
-            for x in range(w):
-                if masks[k, y, x]:
-                    for yy in range(max(y - 1, 0), min(y + 2, h)):
-                        for xx in range(max(x - 1, 0), min(x + 2, w)):
-                            out[k, yy, xx] = 1
-    return out
-
-
-@njit(cache=True, nogil=True)
 def assign_planes(
     depth: NDArray[np.float32],
     valid: NDArray[np.bool_],
