@@ -1109,7 +1109,8 @@ def test_load_rare_kernels_loads_the_kernels_of_the_rare_branches() -> None:
 
     load_rare_kernels()
     kernels = (
-        keyed._label_planes,
+        keyed._label_runs,
+        keyed._relabel_planes,
         _class_state,
         _merge_rows,
         _drop_classes,
