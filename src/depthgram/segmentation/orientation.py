@@ -129,6 +129,7 @@ def _field(
         # inside the classes' pass (no sums image), in an order of our own: OpenCV's to the
         # last bit where float64 adds them exactly (:mod:`depthgram.segmentation.window`; a
         # frame whose slopes span too many octaves takes OpenCV's filter below)
+        # kept (issue 31): with the creases', OpenCV's route alone was 8-10 % slower end to end
         cls, exact = _classify_window(kept, ranges, window_px, inv3, ok, edge, *cam)
         if exact:
             return cls, None
