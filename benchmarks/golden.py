@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import argparse
 import io
+import os
 import re
 import sys
 import time
@@ -40,7 +41,7 @@ from depthgram.frame import Frame
 from depthgram.segmentation import segment
 
 ROOT = Path(__file__).resolve().parents[1]
-SHARED = ROOT.parent / "shared" / "data"
+SHARED = Path(os.environ.get("DEPTHGRAM_DATA") or ROOT.parent / "shared" / "data")  # bench --data
 STORE = Path(__file__).with_name("golden.npz")
 METHODS = ("threshold", "slices", "surfaces", "region", "paper")
 #: (recording, read options, frames taken)

@@ -5,9 +5,11 @@ Issue 28's measure. Each labelled YCB-Video folder under ``../shared/data`` (``y
 described by ``depthgram describe FOLDER/*-depth.png --scale 0.1 --labels-dir DIR`` in a
 subprocess, once per way a user may give the camera:
 
-- ``none``: nothing (the tool guesses, and says so);
+- ``none``: nothing (the tool reads the focal length from the scene, or guesses, and says so);
 - ``given``: ``--intrinsics`` with PROVENANCE.md's values (fx 1066.778, fy 1067.487, cx 312.987,
   cy 241.311);
+- ``--camera xtion``: the named profile (the Xtion's own depth camera, not the colour camera
+  YCB-Video registers depth to: a different focal length);
 - ``f x0.6`` and ``f x1.6``: the same with a focal length 0.6 and 1.6 times the true one, a user's
   wrong guess either way.
 
@@ -23,6 +25,7 @@ name holds NAME).
 from __future__ import annotations
 
 import argparse
+import os
 import subprocess
 import sys
 import tempfile
@@ -37,7 +40,7 @@ from numpy.typing import NDArray
 from depthgram.segmentation import evaluate
 
 ROOT = Path(__file__).resolve().parents[1]
-SHARED = ROOT.parent / "shared" / "data"
+SHARED = Path(os.environ.get("DEPTHGRAM_DATA") or ROOT.parent / "shared" / "data")  # bench --data
 OUT = ROOT / "benchmarks" / "out" / "user_camera"
 FOLDERS = ("ycbv_0000_labelled", "ycbv_0001_0002_labelled/0001", "ycbv_0001_0002_labelled/0002")
 #: YCB-Video's Xtion, from the folders' PROVENANCE.md (fx, fy, cx, cy; px at 640 x 480)
@@ -45,6 +48,7 @@ XTION = (1066.778, 1067.487, 312.987, 241.311)
 RUNS: dict[str, list[str]] = {
     "none": [],
     "given": ["--intrinsics", *map(str, XTION)],
+    "--camera xtion": ["--camera", "xtion"],
     "f x0.6": ["--intrinsics", str(XTION[0] * 0.6), str(XTION[1] * 0.6), str(XTION[2]), str(XTION[3])],
     "f x1.6": ["--intrinsics", str(XTION[0] * 1.6), str(XTION[1] * 1.6), str(XTION[2]), str(XTION[3])],
 }

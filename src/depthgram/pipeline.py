@@ -27,6 +27,7 @@ from depthgram.act import plan as plan_scene
 from depthgram.dynamics import FramePixels, Tracker, TrackerConfig
 from depthgram.dynamics import warm_up as warm_up_dynamics
 from depthgram.errors import InputError
+from depthgram.focal_length import estimate_focal_length
 from depthgram.frame import Frame, Gravity, Intrinsics, as_gravity
 from depthgram.scene import TreeConfig, build_tree, to_sentence, tree_to_dict
 from depthgram.scene.tree import Motion, SceneTree
@@ -291,6 +292,8 @@ def _object_record(o: SceneObject, node: Mapping[str, Any], m: Motion | None) ->
 
 #: Frames between two estimates of the sensor model in a stream.
 _SENSOR_EVERY = 30
+#: frames without intrinsics that try to read the focal length from their scene
+_FOCAL_TRIES = 5
 #: Unrelated successive pairs that, once they are at least half of the pairs seen, make a source
 #: without timestamps a folder of stills (:meth:`Pipeline._still_reason`).
 _STILLS_EVIDENCE = 2
@@ -349,6 +352,9 @@ class Pipeline:
         self.gravity = as_gravity(gravity, tilt_deg)
         self._said_camera: dict[str, Any] | None = None  # the camera record last given in a result
         self._warned_guess = False
+        self._warned_estimate = False
+        self._focal: Intrinsics | None = None  # the focal length read from the scene, once found
+        self._focal_tries = 0
         self._tracker = Tracker(self.config.tracker)
         self._sensor: SensorModel | None = None
         self._sensor_age = 0
@@ -365,6 +371,7 @@ class Pipeline:
         self._untimed_stills = ""
         self._untimed_pairs = [0, 0]
         self._said_camera = None
+        self._focal, self._focal_tries = None, 0
 
     def _calibrated(self, frame: Frame) -> Frame:
         """Return ``frame`` with this pipeline's camera and gravity; warn once when its intrinsics are a guess."""
@@ -378,17 +385,53 @@ class Pipeline:
             changes["gravity"] = self.gravity
         if changes:
             frame = dataclasses.replace(frame, **changes)  # type: ignore[arg-type]
+        if frame.intrinsics is None:
+            k = self._scene_focal(frame)
+            if k is not None:
+                return dataclasses.replace(frame, intrinsics=k, intrinsics_source="estimated")
         if frame.intrinsics is None and not self._warned_guess:
             self._warned_guess = True
             k = default_intrinsics(frame.shape)
             warnings.warn(
-                f"{frame.name or f'frame {frame.index}'}: no camera intrinsics: guessed fx = fy = {k.fx:.0f} px "
-                "(a 64-degree field of view); tell the camera with --intrinsics FX FY CX CY or --camera "
-                "FILE|PROFILE (in Python: intrinsics= or camera=)",
+                f"{frame.name or f'frame {frame.index}'}: no camera intrinsics, and the scene does not show its "
+                f"focal length (no support seen at an angle with surfaces square to it): guessed fx = fy = "
+                f"{k.fx:.0f} px (a 64-degree field of view); tell the camera with --intrinsics FX FY CX CY or "
+                "--camera FILE|PROFILE (in Python: intrinsics= or camera=)",
                 IntrinsicsWarning,
                 stacklevel=2,
             )
         return frame
+
+    def _scene_focal(self, frame: Frame) -> Intrinsics | None:
+        """Return the intrinsics read from the scene for a frame without any (the first few frames try).
+
+        A camera's focal length does not change within a recording: the first frame that shows it
+        (:func:`depthgram.focal_length.estimate_focal_length`) sets it for the rest, scaled to
+        each frame's size, and the user is told once.
+        """
+        if self._focal is None and self._focal_tries < _FOCAL_TRIES:
+            self._focal_tries += 1
+            found = estimate_focal_length(frame.depth, frame.valid)
+            if found is not None:
+                self._focal = found.intrinsics
+                if not self._warned_estimate:
+                    self._warned_estimate = True
+                    warnings.warn(
+                        f"{frame.name or f'frame {frame.index}'}: no camera intrinsics: estimated fx = fy = "
+                        f"{found.intrinsics.fx:.0f} px from the scene (the right angles between a support seen "
+                        f"{found.tilt_deg:.0f} degrees from face-on and what rises from it; principal point at "
+                        "the centre); tell the camera with --intrinsics FX FY CX CY or --camera FILE|PROFILE "
+                        "(in Python: intrinsics= or camera=) to be sure",
+                        IntrinsicsWarning,
+                        stacklevel=3,
+                    )
+        k = self._focal
+        if k is None or (k.cx, k.cy) == ((frame.shape[1] - 1) / 2.0, (frame.shape[0] - 1) / 2.0):
+            return k
+        # a frame of another size (a resized stream): the same field of view
+        h, w = frame.shape
+        scale = w / (2.0 * k.cx + 1.0)
+        return Intrinsics(k.fx * scale, k.fy * scale, (w - 1) / 2.0, (h - 1) / 2.0)
 
     def camera_record(self, frame: Frame) -> dict[str, Any]:
         """Return what the JSON says of the camera of ``frame``: intrinsics (px), where from, sensor model.
@@ -474,7 +517,8 @@ class Pipeline:
         """
         t0 = time.perf_counter()
         throwaway = Pipeline(self.config, track=self.track)
-        throwaway.camera, throwaway.gravity, throwaway._warned_guess = self.camera, self.gravity, True
+        throwaway.camera, throwaway.gravity = self.camera, self.gravity
+        throwaway._warned_guess = throwaway._warned_estimate = True
         throwaway.process(frame)
         # A second frame, so that the tracker reads motion (its core's kernel) here too.
         later = None if frame.time_s is None else frame.time_s + 1.0 / 30.0
@@ -739,7 +783,11 @@ def describe(
     from depthgram.frame import Frame, make_frame
 
     if isinstance(depth_mm, Frame):
-        frame = depth_mm if intrinsics is None else dataclasses.replace(depth_mm, intrinsics=intrinsics)
+        frame = (
+            depth_mm
+            if intrinsics is None
+            else dataclasses.replace(depth_mm, intrinsics=intrinsics, intrinsics_source="given")
+        )
     else:
         frame = make_frame(depth_mm, intrinsics=intrinsics, name="array")
     return Pipeline(config, track=False).process(frame)

@@ -91,17 +91,6 @@ def run(args: argparse.Namespace) -> int:
         src = open_input(args)
     # Same rule as the other commands: no bar in logs or pipes.
     info = src.info(progress=(n or 0) > _PROGRESS_FROM and sys.stderr.isatty())
-    if info.intrinsics is None and info.frames:
-        import warnings
-
-        from depthgram.sources.camera import IntrinsicsWarning
-
-        warnings.warn(
-            f"{info.path}: no camera intrinsics: the segmentation would guess them (a 64-degree field of view); "
-            "tell the camera with --intrinsics FX FY CX CY or --camera FILE|PROFILE",
-            IntrinsicsWarning,
-            stacklevel=1,
-        )
     if json_to is not None:
         with Output(json_to, "--json") as out:
             out.write(json.dumps(info.to_dict()) + "\n")

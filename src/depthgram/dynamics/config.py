@@ -33,6 +33,10 @@ class TrackerConfig:
         first miss, so a one-frame segmentation splinter never becomes an occluded track.
     max_missed : int
         Occlusion budget: frames a confirmed track survives without a detection.
+    max_occluded_s : float
+        Longer budget of a confirmed track whose predicted box lies behind a nearer object
+        (s): it survives without a detection while that lasts, up to this long, and gets its
+        id back when the object comes out where and at the depth its prediction allows.
     fps : float or None
         Frame rate (frames/s) of frames that come without timestamps: frame k is at
         ``k / fps`` s. None: such frames are taken at :data:`NOMINAL_FPS` with a warning, and
@@ -147,6 +151,7 @@ class TrackerConfig:
     queue_length: int = 4
     min_hits: int = 3
     max_missed: int = 10
+    max_occluded_s: float = 1.0
     fps: float | None = None
     max_center_rate: float = 3.0
     max_depth_rate: float = 6.0
@@ -186,7 +191,7 @@ class TrackerConfig:
         _check(self.max_missed >= 0, "max_missed", self.max_missed, "0 or more frames")
         _check(self.border_px >= 0, "border_px", self.border_px, "0 or more pixels")
         floats = (
-            "max_center_rate", "max_depth_rate", "max_area_ratio", "min_iou", "gate_growth",
+            "max_occluded_s", "max_center_rate", "max_depth_rate", "max_area_ratio", "min_iou", "gate_growth",
             "w_center", "w_depth", "w_area", "w_iou", "w_label", "border_area_rate",
             "max_area_jump", "min_speed", "center_tau_s", "area_tau_s", "depth_sigma_mm",
             "depth_sigma_floor_mm", "accel_sigma", "own_accel_sigma", "innovation_gate", "ttc_min_sigmas",

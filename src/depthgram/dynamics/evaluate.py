@@ -359,3 +359,246 @@ def radial_velocity_from_poses(
         z_next = (to_next[2] @ pts).mean()
         out[int(oid)] = float((z_next - z_prev) / dt_s)
     return out
+
+
+@dataclass(frozen=True)
+class MotScore:
+    """The field's multi-object tracking metrics of one tracker on one simulated sequence.
+
+    CLEAR MOT and IDF1 as ``motmetrics`` computes them. Ground truth: the bodies of kind
+    ``object`` showing at least ``min_area_fraction`` of the frame; hypotheses: the segments
+    with the track id the tracker gave them; a pair matches where their pixel masks overlap
+    with IoU >= 0.5. Segments made mostly of walls, floors and ceilings are the background,
+    not tracking targets, and are left out.
+
+    Attributes
+    ----------
+    scene, sensor, tracker : str
+        Scene name, sensor model, tracker (``depthgram`` or ``norfair``).
+    size : tuple of int
+        (width, height) px.
+    fps : float
+        Frame rate (frames/s).
+    mota, motp, idf1 : float
+        Multiple object tracking accuracy, precision (mean 1 - IoU of matched pairs) and the
+        identity F1 score (dimensionless).
+    id_switches, false_positives, misses, objects : int
+        Identity switches, unmatched hypotheses, unmatched truth, truth body-frames.
+    merged : int
+        Body-frames whose best segment also holds at least a quarter of another object body:
+        two objects merged by segmentation where their silhouettes touch, which no tracker
+        can undo.
+    v_within : float
+        Share of the tracked body-frames, from each track's third frame on and with a steady
+        true velocity, whose ``v_radial`` is within ``v_rel`` of the truth (a missing
+        velocity counts as a miss); NaN for ``norfair``, which reads no depth.
+    v_covered : float
+        Share of those readings with ``|v_radial - truth| <= 2 v_sigma``.
+    v_readings : int
+        How many body-frames ``v_within`` counts.
+    """
+
+    scene: str
+    sensor: str
+    tracker: str
+    size: tuple[int, int]
+    fps: float
+    mota: float
+    motp: float
+    idf1: float
+    id_switches: int
+    false_positives: int
+    misses: int
+    objects: int
+    merged: int
+    v_within: float = float("nan")
+    v_covered: float = float("nan")
+    v_readings: int = 0
+
+
+class _NorfairIds:
+    """A plain 2-D tracker a user might pick: norfair on the segments' image centres.
+
+    Euclidean distance on the centres (px), gated at a tenth of the image diagonal, and an
+    occlusion budget of one second, as the depthgram tracker's.
+    """
+
+    def __init__(self, size: tuple[int, int], fps: float) -> None:
+        from depthgram._optional import needs_extra
+
+        with needs_extra("dev", "the norfair comparison (norfair-enough)"):
+            import norfair
+        self._norfair = norfair
+        self._frame = 0
+        self._tracker = norfair.Tracker(
+            distance_function="euclidean",
+            distance_threshold=0.1 * float(np.hypot(*size)),
+            hit_counter_max=max(1, round(fps)),
+            initialization_delay=2,
+        )
+
+    def update(self, objects: tuple[SceneObject, ...]) -> dict[int, int]:
+        """Return the norfair id of each object (``SceneObject.id`` -> id) this frame."""
+        nf = self._norfair
+        self._frame += 1
+        # norfair keeps a copy of each track's last detection: the frame tells this frame's
+        dets = [nf.Detection(np.array([o.center_xy], dtype=np.float64), data=(self._frame, o.id)) for o in objects]
+        out: dict[int, int] = {}
+        for tob in self._tracker.update(detections=dets):
+            frame, oid = tob.last_detection.data
+            if tob.id is not None and frame == self._frame:
+                out[int(oid)] = int(tob.id)
+        return out
+
+
+def mot_sequence(
+    scene: str,
+    frames: int,
+    *,
+    size: tuple[int, int] = (176, 132),
+    fps: float = 30.0,
+    sensor: str = "tof",
+    seed: int = 1,
+    config: TrackerConfig | None = None,
+    trackers: tuple[str, ...] = ("depthgram", "norfair"),
+    min_area_fraction: float = 0.002,
+    v_rel: float = 0.05,
+) -> tuple[MotScore, ...]:
+    """Simulate and segment a scene once, track it with each tracker, score with ``motmetrics``.
+
+    Parameters
+    ----------
+    scene : str
+        A :data:`depthgram.sensor.SCENES` name.
+    frames : int
+        Frames to run.
+    size : tuple of int
+        (width, height) px.
+    fps : float
+        Frame rate (frames/s).
+    sensor : str
+        ``tof`` or ``structured-light``.
+    seed : int
+        Noise seed.
+    config : TrackerConfig, optional
+        The depthgram tracker's settings (the frames come with their timestamps).
+    trackers : tuple of str
+        ``depthgram`` (:class:`Tracker`, handed the pixels as the pipeline does) and/or
+        ``norfair`` (:class:`_NorfairIds`), over the same segmentations.
+    min_area_fraction : float
+        Share of the frame a body must show to be ground truth (dimensionless).
+    v_rel : float
+        Relative velocity tolerance of ``v_within`` (dimensionless).
+
+    Returns
+    -------
+    tuple of MotScore
+        One per tracker, in the order given.
+    """
+    from depthgram._optional import needs_extra
+    from depthgram.segmentation import segment
+    from depthgram.sensor import simulate
+
+    with needs_extra("dev", "tracking metrics (motmetrics)"):
+        import motmetrics
+
+    cfg = config if config is not None else TrackerConfig()
+    tr = Tracker(cfg)
+    nf = _NorfairIds(size, fps) if "norfair" in trackers else None
+    accs = {name: motmetrics.MOTAccumulator(auto_id=True) for name in trackers}
+    merged = 0
+    v_ok = v_n = v_cov = 0
+    age: dict[int, int] = {}
+    v_hist: dict[int, list[float]] = {}
+    for sf in simulate(scene, frames, size=size, fps=fps, seed=seed, sensor=sensor):
+        fr = sf.frame
+        seg = segment(fr.depth, valid=fr.valid, intrinsics=fr.intrinsics)
+        labels, objects = seg.labels, seg.objects
+        min_area = min_area_fraction * fr.depth.size
+        gt = [b for b in sf.truth if b.kind == "object" and b.area >= min_area]
+        inter, seg_area, body_area, back = _overlaps(
+            labels, sf.instances, {b.id for b in sf.truth if b.kind != "object"}
+        )
+        hyp = [o for o in objects if back.get(o.id, 0) <= 0.5 * o.area]
+        dist = np.full((len(gt), len(hyp)), np.nan)
+        for i, b in enumerate(gt):
+            for j, o in enumerate(hyp):
+                c = inter.get((b.id, o.id), 0)
+                iou = c / (body_area[b.id] + seg_area[o.id] - c) if c else 0.0
+                if iou >= 0.5:
+                    dist[i, j] = 1.0 - iou
+        objs_by_id = {o.id: o for o in objects}
+        for b in gt:
+            best = max(((c, s) for (bb, s), c in inter.items() if bb == b.id), default=(0, 0))[1]
+            if best and any(
+                inter.get((other.id, best), 0) >= 0.25 * other.area
+                for other in sf.truth
+                if other.kind == "object" and other.id != b.id and other.area >= min_area
+            ):
+                merged += 1
+        if "depthgram" in trackers:
+            upd = tr.update(objects, fr.time_s, fr.size, FramePixels(fr.depth, labels, fr.intrinsics))
+            ids = {oid: m.track_id for oid, m in upd.motions.items()}
+            for m in upd.motions.values():
+                age[m.track_id] = age.get(m.track_id, 0) + 1
+            accs["depthgram"].update([b.id for b in gt], [ids[o.id] for o in hyp], dist)
+            for i, b in enumerate(gt):
+                hist = v_hist.setdefault(b.id, [])
+                hist.append(b.v_radial)
+                hit = np.flatnonzero(np.isfinite(dist[i]))
+                if hit.size != 1 or b.touches_border or len(hist) < 3 or max(hist[-3:]) != min(hist[-3:]):
+                    continue
+                m = upd.motions[hyp[int(hit[0])].id]
+                if age[m.track_id] < 3 or abs(b.v_radial) < 1.0:
+                    continue
+                v_n += 1
+                if m.v_radial is not None:
+                    err = abs(m.v_radial - b.v_radial)
+                    v_ok += err <= v_rel * abs(b.v_radial)
+                    v_cov += m.v_sigma is not None and err <= 2 * m.v_sigma
+        if nf is not None:
+            nids = nf.update(tuple(objs_by_id[o.id] for o in hyp))
+            keep = [j for j, o in enumerate(hyp) if o.id in nids]
+            accs["norfair"].update([b.id for b in gt], [nids[hyp[j].id] for j in keep], dist[:, keep])
+    mh = motmetrics.metrics.create()
+    names = ["mota", "motp", "idf1", "num_switches", "num_false_positives", "num_misses", "num_objects"]
+    out = []
+    for name in trackers:
+        r = mh.compute(accs[name], metrics=names, name=name).iloc[0]
+        dg = name == "depthgram"
+        out.append(
+            MotScore(
+                scene=scene, sensor=sensor, tracker=name, size=(int(size[0]), int(size[1])), fps=float(fps),
+                mota=float(r["mota"]), motp=float(r["motp"]), idf1=float(r["idf1"]),
+                id_switches=int(r["num_switches"]), false_positives=int(r["num_false_positives"]),
+                misses=int(r["num_misses"]), objects=int(r["num_objects"]), merged=merged,
+                v_within=v_ok / v_n if dg and v_n else float("nan"),
+                v_covered=v_cov / v_n if dg and v_n else float("nan"), v_readings=v_n if dg else 0,
+            )
+        )  # fmt: skip
+    return tuple(out)
+
+
+def _overlaps(
+    labels: NDArray[np.integer], instances: NDArray[np.integer], background: set[int]
+) -> tuple[dict[tuple[int, int], int], dict[int, int], dict[int, int], dict[int, int]]:
+    """Pixel counts: (body, segment) intersections, segment areas, body areas, and each segment's background pixels."""
+    lab = np.asarray(labels).astype(np.int64).ravel()
+    inst = np.asarray(instances).astype(np.int64).ravel()
+    seg_ids, seg_counts = np.unique(lab[lab > 0], return_counts=True)
+    body_ids, body_counts = np.unique(inst[inst > 0], return_counts=True)
+    both = (lab > 0) & (inst > 0)
+    inter: dict[tuple[int, int], int] = {}
+    back: dict[int, int] = {}
+    if both.any():
+        pairs, counts = np.unique(np.stack([inst[both], lab[both]]), axis=1, return_counts=True)
+        for (b, s), c in zip(pairs.T.tolist(), counts.tolist(), strict=True):
+            inter[(b, s)] = c
+            if b in background:
+                back[s] = back.get(s, 0) + c
+    return (
+        inter,
+        dict(zip(seg_ids.tolist(), seg_counts.tolist(), strict=True)),
+        dict(zip(body_ids.tolist(), body_counts.tolist(), strict=True)),
+        back,
+    )

@@ -73,6 +73,7 @@ class StepParams(NamedTuple):
     min_speed: float
     min_hits: int
     max_missed: int
+    max_occluded_s: float
     max_depth_jump_rate: float  # inf with the Kalman filter, which gates jumps itself
     center_tau_s: float
     area_tau_s: float
@@ -379,6 +380,21 @@ def _crossing_axes(o: np.record, b: float, width: float, height: float) -> tuple
 
 
 @njit(cache=True)
+def _hidden_behind(t: np.record, objs: NDArray[np.void], dx: float, dy: float, z: float) -> bool:
+    """Whether the box of track ``t``, moved by (``dx``, ``dy``) px, meets an object nearer than ``z``.
+
+    Nearer by more than 5 % of depth, boxes within 1 px, as :func:`mark_behind`; a track without
+    a depth (NaN ``z``) is behind nothing.
+    """
+    x0, y0, x1, y1 = t.x0 + dx, t.y0 + dy, t.x1 + dx, t.y1 + dy
+    for j in range(objs.shape[0]):
+        o = objs[j]
+        if o.z < 0.95 * z and x0 <= o.x1 and o.x0 <= x1 and y0 <= o.y1 and o.y0 <= y1:
+            return True
+    return False
+
+
+@njit(cache=True)
 def step(
     tracks: NDArray[np.void],
     qt: NDArray[np.float64],
@@ -428,6 +444,7 @@ def step(
     min_speed = p.min_speed
     min_hits = p.min_hits
     max_missed = p.max_missed
+    max_occluded_s = p.max_occluded_s
     jump_rate = p.max_depth_jump_rate
     c_tau = p.center_tau_s
     a_tau = p.area_tau_s
@@ -645,7 +662,14 @@ def step(
             vo = t.v
             z_pred = t.z_fit + (vo if np.isfinite(vo) else 0.0) * (t_now - t.t_seen)
             t.status = OCCLUDED
-            dead[i] = t.hits < min_hits or t.missed > max_missed
+            el = t_now - t.t_seen
+            # Out of the frame budget, a track whose predicted place lies behind a nearer object
+            # stays while its occlusion lasts, up to max_occluded_s: an object that passes
+            # behind another comes out again, one that left the view or the scene does not.
+            # A track last seen at the image's border may have left the view: no extension.
+            inside = t.x0 > border and t.y0 > border and t.x1 < width - border and t.y1 < height - border
+            kept = inside and el <= max_occluded_s and _hidden_behind(t, objs, t.vx * el, t.vy * el, z_pred)
+            dead[i] = t.hits < min_hits or (t.missed > max_missed and not kept)
         v_out[i] = vo
         ttc[i] = z_pred / -vo if (vo < -min_speed and z_pred > 0) else np.nan
     return obj_row, v_out, ttc, dead, restarted[:nn], nn - n, offset[:nn]

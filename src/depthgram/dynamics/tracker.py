@@ -192,6 +192,7 @@ def step_params(config: TrackerConfig) -> StepParams:
         min_speed=float(c.min_speed),
         min_hits=int(c.min_hits),
         max_missed=int(c.max_missed),
+        max_occluded_s=float(c.max_occluded_s),
         # The filter's innovation gate judges jumps against its own uncertainty (and three in a
         # row restart it): the queue's fixed jump test would restart it on one outlier.
         max_depth_jump_rate=math.inf if c.estimator == "kalman" else float(c.max_depth_jump_rate),
