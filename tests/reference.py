@@ -19,10 +19,15 @@ from depthgram.segmentation.attributes import Stats, label_stats
 from depthgram.segmentation.coplanar import coplanar_groups, near_planes
 from depthgram.segmentation.label import ACTIVE, BLOCK, HOLE, label_keyed, relabel
 from depthgram.segmentation.label.stats import N_COLUMNS, flush_run
+from depthgram.segmentation.orientation import _col_edges_into, _one_sided_col, _one_sided_row, _row_edges_into
 from depthgram.segmentation.plane_sums import plane_sums, planes_from_sums
 from depthgram.segmentation.ransac import Plane, plane_residual_mask
 
 __all__ = [
+    "_jumps",
+    "_jumps_cols",
+    "_one_sided",
+    "_one_sided_cols",
     "best_contact_numpy",
     "best_hypothesis_in_index_order",
     "grid_first_reading",
@@ -493,3 +498,57 @@ def best_hypothesis_in_index_order(
             best = cnt
             arg = k
     return arg
+
+
+# The orientation field's row and column passes one at a time, as the tests compare them (the
+# field runs them inside `orientation._slopes`).
+
+
+def _one_sided(inv: NDArray[np.float32], valid: NDArray[np.bool_], step: int) -> NDArray[np.float32]:
+    """Return the derivative along rows (per px), the smaller of the forward and backward differences.
+
+    Beside an occlusion edge one of the two differences crosses the edge; the smaller one stays
+    on the pixel's own surface, so a floor pixel next to a box keeps the floor's slope. Pixels
+    whose neighbours both lack a reading get 0 (no evidence of a slope).
+    """
+    return _one_sided_rows(np.ascontiguousarray(inv), np.ascontiguousarray(valid), step)
+
+
+@njit(cache=True, error_model="numpy")
+def _one_sided_rows(inv: NDArray[np.float32], valid: NDArray[np.bool_], step: int) -> NDArray[np.float32]:
+    h, w = inv.shape
+    out = np.zeros((h, w), np.float32)
+    for y in range(h):
+        _one_sided_row(inv[y], valid[y], step, out[y])
+    return out
+
+
+@njit(cache=True, error_model="numpy")
+def _one_sided_cols(inv: NDArray[np.float32], valid: NDArray[np.bool_], step: int) -> NDArray[np.float32]:
+    # _one_sided_rows along columns (same arithmetic), a whole row of columns at a time,
+    # without the three transposed copies
+    h, w = inv.shape
+    out = np.zeros((h, w), np.float32)
+    for y in range(h):
+        _one_sided_col(inv, valid, y, step, out[y])
+    return out
+
+
+def _jumps(z: NDArray[np.float32], valid: NDArray[np.bool_], jump_rel: float) -> NDArray[np.bool_]:
+    """Pixels beside an occlusion edge along rows.
+
+    A step is an edge when it exceeds ``jump_rel`` of the depth and is more than twice the
+    steps two pixels before and after it: a floor seen at a grazing angle makes large but
+    steady steps, an occlusion one isolated step (or two, with a flying pixel between).
+    """
+    out = np.zeros(z.shape, np.bool_)
+    _row_edges_into(np.ascontiguousarray(z), np.ascontiguousarray(valid), np.float32(jump_rel), out)
+    return out
+
+
+@njit(cache=True)
+def _jumps_cols(z: NDArray[np.float32], valid: NDArray[np.bool_], rel: np.float32) -> NDArray[np.bool_]:
+    # _jumps_rows along columns (same float32 tests)
+    out = np.zeros(z.shape, np.bool_)
+    _col_edges_into(z, valid, rel, out)
+    return out

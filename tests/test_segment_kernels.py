@@ -29,11 +29,15 @@ from depthgram.segmentation.label import (
 )
 from depthgram.segmentation.label.keyed import label_two_classes
 from depthgram.segmentation.objects import SceneObject
-from depthgram.segmentation.orientation import _jumps, _jumps_cols, _one_sided, _one_sided_cols, upsample_classes
+from depthgram.segmentation.orientation import upsample_classes
 from depthgram.segmentation.plane_sums import plane_sums, planes_from_sums
 from depthgram.segmentation.slices import slice_parts, support_pieces
 from depthgram.segmentation.validate import check_depth
 from reference import (
+    _jumps,
+    _jumps_cols,
+    _one_sided,
+    _one_sided_cols,
     label_stats_bincount,
     merge_coplanar,
     on_support_planes,
@@ -526,17 +530,6 @@ def test_upsample_classes_repeats_and_clears_holes(k: int) -> None:
     want = np.repeat(np.repeat(cls, k, axis=0), k, axis=1)[:19, :23]
     want[~valid] = 0
     np.testing.assert_array_equal(upsample_classes(cls, valid, k), want)
-
-
-@pytest.mark.parametrize("shape", [(19, 23), (20, 24), (1, 1), (2, 7)])
-def test_crease_upsampling_repeats_where_there_is_a_reading(shape: tuple[int, int]) -> None:
-    from depthgram.segmentation._kernels.creases import upsample2 as _upsample2
-
-    rng = np.random.default_rng(shape[0])
-    valid = rng.random(shape) < 0.8
-    sub = rng.random((-(-shape[0] // 2), -(-shape[1] // 2))) < 0.5
-    want = np.repeat(np.repeat(sub, 2, axis=0), 2, axis=1)[: shape[0], : shape[1]] & valid
-    np.testing.assert_array_equal(_upsample2(sub, valid), want)
 
 
 def test_front_face_folds_only_without_a_depth_jump() -> None:
@@ -1108,7 +1101,7 @@ def test_load_rare_kernels_loads_the_kernels_of_the_rare_branches() -> None:
     from depthgram.segmentation import segment
     from depthgram.segmentation._kernels.coplanar import coplanar_join
     from depthgram.segmentation._kernels.plane_sums import planes_from_sums as planes_from_sums_kernel
-    from depthgram.segmentation._kernels.ransac import assign_planes, dilate3, search_planes
+    from depthgram.segmentation._kernels.ransac import assign_planes, search_planes
     from depthgram.segmentation.core import load_rare_kernels
     from depthgram.segmentation.label import keyed, stats
     from depthgram.segmentation.slices import _class_state, _drop_classes, _merge_rows
@@ -1116,7 +1109,8 @@ def test_load_rare_kernels_loads_the_kernels_of_the_rare_branches() -> None:
 
     load_rare_kernels()
     kernels = (
-        keyed._label_planes,
+        keyed._label_runs,
+        keyed._relabel_planes,
         _class_state,
         _merge_rows,
         _drop_classes,
@@ -1124,7 +1118,6 @@ def test_load_rare_kernels_loads_the_kernels_of_the_rare_branches() -> None:
         search_planes,
         planes_from_sums_kernel,
         coplanar_join,
-        dilate3,
         assign_planes,
     )
     before = [len(k.signatures) for k in kernels]
@@ -1344,20 +1337,6 @@ def test_prominent_peaks_are_scipys_find_peaks() -> None:
         got = prominent_peaks(x, floor)
         np.testing.assert_array_equal(got, want)
         assert got.dtype == want.dtype
-
-
-def test_dilate3_is_opencvs_3x3_dilation() -> None:
-    import cv2
-
-    from depthgram.segmentation._kernels.ransac import dilate3 as _dilate3
-
-    rng = np.random.default_rng(17)
-    for _ in range(100):
-        p, h, w = (int(v) for v in rng.integers(1, 40, 3))
-        p = min(p, 4)
-        masks = rng.random((p, h, w)) < rng.uniform(0.0, 0.3)
-        want = np.stack([cv2.dilate(m.view(np.uint8), np.ones((3, 3), np.uint8)) for m in masks])
-        np.testing.assert_array_equal(_dilate3(masks), want)
 
 
 def _raster_sums(labels: np.ndarray, n: int, depth: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -220,8 +220,6 @@ def _crease_args(rng: np.random.Generator, h: int, w: int, octaves: float) -> tu
 def test_creases_from_window_sums_equal_the_opencv_route() -> None:
     from depthgram.segmentation._kernels.creases import crease_state_from_sums as _crease_state
     from depthgram.segmentation._kernels.creases import crease_state_window as _crease_state_window
-    from depthgram.segmentation._kernels.creases import creases_from_sums as _creases
-    from depthgram.segmentation._kernels.creases import creases_window as _creases_window
     from depthgram.segmentation.creases import _window_sums
 
     rng = np.random.default_rng(11)
@@ -234,16 +232,11 @@ def test_creases_from_window_sums_equal_the_opencv_route() -> None:
             np.testing.assert_array_equal(sums[:, :, ch], exact_box(im[ch], k, 0))
         args = (c, f32(0.5 * k * k))
         tail = (f32(0.02), f32(math.sqrt(6.0) / (0.7 * k)))
-        want = _creases(sums, valid, *args, r, *tail)
-        got, exact = _creases_window(im, valid, *args, k, r, *tail)
-        assert exact
-        np.testing.assert_array_equal(got, want)
         state, exact = _crease_state_window(im, valid, facing, *args, k, r, *tail)
         assert exact
         np.testing.assert_array_equal(state, _crease_state(sums, valid, facing, *args, r, *tail))
     # 1 / Z over 40 octaves: refused
     im, valid, facing = _crease_args(rng, 20, 20, 40.0)
-    assert not _creases_window(im, valid, c, f32(4.5), 3, 2, f32(0.02), f32(1.0))[1]
     assert not _crease_state_window(im, valid, facing, c, f32(4.5), 3, 2, f32(0.02), f32(1.0))[1]
 
 
@@ -273,14 +266,14 @@ def test_a_refused_frame_takes_opencvs_route_to_the_same_result(monkeypatch: pyt
 
     for name in ("_classify_window",):
         monkeypatch.setattr(orientation, name, refuse)
-    for name in ("creases_window", "crease_state_window"):
+    for name in ("crease_state_window",):
         monkeypatch.setattr(kernels_creases, name, refuse)
     got = (
         orientation.orientation_classes(f.depth, f.valid, f.intrinsics),
         surfaces.concave_creases(f.depth, f.valid, sensor, **kw),
         surfaces.crease_state(f.depth, f.valid, facing, sensor, **kw),
     )
-    assert len(calls) == 3
+    assert len(calls) == 3  # the creases take the state's kernel
     for a, b in zip(got, want, strict=True):
         np.testing.assert_array_equal(a, b)
     assert want[1].any() and len(np.unique(want[0])) == 3

@@ -29,7 +29,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from depthgram.frame import Intrinsics
-from depthgram.segmentation.planes import find_planes
+from depthgram.segmentation.ransac import find_planes
 
 __all__ = ["FocalEstimate", "estimate_focal_length"]
 

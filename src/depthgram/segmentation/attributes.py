@@ -147,15 +147,9 @@ def attribute_rows(sums: NDArray[np.float64], intrinsics: Intrinsics) -> NDArray
     center x and y (px), centroid X and Y (mm) and metric area (mm²), the same numbers
     make_objects puts in its objects (0 pixels: no object).
     """
-    return _table_attributes(sums, intrinsics.fx, intrinsics.fy, intrinsics.cx, intrinsics.cy)
-
-
-@njit(cache=True, nogil=True)
-def _table_attributes(sums: NDArray[np.float64], fx: float, fy: float, cx: float, cy: float) -> NDArray[np.float64]:
-    # attribute_table of the table's columns: one array to pass instead of seven
     return attribute_table(
         sums[:, COUNT], sums[:, SUM_Z], sums[:, SUM_ZZ], sums[:, SUM_X], sums[:, SUM_Y],
-        sums[:, SUM_XZ], sums[:, SUM_YZ], fx, fy, cx, cy,
+        sums[:, SUM_XZ], sums[:, SUM_YZ], intrinsics.fx, intrinsics.fy, intrinsics.cx, intrinsics.cy,
     )  # fmt: skip
 
 

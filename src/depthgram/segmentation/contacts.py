@@ -98,15 +98,14 @@ def _faces(
     n_ids = int(labels.max(initial=0)) + 1 if n_ids is None else n_ids
     rel = np.float32(jump_rel)
     if boxes is not None:
-        best = _faces_in_boxes(
-            labels, depth_mm, np.asarray(support_ids, np.intp), np.asarray(boxes, np.int64), n_ids, n_facing,
-            rel, side, float(min_contact), size, mean_depth,
-        )  # fmt: skip
+        contact = _contacts_in_boxes(
+            labels, depth_mm, np.asarray(support_ids, np.intp), np.asarray(boxes, np.int64), n_ids, n_facing, rel, side
+        )
     else:
         is_support = np.zeros(n_ids, np.bool_)
         is_support[support_ids] = True
         contact = _contacts(labels, depth_mm, is_support, n_facing, rel, side)
-        best = _best_faces(contact, float(min_contact), size, mean_depth, side)
+    best = _best_faces(contact, float(min_contact), size, mean_depth, side)
     return _as_pairs(best)
 
 
@@ -142,25 +141,6 @@ def _best_faces(
         if most > 0 and most >= min_contact * extent[f]:
             out[f] = best
     return out
-
-
-@njit(cache=True, nogil=True)
-def _faces_in_boxes(
-    labels: NDArray[np.int32],
-    depth: NDArray[np.float32],
-    ids: NDArray[np.intp],
-    boxes: NDArray[np.int64],
-    n_ids: int,
-    n_facing: int,
-    rel: np.float32,
-    side_by_side: bool,
-    min_contact: float,
-    extent: NDArray[np.float64],
-    mean_depth: NDArray[np.float64],
-) -> NDArray[np.int64]:
-    # the contacts in the supports' boxes and the best support of each face, in one call
-    contact = _contacts_in_boxes(labels, depth, ids, boxes, n_ids, n_facing, rel, side_by_side)
-    return _best_faces(contact, min_contact, extent, mean_depth, side_by_side)
 
 
 @njit(cache=True, nogil=True)

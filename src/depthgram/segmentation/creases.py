@@ -14,7 +14,6 @@ from typing import Any
 
 import cv2
 import numpy as np
-from numba import njit
 from numpy.typing import NDArray
 
 from depthgram.segmentation._kernels import creases as kernels_creases
@@ -93,15 +92,20 @@ def concave_creases(
             min_angle_deg=min_angle_deg,
             focal_px=focal_px / 2.0,
         )
-        return kernels_creases.upsample2(sub, np.ascontiguousarray(valid, np.bool_))
+        h, w = depth_mm.shape
+        wide: NDArray[np.bool_] = sub.repeat(2, axis=0).repeat(2, axis=1)[:h, :w] & valid
+        return wide
     k, geom, noise_scale = _crease_factors(scale_px, min_angle_deg, focal_px)
     if not _compiled_model(sensor):
         return _creases_numpy(depth_mm, valid, sensor, scale_px, k, geom, noise_scale)
     im, ok, c32, min_den, r = _crease_inputs(depth_mm, valid, sensor, scale_px, k, inverse)
-    creases, exact = kernels_creases.creases_window(im, ok, c32, min_den, k, r, geom, noise_scale)
-    if exact:
-        return creases
-    return kernels_creases.creases_from_sums(_window_sums(im, k), ok, c32, min_den, r, geom, noise_scale)
+    # the labeller state with every reading facing blocks exactly at the creases (one kernel
+    # per route for the state and the crease map)
+    state, exact = kernels_creases.crease_state_window(im, ok, ok, c32, min_den, k, r, geom, noise_scale)
+    if not exact:
+        state = kernels_creases.crease_state_from_sums(_window_sums(im, k), ok, ok, c32, min_den, r, geom, noise_scale)
+    out: NDArray[np.bool_] = state == BLOCK
+    return out
 
 
 def _crease_factors(scale_px: int, min_angle_deg: float, focal_px: float) -> tuple[int, np.float32, np.float32]:
@@ -181,6 +185,7 @@ def crease_state(
     face = np.ascontiguousarray(facing, np.bool_)
     # the window sums taken row by row in the same call, OpenCV's to the last bit where
     # window.exact_rows holds (always on real frames so far), else OpenCV's
+    # kept (issue 31): with the orientation field's, OpenCV's route alone was 8-10 % slower end to end
     state, exact = kernels_creases.crease_state_window(im, ok, face, c32, min_den, k, r, geom, noise_scale)
     if exact:
         return state
@@ -198,8 +203,8 @@ def _creases_numpy(
 ) -> NDArray[np.bool_]:
     """:func:`concave_creases` at full resolution in numpy.
 
-    The reference of the compiled :func:`kernels_creases.creases_from_sums`, and the route for a sensor model whose
-    arithmetic it does not know.
+    The reference of the compiled crease kernels (``_kernels.creases``), and the route for a
+    sensor model whose arithmetic it does not know.
     """
     h, w = depth_mm.shape
     inv = np.zeros((h, w), np.float32)
@@ -245,23 +250,14 @@ def _shifted(
     return out, ok
 
 
-@njit(cache=True, nogil=True)
 def surface_state(valid: NDArray[np.bool_], facing: NDArray[np.bool_], creases: NDArray[np.bool_]) -> NDArray[np.int8]:
-    """Labeller state of :func:`label_surfaces`.
+    """Labeller state of :func:`depthgram.segmentation.surfaces.label_surfaces`.
 
-    Facing pixels off a crease are active, other readings block, pixels without a reading are holes
-    (one pass for numpy's four).
+    Facing pixels off a crease are active, other readings block, pixels without a reading are
+    holes.
     """
-    h, w = valid.shape
-    out = np.empty((h, w), np.int8)
-    for y in range(h):
-        for x in range(w):
-            if not valid[y, x]:
-                out[y, x] = HOLE
-            elif facing[y, x] and not creases[y, x]:
-                out[y, x] = ACTIVE
-            else:
-                out[y, x] = BLOCK
+    state = np.where(facing & ~creases, np.int8(ACTIVE), np.int8(BLOCK))
+    out: NDArray[np.int8] = np.where(valid, state, np.int8(HOLE)).astype(np.int8)
     return out
 
 
@@ -278,4 +274,3 @@ def warm_up() -> None:
     sums = np.ones((2, 2, 2), np.float32)
     c = np.ones(4, np.float32)
     kernels_creases.crease_state_from_sums(sums, ok, ok, c, f, 1, f, f)
-    kernels_creases.creases_from_sums(sums, ok, c, f, 1, f, f)

@@ -177,30 +177,20 @@ def estimate_sensor(
     return SensorModel("auto", s0, s2, n0, n2)
 
 
-@njit(cache=True, nogil=True)
 def _range_fit(
     depth: NDArray[np.float32], valid: NDArray[np.bool_], rows: int
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    # the steps of estimate_sensor from the samples to the fit: the samples, the stable order
-    # (_counting_order with the smallest and largest depth taken in the samples' own pass, so
-    # no pass of its own), the range estimates, and with two ranges or more _lstsq_a_bz2 of
-    # step and sigma against depth squared, one call instead of five. Returns the rows of the
-    # ranges with enough differences (median depth, step, sigma, 1; none below 200 samples)
-    # and (a, b) of the step's and the sigma's least squares (zeros with fewer than two rows).
+    """Return the rows of the depth ranges with enough differences and the two fits over them.
+
+    The steps of :func:`estimate_sensor` from the samples to the fit: the range estimates
+    (median depth, step, sigma, 1; none below 200 samples) and, with two ranges or more,
+    ``(a, b)`` of the step's and the sigma's least squares against depth squared
+    (:func:`_lstsq_a_bz2`; zeros with fewer than two rows).
+    """
     est = _range_estimates_counted(depth, valid, rows)
-    m = 0
-    for i in range(est.shape[0]):
-        if est[i, 3] > 0:
-            m += 1
-    fit = np.empty((m, 4), np.float64)
-    m = 0
-    for i in range(est.shape[0]):
-        if est[i, 3] > 0:
-            fit[m] = est[i]
-            m += 1
+    fit = est[est[:, 3] > 0]
     sol = np.zeros(4, np.float64)
-    if m > 1:
-        # numpy's z * z of the fit's depths, then the same solve as _fit_a_bz2
+    if fit.shape[0] > 1:
         x = fit[:, 0] * fit[:, 0]
         sol[0], sol[1] = _lstsq_a_bz2(x, fit[:, 1].copy())
         sol[2], sol[3] = _lstsq_a_bz2(x, fit[:, 2].copy())

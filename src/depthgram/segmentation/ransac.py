@@ -19,11 +19,12 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import cv2
 import numpy as np
 from numpy.typing import NDArray
 
 from depthgram.frame import Intrinsics
-from depthgram.segmentation._kernels.ransac import assign_planes, dilate3, search_planes
+from depthgram.segmentation._kernels.ransac import assign_planes, search_planes
 
 __all__ = ["Plane", "find_planes", "plane_distance_mm", "plane_normal", "plane_residual_mask", "warm_up"]
 
@@ -169,7 +170,8 @@ def find_planes(
     found = [((float(c[0]), float(c[1]), float(c[2])), float(sp)) for c, sp in zip(coefs[:k], spreads[:k], strict=True)]
     # a full-resolution pixel may join a plane when its grid cell or a neighbouring one did:
     # the contact rows at the foot of an object are kept, far pixels on the plane's extension not
-    allowed = dilate3(pieces[:k])
+    square = np.ones((3, 3), np.uint8)
+    allowed = np.ascontiguousarray(np.stack([cv2.dilate(m.view(np.uint8), square) for m in pieces[:k]]), np.uint8)
     which = assign_planes(depth_mm, valid, np.ascontiguousarray(coefs[:k]), allowed, s, float(tol_mm), float(tol_rel))
     planes: list[Plane] = []
     for j, (coef, spread) in enumerate(found, start=1):

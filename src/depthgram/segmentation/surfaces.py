@@ -226,7 +226,6 @@ def loosen_small(labels: NDArray[np.int32], n: int, facing: NDArray[np.bool_], m
     return loose
 
 
-@njit(cache=True, nogil=True)
 def keep_large(
     labels: NDArray[np.int32], n: int, min_px: int, depth: NDArray[np.float32]
 ) -> tuple[NDArray[np.int32], int, NDArray[np.float64], NDArray[np.int64]]:
@@ -239,4 +238,5 @@ def keep_large(
     (:func:`depthgram.segmentation.label.stats.relabel_stats`), for numpy's bincount, the
     relabelling pass and the statistics pass.
     """
-    return keep_counted(labels, count_labels(labels, n), min_px, depth)
+    out, m, sums, box = keep_counted(labels, count_labels(labels, n), min_px, depth)
+    return out, int(m), sums, box

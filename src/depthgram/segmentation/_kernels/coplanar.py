@@ -8,19 +8,6 @@ from numpy.typing import NDArray
 
 
 @njit(cache=True, nogil=True)
-def big_pieces(count: NDArray[np.float64], min_px: float) -> NDArray[np.intp]:
-    # the pieces 1..n of at least min_px pixels: np.flatnonzero(count[1:] >= min_px) + 1 in one
-    # compiled call (four numpy calls cost more, four uses per frame)
-    out = np.empty(count.size, np.intp)
-    k = 0
-    for i in range(1, count.size):
-        if count[i] >= min_px:
-            out[k] = i
-            k += 1
-    return out[:k]
-
-
-@njit(cache=True, nogil=True)
 def coplanar_join(
     cosines: NDArray[np.float64], off: NDArray[np.float64], big: NDArray[np.intp], min_cos: float, rel: float, n: int
 ) -> tuple[NDArray[np.int32], int]:

@@ -38,56 +38,6 @@ def inverse_depth(z: NDArray[np.float32], valid: NDArray[np.bool_]) -> NDArray[n
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def creases_from_sums(
-    sums: NDArray[np.float32],
-    valid: NDArray[np.bool_],
-    c: NDArray[np.float32],
-    min_den: np.float32,
-    r: int,
-    geom: np.float32,
-    noise_scale: np.float32,
-) -> NDArray[np.bool_]:
-    # _creases_numpy in two passes instead of about 60 full-frame temporaries: the window
-    # means and the threshold of each pixel (_crease_means), then each row's four directions
-    # (_crease_row). Every operation is the float32 one numpy does there, in the same order (no
-    # fast-math, no contraction), so the same creases (a test compares the two). `sums`
-    # (H, W, 2): the window sums of 1000 / z and of the readings.
-    ws, has, bend = _crease_means(sums, valid, c, min_den, geom, noise_scale)
-    return _creases_from(ws, has, bend, r)
-
-
-@njit(cache=True, nogil=True, error_model="numpy")
-def creases_window(
-    inverse: NDArray[np.float32],
-    valid: NDArray[np.bool_],
-    c: NDArray[np.float32],
-    min_den: np.float32,
-    k: int,
-    r: int,
-    geom: np.float32,
-    noise_scale: np.float32,
-) -> tuple[NDArray[np.bool_], bool]:
-    # creases_from_sums of OpenCV's k x k window sums of `inverse` (2, H, W), taken in the same call
-    # (_crease_means_window), and True; False (and nothing computed) where they could differ
-    # from OpenCV's
-    ws, has, bend, exact = _crease_means_window(inverse, valid, c, min_den, k, geom, noise_scale)
-    if not exact:
-        return np.empty((0, 0), np.bool_), False
-    return _creases_from(ws, has, bend, r), True
-
-
-@njit(cache=True, inline="always", error_model="numpy")
-def _creases_from(
-    ws: NDArray[np.float32], has: NDArray[np.bool_], bend: NDArray[np.float32], r: int
-) -> NDArray[np.bool_]:
-    h, w = ws.shape
-    out = np.empty((h, w), np.bool_)
-    for y in range(h):
-        _crease_row(ws, has, bend, y, r, out[y])
-    return out
-
-
-@njit(cache=True, nogil=True, error_model="numpy")
 def crease_state_from_sums(
     sums: NDArray[np.float32],
     valid: NDArray[np.bool_],
@@ -98,7 +48,8 @@ def crease_state_from_sums(
     geom: np.float32,
     noise_scale: np.float32,
 ) -> NDArray[np.int8]:
-    # surface_state(valid, facing, creases_from_sums(...)) in one call: each row's creases go to the
+    # surface_state(valid, facing, creases) in one call, the creases those of
+    # creases._creases_numpy on these sums: each row's creases go to the
     # labeller's state from a row buffer (no crease map, no pass of its own)
     ws, has, bend = _crease_means(sums, valid, c, min_den, geom, noise_scale)
     return _state_from(ws, has, bend, valid, facing, r)
@@ -353,22 +304,3 @@ def _crease_row(
         b = up_right[ux - ur]
         lim = jump * wc
         out[ux] |= hr[ux] & (abs(a - wc) <= lim) & (abs(b - wc) <= lim) & ((a + b) - two * wc > er[ux])
-
-
-@njit(cache=True, nogil=True)
-def upsample2(sub: NDArray[np.bool_], valid: NDArray[np.bool_]) -> NDArray[np.bool_]:
-    # each pixel of the half-resolution map repeated 2 x 2, where there is a reading
-    # each half-resolution row expanded once for its two rows, whose loop then vectorises
-    h, w = valid.shape
-    out = np.zeros((h, w), np.bool_)
-    wide = np.empty(w, np.bool_)
-    for y in range(h):
-        if y & 1 == 0:
-            srow = sub[y >> 1]
-            for x in range(w):
-                wide[x] = srow[x >> 1]
-        vrow = valid[y]
-        orow = out[y]
-        for x in range(w):
-            orow[x] = wide[x] & vrow[x]
-    return out

@@ -6,8 +6,6 @@ one compiled call per frame: the dozen numpy calls of a search cost more than it
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 from numba import njit
 from numpy.typing import NDArray
@@ -15,25 +13,6 @@ from numpy.typing import NDArray
 from depthgram.segmentation._kernels.solve3 import lu_solve3
 from depthgram.segmentation.label.unionfind import find, union
 from depthgram.segmentation.order_stats import percentile32
-
-
-@njit(cache=True, nogil=True)
-def dilate3(masks: NDArray[np.bool_]) -> NDArray[np.uint8]:
-    """Return each of the stacked masks dilated by a 3 x 3 square, as 0 / 1.
-
-    ``cv2.dilate(mask, np.ones((3, 3)))`` per mask (outside the grid counts as unset): one
-    compiled call for the planes of a frame instead of two OpenCV and numpy calls per plane.
-    """
-    p, h, w = masks.shape
-    out = np.zeros((p, h, w), np.uint8)
-    for k in range(p):
-        for y in range(h):
-            for x in range(w):
-                if masks[k, y, x]:
-                    for yy in range(max(y - 1, 0), min(y + 2, h)):
-                        for xx in range(max(x - 1, 0), min(x + 2, w)):
-                            out[k, yy, xx] = 1
-    return out
 
 
 @njit(cache=True, nogil=True)
@@ -243,8 +222,7 @@ def plane_pieces(
 
     The pieces are those of :func:`large_pieces` (8-connected pieces of ``on_img`` of at
     least ``piece_px`` pixels); the 5th, 50th and 95th percentiles of their depth are
-    ``np.percentile(z_sub[pieces], (5, 50, 95))`` (counted for whole-number depths,
-    :func:`percentiles_counted`, else :func:`percentile32`: the same values), left at 0 below
+    ``np.percentile(z_sub[pieces], (5, 50, 95))`` (:func:`percentile32`), left at 0 below
     ``min_px`` pixels, where the search drops the plane anyway. One compiled call for OpenCV's
     labelling (30 us on a 3000-point grid, most of it the call) and a handful of numpy calls.
     """
@@ -258,60 +236,15 @@ def plane_pieces(
         return pieces, n, 0.0, 0.0, 0.0
     on_z = np.empty(n, np.float32)
     k = 0
-    lo = np.inf
-    hi = -np.inf
-    whole = True
     for y in range(h):
         for x in range(w):
             if pieces[y, x]:
-                v = z_sub[y, x]
-                on_z[k] = v
+                on_z[k] = z_sub[y, x]
                 k += 1
-                lo = min(lo, v)
-                hi = max(hi, v)
-                whole &= np.floor(v) == v
-    if whole and hi - lo < _MAX_COUNTED_SPAN:
-        p5, p50, p95 = percentiles_counted(on_z, lo, int(hi - lo))
-    else:
-        p5 = percentile32(on_z, 5.0, False)
-        p50 = percentile32(on_z, 50.0, False)
-        p95 = percentile32(on_z, 95.0, False)
+    p5 = percentile32(on_z, 5.0, False)
+    p50 = percentile32(on_z, 50.0, False)
+    p95 = percentile32(on_z, 95.0, False)
     return pieces, n, p5, p50, p95
-
-
-#: Widest span of whole-number depths (mm) whose percentiles :func:`percentiles_counted` counts.
-_MAX_COUNTED_SPAN = 1 << 16
-
-
-@njit(cache=True, nogil=True)
-def percentiles_counted(a: NDArray[np.float32], lo: float, span: int) -> tuple[float, float, float]:
-    # percentile32(a, q, False) for q = 5, 50, 95 of whole-number values lo .. lo + span: the
-    # order statistics around each (n - 1) q / 100 read from the values' counts (one pass
-    # instead of three selections; an order statistic is a value of `a` whatever finds it),
-    # then percentile32's float32 difference and float64 interpolation
-    n = a.size
-    count = np.zeros(span + 1, np.int64)
-    for i in range(n):
-        count[int(a[i] - lo)] += 1
-    for v in range(span):
-        count[v + 1] += count[v]
-    out = np.empty(3, np.float64)
-    for t, q in enumerate((5.0, 50.0, 95.0)):
-        vi = (n - 1) * (q / 100)
-        if vi >= n - 1:
-            out[t] = lo + span  # the largest value
-            continue
-        j = math.floor(vi)
-        # the (j)-th and (j + 1)-th smallest: the first values whose running count passes them
-        p_lo = np.float32(lo + np.searchsorted(count, j, side="right"))
-        p_hi = np.float32(lo + np.searchsorted(count, j + 1, side="right"))
-        diff = p_hi - p_lo
-        f = vi - j
-        if f >= 0.5:
-            out[t] = np.float64(p_hi) - np.float64(diff) * (1.0 - f)
-        else:
-            out[t] = np.float64(p_lo) + np.float64(diff) * f
-    return out[0], out[1], out[2]
 
 
 @njit(cache=True, nogil=True)

@@ -192,28 +192,10 @@ def label_bands_stats(
     with the run's pixels and must add nothing.
     """
     inc = include if include is not None else _NO_MASK
-    labels, n, sums, boxes = _label_bands_resolved(
-        bins, lut, valid, inc, include is not None, int(bridge), depth_mm, int(min_px)
-    )
+    lab, parent, nxt, ps, pb = _label_bands(bins, lut, valid, inc, include is not None, int(bridge), depth_mm)
+    labels, n, sums, boxes = resolve(lab, parent, nxt, ps, pb, int(min_px), True)
     return labels, int(n), sums, boxes
 
 
 #: Stand-in for a missing ``include`` mask (numba wants an array); never written.
 _NO_MASK = np.zeros((1, 1), np.bool_)
-
-
-@njit(cache=True, nogil=True)
-def _label_bands_resolved(
-    bins: NDArray[np.int32],
-    lut: NDArray[np.int32],
-    valid: NDArray[np.bool_],
-    include: NDArray[np.bool_],
-    use_include: bool,
-    bridge: int,
-    depth: NDArray[np.float32],
-    min_px: int,
-) -> tuple[NDArray[np.int32], int, NDArray[np.float64], NDArray[np.int64]]:
-    # both passes behind one call: each call from Python costs microseconds of argument
-    # checks, which count on small frames
-    lab, parent, nxt, ps, pb = _label_bands(bins, lut, valid, include, use_include, bridge, depth)
-    return resolve(lab, parent, nxt, ps, pb, min_px, True)

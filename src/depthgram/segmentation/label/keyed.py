@@ -354,38 +354,12 @@ def label_keyed_planes(
     s = np.ascontiguousarray(state, dtype=np.int8)
     z = np.ascontiguousarray(depth_mm, dtype=np.float32)
     y0, y1, x0, x1 = window if window is not None else (0, k.shape[0], 0, k.shape[1])
-    lab, n, sums, boxes, planes = _label_planes(
-        k, s, float(tol), float(rel), int(bridge), z, int(min_px), float(fx), float(fy), float(cx), float(cy),
-        int(y0), int(y1), int(x0), int(x1),
-    )  # fmt: skip
+    y0, y1, x0, x1 = int(y0), int(y1), int(x0), int(x1)
+    # the labelling, the tables and the relabelling with the plane sums
+    lab, parent, nxt, ps, pb, spans = _label_runs(k, s, float(tol), float(rel), int(bridge), z, True, y0, y1, x0, x1)
+    final, n, sums, boxes = resolve_tables(lab, parent, nxt, ps, pb, int(min_px), True)
+    planes = _relabel_planes(lab, final, n, z, float(fx), float(fy), float(cx), float(cy), y0, y1, x0, x1, spans)
     return lab, int(n), sums, boxes, planes
-
-
-@njit(cache=True, nogil=True)
-def _label_planes(
-    key: NDArray[np.float32],
-    state: NDArray[np.int8],
-    tol: float,
-    rel: float,
-    bridge: int,
-    depth: NDArray[np.float32],
-    min_px: int,
-    fx: float,
-    fy: float,
-    cx: float,
-    cy: float,
-    y0: int,
-    y1: int,
-    x0: int,
-    x1: int,
-) -> tuple[NDArray[np.int32], int, NDArray[np.float64], NDArray[np.int64], NDArray[np.float64]]:
-    # label_keyed_planes' three passes (labelling, the tables, the relabelling with the plane
-    # sums) in one compiled call: three calls from Python cost more than their joins on a
-    # small frame
-    lab, parent, nxt, ps, pb, spans = _label_runs(key, state, tol, rel, bridge, depth, True, y0, y1, x0, x1)
-    final, n, sums, boxes = resolve_tables(lab, parent, nxt, ps, pb, min_px, True)
-    planes = _relabel_planes(lab, final, n, depth, fx, fy, cx, cy, y0, y1, x0, x1, spans)
-    return lab, n, sums, boxes, planes
 
 
 @njit(cache=True, nogil=True)
@@ -626,42 +600,21 @@ def label_two_classes(
         ``cls_b``'s own tables are row 0 and rows na + 1.. of them.
     """
     z = np.ascontiguousarray(depth_mm, dtype=np.float32)
-    lab, na, nb, sums, boxes, planes = _two_classes(
+    ca, cb = np.int8(cls_a), np.int8(cls_b)
+    # the labelling, the tables of both classes and the relabelling with the plane sums
+    lab, parent, pcls, nxt, ps, pb, spans = _label_runs_two(
         z,
         np.ascontiguousarray(valid, np.bool_),
         np.ascontiguousarray(classes, np.int8),
-        np.int8(cls_a),
-        np.int8(cls_b),
+        ca,
+        cb,
         float(rel),
         int(bridge),
-        float(fx),
-        float(fy),
-        float(cx),
-        float(cy),
     )
-    return lab, int(na), int(nb), sums, boxes, planes
-
-
-@njit(cache=True, nogil=True)
-def _two_classes(
-    z: NDArray[np.float32],
-    valid: NDArray[np.bool_],
-    classes: NDArray[np.int8],
-    ca: np.int8,
-    cb: np.int8,
-    rel: float,
-    bridge: int,
-    fx: float,
-    fy: float,
-    cx: float,
-    cy: float,
-) -> tuple[NDArray[np.int32], int, int, NDArray[np.float64], NDArray[np.int64], NDArray[np.float64]]:
-    # label_two_classes' three passes in one compiled call (as _label_planes)
-    lab, parent, pcls, nxt, ps, pb, spans = _label_runs_two(z, valid, classes, ca, cb, rel, bridge)
     final, na, nb, sums, boxes = _resolve_two(lab, parent, pcls, ca, nxt, ps, pb)
     h, w = z.shape
-    planes = _relabel_planes(lab, final, na + nb, z, fx, fy, cx, cy, 0, h, 0, w, spans)
-    return lab, na, nb, sums, boxes, planes
+    planes = _relabel_planes(lab, final, na + nb, z, float(fx), float(fy), float(cx), float(cy), 0, h, 0, w, spans)
+    return lab, int(na), int(nb), sums, boxes, planes
 
 
 #: Stand-in for the depth image :func:`_label_runs` does not read without statistics.
