@@ -14,10 +14,10 @@ from depthgram.segmentation.attributes import ObjectSpec, Stats, attribute_rows,
 from depthgram.segmentation.coarse import grid_frame, grid_step, to_full_resolution
 from depthgram.segmentation.config import SegmentConfig
 from depthgram.segmentation.contacts import front_faces, side_faces
-from depthgram.segmentation.coplanar import class_window, coplanar_groups, join_near
+from depthgram.segmentation.coplanar import class_window, coplanar_groups
 from depthgram.segmentation.creases import crease_scale_px, crease_state, inverse_depth
 from depthgram.segmentation.histogram import Bands, bin_index, depth_bands, log_bin_counts
-from depthgram.segmentation.label import label_bands_stats, label_stats_fused, label_two_classes, relabel
+from depthgram.segmentation.label import label_bands_stats, label_stats_fused, relabel
 from depthgram.segmentation.label.stats import COUNT, KEY, N_SUMS, SUM_Z, add_rows
 from depthgram.segmentation.noise_model import SensorModel, estimate_sensor, sensor_model
 from depthgram.segmentation.objects import Histogram, SceneObject, Segmentation
@@ -42,12 +42,11 @@ from depthgram.segmentation.slices import (
     add_through,
     compound_parts,
     drop_classes,
-    join_pieces,
-    small_supports,
     support_kind,
     support_pieces_lazy,
 )
 from depthgram.segmentation.slices import warm_up as warm_up_slices
+from depthgram.segmentation.supports import SupportMap, label_supports
 from depthgram.segmentation.surfaces import facing_halves, surfaces_kept
 from depthgram.segmentation.validate import check_depth_far
 
@@ -373,7 +372,7 @@ def _slices(
     classes, wanted, inverse = _pixel_classes(depth, ok, cam, cfg)
     min_px = cfg.min_pixels(depth.size)
     # supports first: a piece of surface too small to matter goes back to the facing pixels
-    support_maps = _supports(depth, ok, classes, wanted, cam, cfg, min_px)
+    support_maps = label_supports(depth, ok, classes, wanted, cam, cfg, min_px)
     facing = classes == FACING
     if cfg.method == "surfaces":
         sensor = sensor or frame_sensor(depth, ok, cfg)
@@ -437,7 +436,7 @@ def _stack_supports(
     labels: NDArray[np.int32],
     fsums: NDArray[np.float64],
     fboxes: NDArray[np.int64],
-    support_maps: list[_SupportMap],
+    support_maps: list[SupportMap],
     cam: Intrinsics,
 ) -> _Stack:
     """Add the supports' labels after the facing objects' (in place) and stack their statistics."""
@@ -706,116 +705,6 @@ def _add_support_planes(
         if max(abs(n[0]), abs(n[1])) < lean:
             continue
         classes[plane.inliers] = HORIZONTAL if abs(n[1]) >= abs(n[0]) else VERTICAL
-
-
-@dataclass
-class _SupportMap:
-    """The supports of one orientation class, read from a label map through a table.
-
-    Pieces ``base + 1 .. base + len(through) - 1`` of ``labels`` are this class's (a map
-    labelled for two classes holds the other's too); ``through`` maps piece - base to its
-    support 1..n, or 0 for a piece dropped (whose pixels went back to the facing class).
-    """
-
-    cls: int  # orientation class
-    labels: NDArray[np.int32]  # label map holding the pieces
-    base: int  # the pieces' values in `labels` start after this
-    size: int  # one more than the largest value of `labels`
-    through: NDArray[np.int32]  # (pieces + 1,) piece -> support or 0
-    n: int  # supports
-    sums: NDArray[np.float64]  # (n + 1, N_COLUMNS) statistics per support (row 0 unused)
-    boxes: NDArray[np.int64]  # (n + 1, 4) inclusive boxes per support
-
-
-_Pieces = tuple[NDArray[np.int32], int, int, int, NDArray[np.float64], NDArray[np.int64], NDArray[np.float64]]
-
-
-def _supports(
-    depth: NDArray[np.float32],
-    ok: NDArray[np.bool_],
-    classes: NDArray[np.int8],
-    wanted: list[int],
-    cam: Intrinsics,
-    cfg: SegmentConfig,
-    min_px: int,
-) -> list[_SupportMap]:
-    """Return the supports of each wanted class, in order (:func:`_support_class`; ``classes`` updated).
-
-    Both classes' pieces come from one labelling pass. One class's later steps do not change
-    the other's pieces: they turn facing pixels into its own class or its own pixels back into
-    facing ones, and both are blocking readings to the other class's labeller.
-    """
-    first: dict[int, _Pieces] = {}
-    if len(wanted) == 2:
-        lab, na, nb, sums, boxes, planes = label_two_classes(
-            depth, ok, classes, wanted[0], wanted[1], cam.fx, cam.fy, cam.cx, cam.cy,
-            rel=cfg.jump_rel, bridge=cfg.fill_holes_px,
-        )  # fmt: skip
-        rows = np.arange(na, na + nb + 1)
-        rows[0] = 0
-        size = na + nb + 1
-        first[wanted[0]] = (lab, 0, size, na, sums[: na + 1], boxes[: na + 1], planes[: na + 1])
-        first[wanted[1]] = (lab, na, size, nb, sums[rows], boxes[rows], planes[rows])
-    return [_support_class(depth, ok, classes, cls, cam, cfg, min_px, first.get(cls)) for cls in wanted]
-
-
-def _support_class(
-    depth: NDArray[np.float32],
-    ok: NDArray[np.bool_],
-    classes: NDArray[np.int8],
-    cls: int,
-    cam: Intrinsics,
-    cfg: SegmentConfig,
-    min_px: int,
-    pieces: _Pieces | None = None,
-) -> _SupportMap:
-    """Supports of one orientation class, small or flat ones handed back to the facing pixels.
-
-    Updates ``classes`` in place. ``pieces``: the class's pieces already labelled (label map,
-    the value before its first piece, the map's size, and the count, statistics, inclusive
-    boxes and plane sums of the pieces); labelled here when None.
-    """
-    fit_px = max(min_px // 2, 10)
-    if pieces is None:
-        lab, merge, n, sums, boxes, planes, fit = support_pieces_lazy(
-            depth, ok, classes, cls, cam, jump_rel=cfg.jump_rel, bridge=cfg.fill_holes_px, min_fit_px=fit_px
-        )
-        n_pieces = merge.size - 1 if merge is not None else n
-        base, size = 0, n_pieces + 1
-    else:
-        lab, base, size, n_pieces, psums, pboxes, pplanes = pieces
-        merge, n, sums, boxes, planes, fit = join_pieces(n_pieces, psums, pboxes, pplanes, min_fit_px=fit_px)
-    # noise makes some support pixels look facing; those lying on a big support's plane
-    # go back to it (an upright object meets that plane only along its base row)
-    if n:
-        normal, off, count = fit if fit is not None else planes_from_sums(planes)
-        near = join_near(
-            classes, ok, cls, FACING, normal, off, count, boxes, depth, cam, min_px=min_px, tol_rel=cfg.jump_rel / 2
-        )
-        if near:
-            # the class's pixels lie inside its supports' boxes and the margins join_near searched
-            win = class_window(boxes, count, depth.shape, min_px=min_px)
-            lab, merge, n, sums, boxes, planes, _ = support_pieces_lazy(
-                depth, ok, classes, cls, cam, jump_rel=cfg.jump_rel, bridge=cfg.fill_holes_px, min_fit_px=fit_px,
-                window=win,
-            )  # fmt: skip
-            n_pieces = merge.size - 1 if merge is not None else n
-            base, size = 0, n_pieces + 1
-    small, n_small = small_supports(sums, min_px, cfg.min_spread)
-    if not n_small:
-        through = merge if merge is not None else np.arange(n_pieces + 1, dtype=np.int32)
-        return _SupportMap(cls, lab, base, size, through, n, sums, boxes)
-    keep = ~small
-    keep[0] = False
-    lut = np.zeros(n + 1, dtype=np.int32)
-    lut[keep] = np.arange(1, int(keep.sum()) + 1, dtype=np.int32)
-    rows = np.concatenate(([0], np.flatnonzero(keep)))
-    # piece -> support -> kept support in one table: the dropped pieces' pixels go back to the
-    # facing class now (the next class's steps read it); the map is read through it once, when
-    # the supports join the objects' label map
-    through = lut[merge] if merge is not None else lut
-    drop_classes(lab, through, base, classes, FACING, boxes[small])
-    return _SupportMap(cls, lab, base, size, through, rows.size - 1, sums[rows], boxes[rows])
 
 
 def _orientation(
