@@ -29,7 +29,7 @@ from depthgram.scene.tree import Node, SceneTree
 from depthgram.sound import SoundMapping
 from depthgram.sound.choose import Chooser, distinguishable
 from depthgram.sound.live import LiveSonifier
-from depthgram.sound.synth import Voice, _Bank
+from depthgram.sound.synth import Voice, VoiceBank
 from sound_decode import listen
 
 SR = 48000
@@ -176,7 +176,7 @@ def test_bank_ramps_across_blocks_as_in_one_call() -> None:
     b = Voice(("o", 1), 660.0, 660.0, 0.8, 0.8, (0.4, 0.9), (0.4, 0.9), 9.0, 0.08, 3, 0.0)
     g = Voice(("g", 2), 500.0, 300.0, 0.2, 0.1, (0.7, 0.7), (0.9, 0.3), 0.0, 0.0, 1, 0.0)
     g2 = Voice(("g", 2), 520.0, 280.0, 0.3, 0.1, (0.6, 0.8), (0.9, 0.3), 0.0, 0.0, 1, 0.0)
-    one, blocks = _Bank(m, SR), _Bank(m, SR)
+    one, blocks = VoiceBank(m, SR), VoiceBank(m, SR)
     whole = [one.render({a.key: a, g.key: g}, 4800), one.render({b.key: b, g.key: g2}, 4800)]
     # The ramp (20 ms = 960 samples) spans several 256-sample blocks: it must go on, not jump.
     parts = [blocks.render({a.key: a, g.key: g}, 256) for _ in range(4800 // 256)]

@@ -28,7 +28,7 @@ from depthgram.scene.tree import SceneTree
 from depthgram.segmentation.objects import SceneObject
 from depthgram.sound.choose import Chooser
 from depthgram.sound.mapping import SoundMapping
-from depthgram.sound.synth import Voice, _Bank
+from depthgram.sound.synth import Voice, VoiceBank
 
 #: Seconds the audio process has to fade out, stop its device and report.
 STOP_TIMEOUT_S = 15.0
@@ -76,7 +76,7 @@ class LiveSonifier:
         self.mapping = mapping or SoundMapping()
         self.samplerate = int(samplerate)
         self.frame_size = frame_size
-        self._bank = _Bank(self.mapping, self.samplerate)
+        self._bank = VoiceBank(self.mapping, self.samplerate)
         self._chooser = Chooser(self.mapping)
         self._next: _Update | None = None  # written by update(), taken by render()
         self._targets: dict[tuple[str, int], Voice] = {}

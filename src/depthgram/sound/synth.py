@@ -240,7 +240,7 @@ def _soft_limit(x: NDArray[np.float64]) -> NDArray[np.float64]:
     return np.where(a <= _KNEE, x, np.sign(x) * over)
 
 
-class _Bank:
+class VoiceBank:
     """The voices sounding now, each with its phases and its ramp toward the latest targets.
 
     Shared by :class:`Sonifier` (one call per frame) and :class:`depthgram.sound.live.LiveSonifier`
@@ -259,7 +259,7 @@ class _Bank:
 
     def warm_up(self) -> None:
         """Compile the kernels now (a beep and a glide, rendered and thrown away), not in a live callback."""
-        probe = _Bank(self.mapping, self.samplerate)
+        probe = VoiceBank(self.mapping, self.samplerate)
         beep = Voice(("o", 0), 440.0, 440.0, 0.5, 0.5, (0.7, 0.7), (0.7, 0.7), 4.0, 0.05, 2, 0.0)
         glide = replace(beep, key=("g", 0), freq_b=330.0, rate=0.0, beep_s=0.0, harmonics=1)
         probe.render({beep.key: beep, glide.key: glide}, 64)
@@ -388,7 +388,7 @@ class Sonifier:
         self.frame_size = frame_size
         self._seconds = 0.0
         self._samples = 0
-        self._bank = _Bank(self.mapping, self.samplerate)
+        self._bank = VoiceBank(self.mapping, self.samplerate)
         self.chooser = Chooser(self.mapping)
         self.voices_now: dict[tuple[str, int], Voice] = {}  # the voices of the last push, by key
 
