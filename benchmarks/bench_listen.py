@@ -115,10 +115,10 @@ def live(seconds: float, device: int | str | None) -> dict[str, Any]:
 
     import psutil
 
+    from depthgram.pacing import Pacer
     from depthgram.pipeline import Pipeline
     from depthgram.sound.live import AudioProcess, percentiles
     from depthgram.sources.prefetch import prefetch
-    from depthgram.views.player import Pacer
 
     spec, frames = _frames(seconds)
     src = prefetch(frames, ahead=2)

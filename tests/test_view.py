@@ -565,7 +565,7 @@ class _FakeClock:
 
 
 def test_pacer_drops_a_frame_only_when_its_slot_passed_more_than_a_period_ago() -> None:
-    from depthgram.views.player import Pacer
+    from depthgram.pacing import Pacer
 
     clock = _FakeClock()
     pacer = Pacer(0.1, clock=clock)  # 10 frames/s, clock started at t = 0
@@ -582,7 +582,7 @@ def test_pacer_drops_a_frame_only_when_its_slot_passed_more_than_a_period_ago() 
 
 
 def test_pacer_never_drops_from_a_source_slower_than_real_time() -> None:
-    from depthgram.views.player import Pacer
+    from depthgram.pacing import Pacer
 
     clock = _FakeClock()
     pacer = Pacer(0.1, clock=clock)

@@ -49,11 +49,11 @@ def run(args: argparse.Namespace) -> int:
     """Run the command on parsed ``args``; return the exit status."""
     from depthgram._optional import needs_extra
     from depthgram.errors import InputError
+    from depthgram.pacing import Pacer
     from depthgram.pipeline import Pipeline
     from depthgram.sound import SoundMapping
     from depthgram.sound.live import AudioProcess, percentiles
     from depthgram.sources.prefetch import prefetch
-    from depthgram.views.player import Pacer
 
     if not 8000 <= args.samplerate <= 192000:
         raise InputError(f"--samplerate must be between 8000 and 192000 Hz, got {args.samplerate}")

@@ -33,9 +33,9 @@ def run(args: argparse.Namespace) -> int:
     """Run the command on parsed ``args``; return the exit status."""
     import numpy as np
 
+    from depthgram.pacing import Pacer
     from depthgram.pipeline import Pipeline
     from depthgram.sources.prefetch import prefetch
-    from depthgram.views.player import Pacer
 
     if args.read_ahead < 0:
         print(f"depthgram run: --read-ahead must be >= 0, got {args.read_ahead}", file=sys.stderr)

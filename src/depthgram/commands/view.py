@@ -165,9 +165,10 @@ def run_foxglove(args: argparse.Namespace) -> int:
     from depthgram.commands._common import load_config, open_input
     from depthgram.errors import InputError
     from depthgram.export.foxglove_live import FoxgloveServer
+    from depthgram.pacing import Pacer
     from depthgram.pipeline import Pipeline
     from depthgram.sources.prefetch import prefetch
-    from depthgram.views.player import Pacer, check_speed
+    from depthgram.views.player import check_speed
 
     speed = check_speed(args.speed)
     if args.host not in _LOOPBACK and not args.allow_host:
