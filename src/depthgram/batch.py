@@ -247,7 +247,15 @@ def _run_local(
         with ProcessPoolExecutor(
             max_workers=min(workers, len(pending)), initializer=_watch_parent, initargs=(os.getpid(),)
         ) as pool:
-            futs: dict[Future[dict[str, Any]], int] = {pool.submit(_guarded, *args[i]): i for i in pending}
+            futs: dict[Future[dict[str, Any]], int] = {}
+            for n_submitted, i in enumerate(pending):
+                try:
+                    futs[pool.submit(_guarded, *args[i])] = i
+                except BrokenProcessPool:
+                    # a worker died while the rest were being handed out (a fast death, a loaded
+                    # machine): what was not handed out goes into the next pool untouched
+                    queue.extend(pending[n_submitted:])
+                    break
             for fut in as_completed(futs):
                 i = futs[fut]
                 try:
