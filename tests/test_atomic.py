@@ -192,10 +192,10 @@ def test_two_describes_writing_one_file_both_succeed_and_leave_it_whole(tmp_path
 
     env = {**os.environ, "PYTHONPATH": str(Path(depthgram.__file__).resolve().parents[1])}
     out = tmp_path / "scenes.jsonl"
-    cmd = [sys.executable, "-m", "depthgram.cli", "describe", "sim:approach?frames=20", "--quiet", "--json", str(out)]
+    cmd = [sys.executable, "-m", "depthgram.cli", "describe", "sim:approach?frames=8", "--quiet", "--json", str(out)]
     procs = [subprocess.Popen(cmd, env=env, stderr=subprocess.PIPE, text=True) for _ in range(2)]
     errs = [p.communicate(timeout=300)[1] for p in procs]
     assert [p.returncode for p in procs] == [0, 0], errs
     lines = out.read_text(encoding="utf-8").splitlines()
-    assert len(lines) == 20 and all(line.startswith("{") and line.endswith("}") for line in lines)
+    assert len(lines) == 8 and all(line.startswith("{") and line.endswith("}") for line in lines)
     assert [p.name for p in tmp_path.iterdir()] == ["scenes.jsonl"]
