@@ -108,3 +108,36 @@ def test_any_numeric_array_gives_a_result_or_a_clear_error(tmp_path: Path, arr: 
         path.write_bytes(buf.getvalue())
     outcome, detail = fuzz_readers.run_one(path)
     assert outcome in ("ok", "error"), detail
+
+
+@st.composite
+def pgm_with_lying_header(draw: st.DrawFn) -> bytes:
+    magic = draw(st.sampled_from([b"P5", b"P2", b"P6", b"P4"]))
+    w = draw(st.integers(-2, 1 << 33) | st.integers(0, 50))
+    h = draw(st.integers(-2, 1 << 33) | st.integers(0, 50))
+    top = draw(st.sampled_from([0, 1, 255, 256, 65535, 65536, 1 << 31]))
+    return magic + f"\n{w} {h}\n{top}\n".encode() + draw(st.binary(max_size=3000))
+
+
+@st.composite
+def png_with_lying_header(draw: st.DrawFn) -> bytes:
+    import zlib
+
+    def chunk(kind: bytes, data: bytes) -> bytes:
+        return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data))
+
+    w = draw(st.integers(0, (1 << 31) - 1) | st.integers(0, 40))
+    h = draw(st.integers(0, (1 << 31) - 1) | st.integers(0, 40))
+    depth, colour = draw(st.sampled_from([(16, 0), (8, 0), (16, 2), (1, 0), (16, 4), (8, 3), (7, 0)]))
+    ihdr = struct.pack(">IIBBBBB", w, h, depth, colour, 0, 0, draw(st.sampled_from([0, 1])))
+    idat = zlib.compress(draw(st.binary(max_size=3000)))
+    return b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", ihdr) + chunk(b"IDAT", idat) + chunk(b"IEND", b"")
+
+
+@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(data=pgm_with_lying_header() | png_with_lying_header(), suffix=st.sampled_from([".pgm", ".png"]))
+def test_an_image_header_that_lies_is_a_clear_error(tmp_path: Path, data: bytes, suffix: str) -> None:
+    path = tmp_path / f"lying{suffix}"
+    path.write_bytes(data)
+    outcome, detail = fuzz_readers.run_one(path)
+    assert outcome in ("ok", "error"), detail
