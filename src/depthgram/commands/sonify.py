@@ -182,8 +182,13 @@ class _Writer:
 
 def run(args: argparse.Namespace) -> int:
     """Run the command on parsed ``args``; return the exit status."""
+    import shutil
+    import tempfile
+    from contextlib import ExitStack
+
     import soundfile as sf
 
+    from depthgram.atomic import atomic_open, atomic_path, writes_in_place
     from depthgram.errors import InputError
     from depthgram.sound import SoundMapping
 
@@ -197,19 +202,27 @@ def run(args: argparse.Namespace) -> int:
     mapping = SoundMapping.preset(args.preset) if args.preset else load_config(args).sound
     src, results = pipeline_results(args, NAME)
     fps = getattr(src, "fps", None) or args.fps
-    # Streamed to disk frame by frame: a long recording never sits in memory as audio.
-    with sf.SoundFile(args.wav, "w", samplerate=args.samplerate, channels=2, subtype="PCM_16") as wav:
-        w = _Writer(wav, mapping, args.samplerate, fps, args.still_duration, args.input)
-        try:
+    # Streamed to disk frame by frame: a long recording never sits in memory as audio. Under a
+    # temporary name renamed when complete, so a failure leaves no half file that looks like a
+    # result. A FIFO, a device or a socket is never replaced nor removed (issue 32.1): a WAV
+    # header is completed by seeking back, so the audio goes to an anonymous temporary file
+    # first and is copied through at the end.
+    with ExitStack() as stack:
+        target: Any = (
+            stack.enter_context(tempfile.TemporaryFile())
+            if writes_in_place(args.wav)
+            else stack.enter_context(atomic_path(args.wav))
+        )
+        with sf.SoundFile(target, "w", samplerate=args.samplerate, channels=2, subtype="PCM_16", format="WAV") as wav:
+            w = _Writer(wav, mapping, args.samplerate, fps, args.still_duration, args.input)
             for result in results:
                 w.add(result)
             w.close()
-        except BaseException:
-            wav.close()
-            Path(args.wav).unlink(missing_ok=True)  # no half-written file that looks like a result
-            raise
-    if not w.frames:
-        Path(args.wav).unlink(missing_ok=True)
-        raise InputError(f"{args.input}: no frame to sonify")
+        if not w.frames:
+            raise InputError(f"{args.input}: no frame to sonify")
+        if not isinstance(target, Path):
+            target.seek(0)
+            with atomic_open(args.wav, "wb") as out:
+                shutil.copyfileobj(target, out)
     print("\n".join(w.summary(args.wav)))
     return 0
