@@ -99,3 +99,15 @@ def test_describe_mcap_into_a_fifo_reaches_its_reader_whole(tmp_path: Path) -> N
     frames = list(read(copy))
     assert [f.index for f in frames] == [0, 1, 2]
     np.testing.assert_allclose(frames[2].depth, np.rint(list(read("sim:approach?frames=3"))[2].depth))
+
+
+def test_without_the_mcap_extra_the_message_names_it(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    import sys
+
+    from depthgram.errors import MissingExtraError
+
+    out = tmp_path / "out.mcap"
+    assert main(["describe", "sim:approach?frames=2", "--quiet", "--mcap", str(out), "--json", "/dev/null"]) == 0
+    monkeypatch.setitem(sys.modules, "mcap.reader", None)  # as when the extra is not installed
+    with pytest.raises(MissingExtraError, match=r"pip install 'depthgram\[mcap\]'"):
+        open_source(out)

@@ -27,24 +27,35 @@ CALIBRATION_TOPIC = "/depthgram/calibration"
 #: The writer's ``library`` field (``McapWriter``): depthgram's file rather than a ROS 2 bag.
 LIBRARY = "depthgram"
 _ASSUMED = "assumed"
+_MAGIC = b"\x89MCAP0\r\n"
 
 
 def is_own_mcap(path: Path) -> bool:
     """Tell whether ``path`` is an MCAP file that depthgram wrote (its header names depthgram).
 
     False for anything else, a ROS 2 MCAP bag or a file too damaged to have a header, which the
-    bag reader then reads or refuses.
+    bag reader then reads or refuses. The header is read by hand, so that without the ``mcap``
+    extra the message names that extra rather than the bag reader's.
     """
-    try:
-        from mcap.reader import make_reader
-    except ImportError:  # without the extra the bag reader's message names what to install
-        return False
+    # magic, then the Header record: opcode 0x01, uint64 length, the profile and the library as
+    # (uint32 length, UTF-8) strings (https://mcap.dev/spec#header-op0x01)
     try:
         with open(path, "rb") as fh:
-            header = make_reader(fh).get_header()
-    except Exception:  # not an MCAP file, or damaged at its start: not ours to say
+            head = fh.read(4096)
+    except OSError:
         return False
-    return header.profile != "ros2" and str(header.library).startswith(LIBRARY)
+    if head[:8] != _MAGIC or head[8:9] != b"\x01":
+        return False
+    at = 17
+    strings = []
+    for _ in range(2):
+        if len(head) < at + 4:
+            return False
+        n = int.from_bytes(head[at : at + 4], "little")
+        strings.append(head[at + 4 : at + 4 + n].decode("utf-8", errors="replace"))
+        at += 4 + n
+    profile, library = strings
+    return profile != "ros2" and library.startswith(LIBRARY)
 
 
 class OwnMcapSource(Source):
@@ -93,7 +104,8 @@ class OwnMcapSource(Source):
     def _count(self) -> int:
         # the summary's statistics when the file has them (a finished file), else a pass over the
         # messages without decoding them (a file cut short)
-        from mcap.reader import make_reader
+        with needs_extra("mcap", f"{self.path}: reading depthgram's MCAP"):
+            from mcap.reader import make_reader
 
         try:
             with open(self.path, "rb") as fh:
