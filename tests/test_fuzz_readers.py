@@ -141,3 +141,34 @@ def test_an_image_header_that_lies_is_a_clear_error(tmp_path: Path, data: bytes,
     path.write_bytes(data)
     outcome, detail = fuzz_readers.run_one(path)
     assert outcome in ("ok", "error"), detail
+
+
+def test_a_png_cut_inside_its_header_is_a_clear_error(tmp_path: Path) -> None:
+    # found by the fuzzing (seed 7): the size read before decoding unpacked a cut IHDR
+    import cv2
+
+    whole = tmp_path / "whole.png"
+    assert cv2.imwrite(str(whole), np.full((8, 8), 1000, np.uint16))
+    for cut in range(9, 33):
+        path = tmp_path / "cut.png"
+        path.write_bytes(whole.read_bytes()[:cut])
+        outcome, detail = fuzz_readers.run_one(path)
+        assert outcome == "error", (cut, detail)
+
+
+def test_a_bag_message_that_decodes_to_other_fields_is_a_clear_error(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # found by the fuzzing (seed 7): a damaged definition embedded in the bag gave an Image
+    # without its encoding, and image_array's AttributeError escaped
+    from depthgram.errors import InputError
+    from depthgram.sources import bag
+
+    class NoEncoding:
+        header = None
+
+    seeds = fuzz_readers.write_seeds(tmp_path)
+    src = bag.BagSource(seeds["ros1"], bag.SourceConfig(), name="b")
+    monkeypatch.setattr(type(bag._reader(seeds["ros1"])), "deserialize", lambda self, raw, msgtype: NoEncoding())
+    with pytest.raises(InputError, match=r"seed\.bag topic .* \(frame 0\): the message .* is not a readable"):
+        list(src)

@@ -182,10 +182,20 @@ class BagSource(Source):
                         f"{where}: cannot decode the message at log time {log_ns} ns, the bag is damaged "
                         f"({type(exc).__name__}: {exc})"
                     ) from None
-                stamp = msg.header.stamp
-                t = stamp.sec + stamp.nanosec * 1e-9
+                try:
+                    stamp = msg.header.stamp
+                    t = stamp.sec + stamp.nanosec * 1e-9
+                    samples = image_array(msg, where)
+                except DepthgramError:  # ours already (an encoding that is not depth): as it is
+                    raise
+                except (AttributeError, TypeError, ValueError) as exc:
+                    # a damaged message definition embedded in the bag decodes to other fields (issue 32.2)
+                    raise InputError(
+                        f"{where}: the message at log time {log_ns} ns is not a readable sensor_msgs/Image, "
+                        f"the bag is damaged ({type(exc).__name__}: {exc})"
+                    ) from None
                 frame = to_frame(
-                    image_array(msg, where),
+                    samples,
                     self.cfg,
                     where=where,
                     index=i,
