@@ -172,3 +172,26 @@ def test_a_bag_message_that_decodes_to_other_fields_is_a_clear_error(
     monkeypatch.setattr(type(bag._reader(seeds["ros1"])), "deserialize", lambda self, raw, msgtype: NoEncoding())
     with pytest.raises(InputError, match=r"seed\.bag topic .* \(frame 0\): the message .* is not a readable"):
         list(src)
+
+
+def test_a_bag_whose_stamps_go_back_names_the_bag_and_the_frame(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # found by the fuzzing (seeds 8-10): the tracker's "tracker frame 1: time_s ... (call
+    # reset() between sequences)" named neither the file nor the frame
+    from rosbags.rosbag1 import Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    from depthgram.cli import main
+
+    ts = get_typestore(Stores.ROS1_NOETIC)
+    bag = tmp_path / "back.bag"
+    frames = fuzz_readers._depth(n=3)
+    with Writer(bag) as w:
+        conn = w.add_connection("/camera/depth/image_raw", "sensor_msgs/msg/Image", typestore=ts)
+        for k, (i, a) in enumerate(zip((0, 5, 3), frames, strict=True)):
+            msg = fuzz_readers._image_msg(ts, a, i)
+            w.write(conn, 1_000_000_000 + k, ts.serialize_ros1(msg, "sensor_msgs/msg/Image"))
+    assert main(["describe", str(bag), "--quiet", "--json", "/dev/null"]) == 2
+    err = capsys.readouterr().err
+    assert str(bag) in err and "(frame 2, bag:/camera/depth/image_raw#2)" in err and "Traceback" not in err
