@@ -7,6 +7,7 @@ import stat
 import threading
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from depthgram.atomic import atomic_open, atomic_path
@@ -182,3 +183,55 @@ def test_a_unix_socket_is_streamed_to_its_listener(tmp_path: Path) -> None:
             fh.write("over the socket\n")
         t.join(timeout=60)
     assert got == [b"over the socket\n"] and stat.S_ISSOCK(path.stat().st_mode)
+
+
+def test_two_describes_writing_one_file_both_succeed_and_leave_it_whole(tmp_path: Path) -> None:
+    import subprocess
+    import sys
+
+    import depthgram
+
+    env = {**os.environ, "PYTHONPATH": str(Path(depthgram.__file__).resolve().parents[1])}
+    out = tmp_path / "scenes.jsonl"
+    cmd = [sys.executable, "-m", "depthgram.cli", "describe", "sim:approach?frames=8", "--quiet", "--json", str(out)]
+    procs = [subprocess.Popen(cmd, env=env, stderr=subprocess.PIPE, text=True) for _ in range(2)]
+    errs = [p.communicate(timeout=300)[1] for p in procs]
+    assert [p.returncode for p in procs] == [0, 0], errs
+    lines = out.read_text(encoding="utf-8").splitlines()
+    assert len(lines) == 8 and all(line.startswith("{") and line.endswith("}") for line in lines)
+    assert [p.name for p in tmp_path.iterdir()] == ["scenes.jsonl"]
+
+
+def test_sonify_streams_a_whole_wav_into_a_fifo(tmp_path: Path) -> None:
+    # a WAV header is completed by seeking back, which a FIFO cannot: libsndfile refused it, and
+    # a failure then unlinked the FIFO (or /dev/null) as if it were a half-written file
+    sf = pytest.importorskip("soundfile")
+    import io
+
+    fifo = tmp_path / "sound"  # no .wav: the format is WAV whatever the name
+    os.mkfifo(fifo)
+    got: list[bytes] = []
+    t = _reader(fifo, got)
+    assert main(["sonify", "sim:table", "--quiet", "--wav", str(fifo), "--still-duration", "0.5"]) == 0
+    t.join(timeout=60)
+    audio, rate = sf.read(io.BytesIO(got[0]))
+    assert rate == 22050 and audio.shape == (11025, 2) and np.abs(audio).max() > 0
+    assert stat.S_ISFIFO(fifo.stat().st_mode) and [p.name for p in tmp_path.iterdir()] == ["sound"]
+
+
+def test_sonify_to_a_character_device_keeps_it(null_device: str) -> None:
+    pytest.importorskip("soundfile")
+    before = os.stat(null_device)
+    assert main(["sonify", "sim:table", "--quiet", "--wav", null_device, "--still-duration", "0.5"]) == 0
+    after = os.stat(null_device)
+    assert stat.S_ISCHR(after.st_mode) and after.st_ino == before.st_ino
+
+
+def test_a_failed_sonify_leaves_no_file_and_keeps_the_old_one(tmp_path: Path) -> None:
+    pytest.importorskip("soundfile")
+    wav = tmp_path / "a.wav"
+    wav.write_bytes(b"an older result")
+    bad = tmp_path / "bad.png"
+    bad.write_bytes(b"\x89PNG\r\n\x1a\n garbage")
+    assert main(["sonify", str(bad), "--quiet", "--wav", str(wav)]) == 2
+    assert wav.read_bytes() == b"an older result" and sorted(p.name for p in tmp_path.iterdir()) == ["a.wav", "bad.png"]

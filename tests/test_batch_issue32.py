@@ -121,3 +121,14 @@ def test_batch_method_is_the_segmentation_method(tmp_path: Path, capsys: pytest.
     with pytest.raises(SystemExit) as exit_:
         main(["batch", "sim:table", "--out", str(out), "--method", "nonsense"])
     assert exit_.value.code == 2
+
+
+def test_outputs_inside_the_recording_are_not_a_change_of_it(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    rec = _folder(tmp_path / "rec", 2000)
+    out = rec / "results"  # a user's choice: the results beside the frames
+    assert main(["batch", str(rec), "--out", str(out), "--quiet"]) == 0
+    capsys.readouterr()
+    assert main(["batch", str(rec), "--out", str(out), "--quiet"]) == 0
+    assert "1 skipped" in capsys.readouterr().out

@@ -75,3 +75,39 @@ def test_a_damaged_own_mcap_is_a_clear_error(tmp_path: Path) -> None:
     cut.write_bytes(data[: len(data) // 2])
     with pytest.raises(InputError, match=r"cut\.mcap"):
         list(read(cut))
+
+
+def test_describe_mcap_into_a_fifo_reaches_its_reader_whole(tmp_path: Path) -> None:
+    # issue 32.1: the mcap writer asks tell() for its offsets, and a FIFO cannot seek
+    import os
+    import threading
+
+    fifo = tmp_path / "stream"
+    os.mkfifo(fifo)
+    got: list[bytes] = []
+
+    def drain() -> None:
+        with open(fifo, "rb") as fh:
+            got.append(fh.read())
+
+    t = threading.Thread(target=drain, daemon=True)
+    t.start()
+    assert main(["describe", "sim:approach?frames=3", "--quiet", "--mcap", str(fifo), "--json", "/dev/null"]) == 0
+    t.join(timeout=60)
+    copy = tmp_path / "copy.mcap"
+    copy.write_bytes(got[0])
+    frames = list(read(copy))
+    assert [f.index for f in frames] == [0, 1, 2]
+    np.testing.assert_allclose(frames[2].depth, np.rint(list(read("sim:approach?frames=3"))[2].depth))
+
+
+def test_without_the_mcap_extra_the_message_names_it(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    import sys
+
+    from depthgram.errors import MissingExtraError
+
+    out = tmp_path / "out.mcap"
+    assert main(["describe", "sim:approach?frames=2", "--quiet", "--mcap", str(out), "--json", "/dev/null"]) == 0
+    monkeypatch.setitem(sys.modules, "mcap.reader", None)  # as when the extra is not installed
+    with pytest.raises(MissingExtraError, match=r"pip install 'depthgram\[mcap\]'"):
+        open_source(out)

@@ -77,10 +77,11 @@ def input_key(spec: str) -> str:
 def content_hash(spec: str) -> str:
     """Short hash (hex) of the files an input reads: each one's path, size and modification time.
 
-    A folder counts every file under it (a ROS 2 bag's ``metadata.yaml`` and storage, a folder's
-    frames and sidecars), a glob the files it matches; ``sim:`` and ``realsense:`` inputs have
-    no files (an empty string). Sizes and times, not a digest of the bytes: a resumed batch of
-    long recordings would otherwise read every one of them again to find it unchanged.
+    A folder counts the files in it and in its ``depth/`` subfolder (a ROS 2 bag's
+    ``metadata.yaml`` and storage, a folder's frames and sidecars), a glob the files it
+    matches; ``sim:`` and ``realsense:`` inputs have no files (an empty string). Sizes and
+    times, not a digest of the bytes: a resumed batch of long recordings would otherwise read
+    every one of them again to find it unchanged.
     """
     import glob
 
@@ -91,7 +92,11 @@ def content_hash(spec: str) -> str:
     if Path(key).exists():
         base = key
     if Path(base).is_dir():
-        files = sorted(str(Path(d) / f) for d, _, names in os.walk(base) for f in names)
+        # the files a folder source reads: its own (frames, sidecars, a bag's) and its depth/
+        # subfolder's; not deeper, so that an --out inside it does not count as a change
+        files = sorted(
+            str(p) for d in (Path(base), Path(base) / "depth") if d.is_dir() for p in d.iterdir() if p.is_file()
+        )
     elif Path(base).exists():
         files = [base]
     else:

@@ -356,6 +356,7 @@ class Pipeline:
         self._focal: Intrinsics | None = None  # the focal length read from the scene, once found
         self._focal_tries = 0
         self._tracker = Tracker(self.config.tracker)
+        self._where = ""
         self._sensor: SensorModel | None = None
         self._sensor_age = 0
         self._prev: Frame | None = None
@@ -599,7 +600,13 @@ class Pipeline:
             # the pixels let the tracker read each object's depth change from its core
             use_core = cfg.tracker.depth_from == "core"
             pixels = FramePixels(frame.depth, seg.labels, frame.intrinsics) if use_core else None
-            update = self._tracker.update(seg.objects, frame.time_s, frame.size, pixels, helper=helper)
+            try:
+                update = self._tracker.update(seg.objects, frame.time_s, frame.size, pixels, helper=helper)
+            except InputError as exc:
+                # the tracker's words ("tracker frame 1: time_s ... not after ...") name neither
+                # the recording nor the frame (issue 32.2: a damaged bag's stamps)
+                where = f"{self._where} " if self._where else ""
+                raise InputError(f"{where}(frame {frame.index}, {frame.name}): {exc}") from None
             seg = _relabel(seg, {oid: m.track_id for oid, m in update.motions.items()})
             motions = {m.track_id: m for m in update.motions.values()}
             occluded = tuple((dataclasses.replace(t.last, id=t.id), _occluded_motion(t)) for t in update.occluded)
@@ -640,6 +647,7 @@ class Pipeline:
         """
         if workers < 1:
             raise InputError(f"pipeline: workers must be >= 1, got {workers}")
+        self._where = getattr(frames, "name", "") or ""  # named in the tracker's errors
         if workers > 1:
             yield from self._run_parallel(prefetch(frames, ahead=read_ahead), workers)
         elif read_ahead == 0 or getattr(frames, "live", False):

@@ -11,6 +11,7 @@ import argparse
 import importlib.util
 import os
 import sys
+import time
 from pathlib import Path
 
 NAME = "bench"
@@ -94,5 +95,8 @@ def run(args: argparse.Namespace) -> int:
         sys.modules[spec.name] = mod  # dataclasses in the script look their module up there
         spec.loader.exec_module(mod)
         print(f"\n== {name} ({path.name})", flush=True)
+        start = time.perf_counter()
         status |= int(mod.main(["--quick"] if args.quick else []) or 0)
+        # so that a user choosing suites knows what each costs (issue 32.6: --quick was not quick)
+        print(f"== {name}: {time.perf_counter() - start:.0f} s", flush=True)
     return status

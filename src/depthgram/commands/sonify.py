@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import io
 import sys
 from collections import Counter
 from pathlib import Path
@@ -186,8 +185,13 @@ class _Writer:
 
 def run(args: argparse.Namespace) -> int:
     """Run the command on parsed ``args``; return the exit status."""
+    import shutil
+    import tempfile
+    from contextlib import ExitStack
+
     import soundfile as sf
 
+    from depthgram.atomic import atomic_open, atomic_path, writes_in_place
     from depthgram.errors import InputError
     from depthgram.sound import SoundMapping
 
@@ -202,29 +206,33 @@ def run(args: argparse.Namespace) -> int:
     mapping = SoundMapping.preset(args.preset) if args.preset else load_config(args).sound
     src, results = pipeline_results(args, NAME)
     fps = getattr(src, "fps", None) or args.fps
-    # Streamed to disk frame by frame: a long recording never sits in memory as audio. A WAV's
-    # header holds its length, which a pipe cannot go back to write: standard output gets the
-    # whole file at the end.
-    target: Any = io.BytesIO() if to_stdout else args.wav
-    with sf.SoundFile(target, "w", samplerate=args.samplerate, channels=2, subtype="PCM_16", format="WAV") as wav:
-        w = _Writer(wav, mapping, args.samplerate, fps, args.still_duration, args.input)
-        try:
+    # Streamed to disk frame by frame: a long recording never sits in memory as audio. Under a
+    # temporary name renamed when complete, so a failure leaves no half file that looks like a
+    # result. A FIFO, a device, a socket or standard output is never replaced nor removed (issue
+    # 32.1): a WAV header is completed by seeking back, so the audio goes to an anonymous
+    # temporary file first and is copied through at the end.
+    with ExitStack() as stack:
+        target: Any = (
+            stack.enter_context(tempfile.TemporaryFile())
+            if to_stdout or writes_in_place(args.wav)
+            else stack.enter_context(atomic_path(args.wav))
+        )
+        with sf.SoundFile(target, "w", samplerate=args.samplerate, channels=2, subtype="PCM_16", format="WAV") as wav:
+            w = _Writer(wav, mapping, args.samplerate, fps, args.still_duration, args.input)
             for result in results:
                 w.add(result)
             w.close()
-        except BaseException:
-            wav.close()
-            if not to_stdout:
-                Path(args.wav).unlink(missing_ok=True)  # no half-written file that looks like a result
-            raise
-    if not w.frames:
-        if not to_stdout:
-            Path(args.wav).unlink(missing_ok=True)
-        raise InputError(f"{args.input}: no frame to sonify")
-    if to_stdout:
-        sys.stdout.buffer.write(target.getvalue())
-        sys.stdout.flush()
-        print("\n".join(w.summary("standard output")), file=sys.stderr)
-        return 0
+        if not w.frames:
+            raise InputError(f"{args.input}: no frame to sonify")
+        if to_stdout:
+            target.seek(0)
+            shutil.copyfileobj(target, sys.stdout.buffer)
+            sys.stdout.flush()
+            print("\n".join(w.summary("standard output")), file=sys.stderr)
+            return 0
+        if not isinstance(target, Path):
+            target.seek(0)
+            with atomic_open(args.wav, "wb") as out:
+                shutil.copyfileobj(target, out)
     print("\n".join(w.summary(args.wav)))
     return 0

@@ -15,7 +15,7 @@ from __future__ import annotations
 import json
 import os
 from types import TracebackType
-from typing import TYPE_CHECKING
+from typing import IO, TYPE_CHECKING
 
 from depthgram._optional import needs_extra
 
@@ -57,6 +57,29 @@ __all__ = [
 _DEFAULT_FPS = 30.0
 
 
+class _Counted:
+    """A stream that cannot seek (a FIFO) with the ``tell`` the mcap writer asks for its offsets.
+
+    The writer only ever appends, so the position is the count of bytes written (issue 32.1:
+    ``--mcap FIFO`` failed with "Illegal seek").
+    """
+
+    def __init__(self, raw: IO[bytes]) -> None:
+        self._raw = raw
+        self._written = 0
+
+    def write(self, data: bytes) -> int:
+        n = self._raw.write(data)
+        self._written += len(data) if n is None else n
+        return len(data) if n is None else n
+
+    def tell(self) -> int:
+        return self._written
+
+    def flush(self) -> None:
+        self._raw.flush()
+
+
 class McapWriter:
     """Write :class:`~depthgram.pipeline.SceneResult` frames to an MCAP file for Foxglove.
 
@@ -91,7 +114,8 @@ class McapWriter:
             self._file = open(self.path, "wb")  # closed in close()
         except OSError as exc:
             raise InputError(f"--mcap {self.path}: cannot write ({exc.strerror or exc})") from None
-        self._writer = Writer(self._file, compression=CompressionType.ZSTD)
+        stream: IO[bytes] = self._file if self._file.seekable() else _Counted(self._file)  # type: ignore[assignment]
+        self._writer = Writer(stream, compression=CompressionType.ZSTD)
         self._writer.start(profile="", library="depthgram")
         from depthgram import __version__
 

@@ -251,9 +251,18 @@ class BagSource(Source):
                     accel.add((float(a.x), float(a.y), float(a.z)), log_ns * 1e-9)
                     imu_frame = str(msg.header.frame_id)
                     continue
-                stamp = msg.header.stamp
-                t = stamp.sec + stamp.nanosec * 1e-9
-                samples = image_array(msg, where)
+                try:
+                    stamp = msg.header.stamp
+                    t = stamp.sec + stamp.nanosec * 1e-9
+                    samples = image_array(msg, where)
+                except DepthgramError:  # ours already (an encoding that is not depth): as it is
+                    raise
+                except (AttributeError, TypeError, ValueError) as exc:
+                    # a damaged message definition embedded in the bag decodes to other fields (issue 32.2)
+                    raise InputError(
+                        f"{where}: the message at log time {log_ns} ns is not a readable sensor_msgs/Image, "
+                        f"the bag is damaged ({type(exc).__name__}: {exc})"
+                    ) from None
                 intrinsics = self.intrinsics
                 if self._info is not None and intrinsics is not None:
                     intrinsics = self.intrinsics = self._info.for_size((samples.shape[1], samples.shape[0]))

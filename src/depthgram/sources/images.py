@@ -118,7 +118,7 @@ def check_size(height: int, width: int, where: str) -> None:
 def _header_size(buf: NDArray[np.uint8]) -> tuple[int, int] | None:
     """(height, width) from a PNG or PGM header, read before decoding; None for other files."""
     head = buf[:1024].tobytes()
-    if head[:8] == b"\x89PNG\r\n\x1a\n" and head[12:16] == b"IHDR":
+    if head[:8] == b"\x89PNG\r\n\x1a\n" and head[12:16] == b"IHDR" and len(head) >= 24:  # a cut IHDR: decoder says
         w, h = struct.unpack(">II", head[16:24])
         return int(h), int(w)
     m = re.match(rb"P[1-6]((?:\s+|#[^\n]*\n)+)(\d+)((?:\s+|#[^\n]*\n)+)(\d+)", head)

@@ -27,24 +27,35 @@ CALIBRATION_TOPIC = "/depthgram/calibration"
 #: The writer's ``library`` field (``McapWriter``): depthgram's file rather than a ROS 2 bag.
 LIBRARY = "depthgram"
 _ASSUMED = "assumed"
+_MAGIC = b"\x89MCAP0\r\n"
 
 
 def is_own_mcap(path: Path) -> bool:
     """Tell whether ``path`` is an MCAP file that depthgram wrote (its header names depthgram).
 
     False for anything else, a ROS 2 MCAP bag or a file too damaged to have a header, which the
-    bag reader then reads or refuses.
+    bag reader then reads or refuses. The header is read by hand, so that without the ``mcap``
+    extra the message names that extra rather than the bag reader's.
     """
-    try:
-        from mcap.reader import make_reader
-    except ImportError:  # without the extra the bag reader's message names what to install
-        return False
+    # magic, then the Header record: opcode 0x01, uint64 length, the profile and the library as
+    # (uint32 length, UTF-8) strings (https://mcap.dev/spec#header-op0x01)
     try:
         with open(path, "rb") as fh:
-            header = make_reader(fh).get_header()
-    except Exception:  # not an MCAP file, or damaged at its start: not ours to say
+            head = fh.read(4096)
+    except OSError:
         return False
-    return header.profile != "ros2" and str(header.library).startswith(LIBRARY)
+    if head[:8] != _MAGIC or head[8:9] != b"\x01":
+        return False
+    at = 17
+    strings = []
+    for _ in range(2):
+        if len(head) < at + 4:
+            return False
+        n = int.from_bytes(head[at : at + 4], "little")
+        strings.append(head[at + 4 : at + 4 + n].decode("utf-8", errors="replace"))
+        at += 4 + n
+    profile, library = strings
+    return profile != "ros2" and library.startswith(LIBRARY)
 
 
 class OwnMcapSource(Source):
@@ -79,13 +90,10 @@ class OwnMcapSource(Source):
         self.cfg = cfg
         self.name = name
         self.fps = fps
-        self._given = intrinsics
         self.intrinsics = intrinsics
         if cfg.timestamps is not None:
             raise InputError(f"{path}: an MCAP file's frame times come from its messages; drop timestamps=")
-        self.n = 0
-        for _ in self._messages(DEPTH_TOPIC):
-            self.n += 1
+        self.n = self._count()
         if self.n == 0:
             raise InputError(f"{path}: no {DEPTH_TOPIC} messages in depthgram's MCAP file")
         if self.intrinsics is None:
@@ -93,20 +101,39 @@ class OwnMcapSource(Source):
                 self.intrinsics = _intrinsics(calibration)
                 break
 
-    def _messages(self, topic: str) -> Iterator[tuple[int, Any]]:
-        """Yield (log time ns, decoded protobuf message) of ``topic``, damage as an InputError."""
+    def _count(self) -> int:
+        # the summary's statistics when the file has them (a finished file), else a pass over the
+        # messages without decoding them (a file cut short)
+        with needs_extra("mcap", f"{self.path}: reading depthgram's MCAP"):
+            from mcap.reader import make_reader
+
+        try:
+            with open(self.path, "rb") as fh:
+                summary = make_reader(fh).get_summary()
+        except Exception:  # a damaged summary: the pass below says where the damage is
+            summary = None
+        if summary is not None and summary.statistics is not None:
+            ids = [c.id for c in summary.channels.values() if c.topic == DEPTH_TOPIC]
+            return sum(int(summary.statistics.channel_message_counts.get(i, 0)) for i in ids)
+        return sum(1 for _ in self._messages(DEPTH_TOPIC, decode=False))
+
+    def _messages(self, topic: str, *, decode: bool = True) -> Iterator[tuple[int, Any]]:
+        """Yield (log time ns, decoded protobuf message) of ``topic``, damage as an InputError.
+
+        With ``decode`` False the message's bytes are given as they are.
+        """
         with needs_extra("mcap", f"{self.path}: reading depthgram's MCAP"):
             from foxglove_schemas_protobuf.CameraCalibration_pb2 import CameraCalibration
             from foxglove_schemas_protobuf.RawImage_pb2 import RawImage
             from mcap.reader import make_reader
-        decode: Any = {DEPTH_TOPIC: RawImage, CALIBRATION_TOPIC: CameraCalibration}[topic]
+        parse: Any = {DEPTH_TOPIC: RawImage, CALIBRATION_TOPIC: CameraCalibration}[topic]
         i = 0
         try:
             with open(self.path, "rb") as fh:
-                # (mcap reads a file without its summary, cut short by a killed writer, in
-                # file order: its frames up to the cut are kept)
+                # a file without its summary (a killed writer's) is read in file order, up to
+                # the damage, which is then an error naming the message
                 for _, _channel, message in make_reader(fh).iter_messages(topics=[topic]):
-                    yield message.log_time, decode.FromString(message.data)
+                    yield message.log_time, parse.FromString(message.data) if decode else message.data
                     i += 1
         except DepthgramError:
             raise
