@@ -628,3 +628,24 @@ def test_player_moves_between_its_states_as_the_controls_say() -> None:
         "ended",
         "paused",
     ]
+
+
+def test_the_pacer_admits_frames_on_time_drops_late_ones_and_waits_for_early_ones() -> None:
+    from depthgram.pacing import Pacer
+
+    now = [0.0]
+    slept: list[float] = []
+
+    def sleep(s: float) -> None:
+        slept.append(s)
+        now[0] += s
+
+    pacer = Pacer(0.1, clock=lambda: now[0])
+    assert pacer.admit(0.0, sleep) and slept == []  # due at once
+    now[0] = 0.05
+    assert pacer.admit(0.1, sleep)  # early: waits for its slot
+    assert slept == [pytest.approx(0.05)]
+    now[0] = 0.45  # the consumer was busy: the frame due at 0.2 is more than a period late
+    assert not pacer.admit(0.2, sleep)
+    assert pacer.admit(0.4, sleep)  # 0.05 late, within a period: taken at once
+    assert len(slept) == 1

@@ -39,6 +39,7 @@ class Pacer:
         self.clock = clock
         self.due = clock()
         self.read_s = 0.0  # running mean time to read one frame (s)
+        self._last_s: float | None = None  # the time of the last frame admitted (s)
 
     def start(self, now: float | None = None) -> None:
         """Start the clock: the next frame is due ``now``."""
@@ -73,3 +74,19 @@ class Pacer:
         if self.slow_source:
             now = self.clock() if now is None else now
             self.due = max(self.due, now - self.period)
+
+    def admit(self, time_s: float, sleep: Callable[[float], None] = time.sleep) -> bool:
+        """Take the frame stamped ``time_s`` (s): False when its slot is already lost, else wait for it.
+
+        The frame is due its time's gap after the last one's (:meth:`advance`); a late one is
+        lost as a live sensor loses it, an early one waits (``sleep``) until its slot.
+        """
+        if self._last_s is not None:
+            self.advance(time_s - self._last_s)
+        self._last_s = time_s
+        if self.late():
+            return False
+        wait = self.wait_s()
+        if wait > 0:
+            sleep(wait)
+        return True

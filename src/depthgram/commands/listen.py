@@ -94,7 +94,6 @@ def run(args: argparse.Namespace) -> int:
     try:
         pacer = Pacer(period, clock=time.perf_counter)
         start = pacer.due
-        last_time: float | None = None
         stream = itertools.chain([first], frames)
         i = -1
         while True:
@@ -109,16 +108,9 @@ def run(args: argparse.Namespace) -> int:
             if args.seconds is not None and time.perf_counter() - start >= args.seconds:
                 break
             if fps:
-                t_frame = frame.time_s if frame.time_s is not None else i * period
-                if last_time is not None:
-                    pacer.advance(t_frame - last_time)
-                last_time = t_frame
-                if pacer.late():
+                if not pacer.admit(frame.time_s if frame.time_s is not None else i * period):
                     dropped += 1
                     continue
-                wait = pacer.wait_s()
-                if wait > 0:
-                    time.sleep(wait)
             arrival = time.perf_counter()  # a recording's frame "arrives" when it is due
             result = pipe.process(frame)
             audio.update(

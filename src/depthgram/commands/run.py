@@ -46,7 +46,6 @@ def run(args: argparse.Namespace) -> int:
     period = None if args.fast or not fps else 1.0 / fps
     latencies: list[float] = []
     dropped = 0
-    last_time: float | None = None
     # frames are decoded in a thread beside the pipeline (as Pipeline.run does), as a sensor
     # delivers them; the loop is written out here because a live sensor drops late frames
     frames = prefetch(src, ahead=args.read_ahead)
@@ -67,16 +66,9 @@ def run(args: argparse.Namespace) -> int:
         for i, frame in enumerate(progress(frames, total=source_len(src), desc=NAME, quiet=args.quiet)):
             if period is not None:
                 # A live sensor does not wait: a frame whose slot has passed while we were busy is lost.
-                t_frame = frame.time_s if frame.time_s is not None else i * period
-                if last_time is not None:
-                    pacer.advance(t_frame - last_time)
-                last_time = t_frame
-                if pacer.late():
+                if not pacer.admit(frame.time_s if frame.time_s is not None else i * period):
                     dropped += 1
                     continue
-                wait = pacer.wait_s()
-                if wait > 0:
-                    time.sleep(wait)
             result = pipe.process(frame)
             latencies.append(result.latency_s)
             if args.print_sentences:
