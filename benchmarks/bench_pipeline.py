@@ -202,7 +202,10 @@ def real_pipeline_row(frames: int = 100) -> dict[str, Any] | None:
     from depthgram.pipeline import Pipeline
     from depthgram.segmentation import segment
 
-    folder = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "7scenes_redkitchen_seq"
+    folder = (
+        Path(os.environ.get("DEPTHGRAM_DATA") or Path(__file__).resolve().parents[1].parent / "shared" / "data")
+        / "7scenes_redkitchen_seq"
+    )
     if not folder.is_dir():
         return None
     clip = [f for _, f in zip(range(frames), depthgram.read(str(folder), fps=30.0), strict=False)]
@@ -262,7 +265,10 @@ def workers_scaling(frames: int = 300) -> list[dict[str, Any]] | None:
     import depthgram
     from depthgram.pipeline import Pipeline
 
-    folder = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "7scenes_redkitchen_seq"
+    folder = (
+        Path(os.environ.get("DEPTHGRAM_DATA") or Path(__file__).resolve().parents[1].parent / "shared" / "data")
+        / "7scenes_redkitchen_seq"
+    )
     if not folder.is_dir():
         return None
     rows: list[dict[str, Any]] = []

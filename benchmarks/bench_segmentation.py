@@ -32,8 +32,8 @@ import numpy as np
 from depthgram.segmentation import segment
 
 SIZES = ((176, 132), (640, 480), (1280, 720))
-#: Real recordings timed beside the simulator (../shared/data; skipped when absent).
-SHARED = Path(__file__).resolve().parents[1].parent / "shared" / "data"
+#: Real recordings timed beside the simulator (``DEPTHGRAM_DATA``, else ../shared/data; skipped when absent).
+SHARED = Path(os.environ.get("DEPTHGRAM_DATA") or Path(__file__).resolve().parents[1].parent / "shared" / "data")
 REAL = ("nvlabs_ucn_demo_tabletop", "7scenes_redkitchen_seq", "azure_kinect_tof_mug_single")
 TARGET_FPS = {(176, 132): 2000.0, (640, 480): 300.0, (1280, 720): 100.0}
 #: The default method with the sensor model given, as :class:`depthgram.Pipeline` passes it in a
@@ -83,7 +83,7 @@ def run_bench(
     best: on a shared virtual machine whole seconds can run 15-45 % slow, and one long window
     per case would give that case alone the slow spell.
     """
-    from depthgram.segmentation.sensor import estimate_sensor
+    from depthgram.segmentation.noise_model import estimate_sensor
     from depthgram.sensor import simulate
 
     frames = {size: next(iter(simulate("table", 1, size=size, seed=seed))).frame for size in sizes}

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import os
 import sys
 import time
 from collections.abc import Sequence
@@ -170,11 +171,15 @@ def real_rows(frames: int = 300) -> dict[str, float] | None:
 
     import cv2
 
-    from depthgram.dynamics.core import FramePixels
+    from depthgram.dynamics.camera_motion import FramePixels
     from depthgram.frame import Intrinsics, make_frame
     from depthgram.segmentation import segment
 
-    folder = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "7scenes_redkitchen_seq" / "depth"
+    folder = (
+        Path(os.environ.get("DEPTHGRAM_DATA") or Path(__file__).resolve().parents[1].parent / "shared" / "data")
+        / "7scenes_redkitchen_seq"
+        / "depth"
+    )
     paths = sorted(folder.glob("*.png"))[:frames]
     if not paths:
         return None
@@ -241,12 +246,15 @@ def truth_rows(
 
     import cv2
 
-    from depthgram.dynamics.core import FramePixels
+    from depthgram.dynamics.camera_motion import FramePixels
     from depthgram.dynamics.evaluate import radial_velocity_from_poses
     from depthgram.frame import Intrinsics, make_frame
     from depthgram.segmentation import segment
 
-    root = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "7scenes_redkitchen_seq"
+    root = (
+        Path(os.environ.get("DEPTHGRAM_DATA") or Path(__file__).resolve().parents[1].parent / "shared" / "data")
+        / "7scenes_redkitchen_seq"
+    )
     paths = sorted((root / "depth").glob("*.png"))[:frames]
     if not paths:
         return None

@@ -200,7 +200,11 @@ def view_once(spec: str, fps: float, page: str, compress: bool, sound: bool) -> 
 
 def main(argv: list[str] | None = None) -> None:
     p = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
-    p.add_argument("spec", nargs="?", default="../shared/data/7scenes_redkitchen_seq")
+    p.add_argument(
+        "spec",
+        nargs="?",
+        default=os.path.join(os.environ.get("DEPTHGRAM_DATA") or "../shared/data", "7scenes_redkitchen_seq"),
+    )
     p.add_argument("--fps", type=float, default=30.0)
     p.add_argument("--page", choices=("ws", "chromium", "both"), default="both")
     p.add_argument("--repeat", type=int, default=1, help="run and viewer pairs, back to back")

@@ -1,30 +1,37 @@
-"""Golden regression of the segmentation: the same label maps and objects after every speed step.
+"""Golden regression of the segmentation: the same label maps and objects, within a stated tolerance.
 
-Segments a fixed set of frames with every method and compares, per (frame, method), a digest of
-the label map, the orientation classes, the band limits and the objects (their repr, so every
-field of every object and part) with the stored digests in ``benchmarks/golden.json``. The
-frames: the simulator's ``table``, ``corridor`` and ``crossing`` scenes at 176 x 132 and
-640 x 480 with seeds 0 and 1 (``table`` also at 1280 x 720, where the subsampling steps differ),
-and the real recordings under ``../shared/data`` (skipped when absent), YCB-Video read with
-``--scale 0.1``. The ``surfaces`` method runs twice: with the sensor model estimated from the
-frame (what ``segment`` does) and with a fixed profile (what the pipeline passes).
+Segments a fixed set of frames with every method and compares, per (frame, method), the label map,
+the orientation classes, the band limits and the objects (their repr, so every field of every
+object and part) with the stored values in ``benchmarks/golden.npz``. The frames: the simulator's
+``table``, ``corridor`` and ``crossing`` scenes at 176 x 132 and 640 x 480 with seeds 0 and 1
+(``table`` also at 1280 x 720, where the subsampling steps differ), and the real recordings under
+``../shared/data`` (skipped when absent), YCB-Video read with ``--scale 0.1``. The ``surfaces``
+method runs twice: with the sensor model estimated from the frame (what ``segment`` does) and with
+a fixed profile (what the pipeline passes).
 
-Run: ``PYTHONPATH=src .venv/bin/python benchmarks/golden.py`` (exit 1 on any difference;
-``--update`` rewrites the digests; ``--ycb`` also scores YCB-Video against its label PNGs;
-``--only SUBSTRING`` limits the cases). Objects are compared twice: exactly, and with every
-float rounded to 9 significant digits, so a change in the last bits of a sum (reassociated
-additions) is told apart from a changed result.
+The tolerance. Integer outputs (labels, classes, object count, areas, ids, kinds: the objects'
+repr with every float taken out) must be identical, except for a case listed in :data:`ALLOWED`
+with the number of label pixels that may change and the reason. Floats (band limits, depths,
+centres, spreads, planes) must agree to 9 significant digits (``rtol`` 1e-9): the last bits of a
+float move with the CPU's BLAS kernels (``OPENBLAS_CORETYPE``) and with reassociated sums, and
+such a move is not a changed result.
+
+Run: ``PYTHONPATH=src .venv/bin/python benchmarks/golden.py`` (exit 1 on any difference beyond
+the tolerance; ``--update`` rewrites the stored values; ``--ycb`` also scores YCB-Video against
+its label PNGs; ``--only SUBSTRING`` limits the cases). ``tests/test_golden.py`` runs the same
+comparison in CI.
 """
 
 from __future__ import annotations
 
 import argparse
-import hashlib
-import json
+import io
+import os
 import re
 import sys
 import time
 from collections.abc import Iterator
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -34,8 +41,8 @@ from depthgram.frame import Frame
 from depthgram.segmentation import segment
 
 ROOT = Path(__file__).resolve().parents[1]
-SHARED = ROOT.parent / "shared" / "data"
-DIGESTS = Path(__file__).with_name("golden.json")
+SHARED = Path(os.environ.get("DEPTHGRAM_DATA") or ROOT.parent / "shared" / "data")  # bench --data
+STORE = Path(__file__).with_name("golden.npz")
 METHODS = ("threshold", "slices", "surfaces", "region", "paper")
 #: (recording, read options, frames taken)
 REAL: tuple[tuple[str, dict[str, Any], int], ...] = (
@@ -46,7 +53,11 @@ REAL: tuple[tuple[str, dict[str, Any], int], ...] = (
     ("open3d_tum_nyu_sun_singles/TUM_depth.png", {"scale_mm": 0.2}, 1),
     ("ycbv_0000_labelled", {"scale_mm": 0.1}, 10),
 )
-_FLOAT = re.compile(r"-?\d+\.\d+(?:e[-+]?\d+)?")
+#: relative tolerance of every float: 9 significant digits
+RTOL = 1e-9
+#: case -> (label pixels that may change, why); empty: every case's labels are identical
+ALLOWED: dict[str, tuple[int, str]] = {}
+_FLOAT = re.compile(r"-?\d+\.\d+(?:e[-+]?\d+)?|-?\d+e[-+]?\d+|nan|-?inf")
 
 
 def frames() -> Iterator[tuple[str, Frame]]:
@@ -70,46 +81,109 @@ def frames() -> Iterator[tuple[str, Frame]]:
             yield f"{name}#{i}", f
 
 
-def _sha(*arrays: Any) -> str:
-    h = hashlib.sha256()
-    for a in arrays:
-        if a is None:
-            h.update(b"none")
-            continue
-        a = np.ascontiguousarray(a)
-        h.update(f"{a.dtype}{a.shape}".encode())
-        h.update(a.tobytes())
-    return h.hexdigest()[:16]
+def _split(text: str) -> tuple[str, np.ndarray]:
+    """The repr with its floats taken out, and the floats."""
+    floats = np.array([float(m) for m in _FLOAT.findall(text)], np.float64)
+    return _FLOAT.sub("#", text), floats
 
 
-def _rounded(text: str) -> str:
-    return _FLOAT.sub(lambda m: f"{float(m.group()):.9g}", text)
+@dataclass(frozen=True)
+class Case:
+    """What one segmentation gives: the arrays and the objects' repr split in text and floats."""
+
+    labels: np.ndarray
+    classes: np.ndarray | None
+    bands: np.ndarray | None
+    skeleton: str
+    floats: np.ndarray
 
 
-def digest(f: Frame, method: str, sensor: str | None = None) -> dict[str, Any]:
-    """Digests of one segmentation."""
+def record(f: Frame, method: str, sensor: str | None = None) -> Case:
+    """Segment one frame and keep what the comparison reads."""
     seg = segment(f.depth, valid=f.valid, intrinsics=f.intrinsics, method=method, sensor=sensor)
-    text = repr(seg.objects)
-    return {
-        "labels": _sha(seg.labels),
-        "classes": _sha(seg.classes),
-        "bands": _sha(seg.bands_mm),
-        "objects": hashlib.sha256(text.encode()).hexdigest()[:16],
-        "objects_9g": hashlib.sha256(_rounded(text).encode()).hexdigest()[:16],
-        "n": len(seg.objects),
-    }
+    skeleton, floats = _split(repr(seg.objects))
+    return Case(seg.labels, seg.classes, seg.bands_mm, skeleton, floats)
 
 
-def compute(only: str = "") -> dict[str, dict[str, Any]]:
-    """Digests of every case (``only``: cases whose key holds this text)."""
-    out: dict[str, dict[str, Any]] = {}
+def cases(only: str = "") -> Iterator[tuple[str, Frame, str, str | None]]:
+    """(key, frame, method, sensor) of every golden case (``only``: keys holding this text)."""
     for name, f in frames():
         runs: list[tuple[str, str | None]] = [(m, None) for m in METHODS] + [("surfaces", "kinect-v1")]
         for method, sensor in runs:
             key = f"{name} {method}" + (f" sensor={sensor}" if sensor else "")
-            if only and only not in key:
-                continue
-            out[key] = digest(f, method, sensor)
+            if not only or only in key:
+                yield key, f, method, sensor
+
+
+def compute(only: str = "") -> dict[str, Case]:
+    """Every case's record."""
+    return {key: record(f, method, sensor) for key, f, method, sensor in cases(only)}
+
+
+def _close(a: np.ndarray | None, b: np.ndarray | None) -> bool:
+    if a is None or b is None:
+        return a is None and b is None
+    return a.shape == b.shape and bool(np.allclose(a, b, rtol=RTOL, atol=0.0, equal_nan=True))
+
+
+def compare(key: str, got: Case, want: Case) -> list[str]:
+    """What differs beyond the tolerance (empty: the same result)."""
+    out = []
+    if got.labels.shape != want.labels.shape:
+        return [f"labels shaped {got.labels.shape}, stored {want.labels.shape}"]
+    changed = int(np.count_nonzero(got.labels != want.labels))
+    allowed, why = ALLOWED.get(key, (0, ""))
+    if changed > allowed:
+        out.append(f"labels: {changed} pixels changed (allowed {allowed})")
+    elif changed:
+        print(f"  {key}: {changed} label pixels changed, within the allowance: {why}")
+    for name in ("classes",):
+        a, b = getattr(got, name), getattr(want, name)
+        if (a is None) != (b is None) or (a is not None and b is not None and not np.array_equal(a, b)):
+            out.append(f"{name} differ")
+    if not _close(got.bands, want.bands):
+        out.append("band limits differ beyond 9 significant digits")
+    if changed == 0:
+        if got.skeleton != want.skeleton:
+            out.append("objects differ (count, areas, ids, kinds or parts)")
+        elif not _close(got.floats, want.floats):
+            worst = float(np.nanmax(np.abs(got.floats - want.floats) / np.maximum(np.abs(want.floats), 1e-300)))
+            out.append(f"object floats differ beyond 9 significant digits (worst relative {worst:.2g})")
+    return out
+
+
+def save(records: dict[str, Case], path: Path = STORE) -> None:
+    """Store the records, one compressed member per array."""
+    arrays: dict[str, np.ndarray] = {}
+    for i, (key, c) in enumerate(sorted(records.items())):
+        arrays[f"{i}.key"] = np.array(key)
+        arrays[f"{i}.labels"] = c.labels
+        if c.classes is not None:
+            arrays[f"{i}.classes"] = c.classes
+        if c.bands is not None:
+            arrays[f"{i}.bands"] = c.bands
+        arrays[f"{i}.skeleton"] = np.array(c.skeleton)
+        arrays[f"{i}.floats"] = c.floats
+    buf = io.BytesIO()
+    np.savez_compressed(buf, **arrays)  # type: ignore[arg-type]
+    path.write_bytes(buf.getvalue())
+
+
+def load(path: Path = STORE) -> dict[str, Case]:
+    """The stored records."""
+    out: dict[str, Case] = {}
+    with np.load(path) as z:
+        names = set(z.files)
+        i = 0
+        while f"{i}.key" in names:
+            out[str(z[f"{i}.key"])] = Case(
+                z[f"{i}.labels"],
+                z[f"{i}.classes"] if f"{i}.classes" in names else None,
+                z[f"{i}.bands"] if f"{i}.bands" in names else None,
+                str(z[f"{i}.skeleton"]),
+                z[f"{i}.floats"],
+            )
+            i += 1
     return out
 
 
@@ -134,9 +208,9 @@ def ycb_scores() -> tuple[int, int, float]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Compare with (or with ``--update`` rewrite) the stored digests; 1 on any difference."""
+    """Compare with (or with ``--update`` rewrite) the stored values; 1 on any difference."""
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--update", action="store_true", help="store the digests of this run")
+    p.add_argument("--update", action="store_true", help="store the values of this run")
     p.add_argument("--ycb", action="store_true", help="also score YCB-Video (found, mean IoU)")
     p.add_argument("--only", default="", help="cases whose name holds this text")
     args = p.parse_args(argv)
@@ -144,27 +218,26 @@ def main(argv: list[str] | None = None) -> int:
     now = compute(args.only)
     status = 0
     if args.update:
-        old = json.loads(DIGESTS.read_text()) if DIGESTS.exists() and args.only else {}
+        old = load() if STORE.exists() and args.only else {}
         old.update(now)
-        DIGESTS.write_text(json.dumps(old, indent=1, sort_keys=True) + "\n")
-        print(f"stored {len(now)} digests in {DIGESTS.name}")
+        save(old)
+        print(f"stored {len(now)} cases in {STORE.name}")
     else:
-        stored = json.loads(DIGESTS.read_text())
+        stored = load()
         same = 0
-        for key, d in now.items():
-            ref = stored.get(key)
-            if ref is None:
+        for key, got in now.items():
+            want = stored.get(key)
+            if want is None:
                 print(f"NEW      {key}")
                 status = 1
                 continue
-            diff = [k for k in ("labels", "classes", "bands", "objects") if d[k] != ref[k]]
+            diff = compare(key, got, want)
             if not diff:
                 same += 1
                 continue
             status = 1
-            tag = "LAST-BITS" if diff == ["objects"] and d["objects_9g"] == ref["objects_9g"] else "CHANGED"
-            print(f"{tag:8} {key}: {', '.join(diff)} (objects {ref['n']} -> {d['n']})")
-        print(f"{same} of {len(now)} cases identical")
+            print(f"CHANGED  {key}: {'; '.join(diff)}")
+        print(f"{same} of {len(now)} cases the same within the tolerance")
     if args.ycb:
         found, total, iou = ycb_scores()
         print(f"YCB-Video (default method): {found} of {total} objects found, mean IoU {iou:.3f}")

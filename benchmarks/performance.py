@@ -110,7 +110,7 @@ def kernels_vs_numpy(size: tuple[int, int] = (640, 480)) -> list[tuple[str, floa
 
     from depthgram.segmentation import segment
     from depthgram.segmentation.label import label_stats_fused, relabel
-    from depthgram.segmentation.planes import plane_sums
+    from depthgram.segmentation.plane_sums import plane_sums
     from depthgram.sensor import simulate
 
     f = next(iter(simulate("table", 1, size=size, seed=0))).frame

@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import argparse
 import itertools
+import os
 import sys
 import time
 from collections import Counter
@@ -46,7 +47,7 @@ from depthgram.frame import Intrinsics
 from depthgram.segmentation import evaluate, segment
 
 ROOT = Path(__file__).resolve().parents[1]
-SHARED = ROOT.parent / "shared" / "data"
+SHARED = Path(os.environ.get("DEPTHGRAM_DATA") or ROOT.parent / "shared" / "data")  # bench --data
 YCBV = SHARED / "ycbv_0000_labelled"
 OUT = ROOT / "benchmarks" / "out" / "real"
 #: YCB classes present in video 0000 (gelatin box, mug, foam brick); class id = instance id.

@@ -15,6 +15,7 @@ frames: objects standing on the support against a count by eye, and the support 
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import time
 from collections.abc import Sequence
@@ -28,7 +29,7 @@ import numpy as np
 from depthgram.segmentation import SegmentConfig, evaluate, segment
 
 ROOT = Path(__file__).resolve().parents[1]
-SHARED = ROOT.parent / "shared" / "data"
+SHARED = Path(os.environ.get("DEPTHGRAM_DATA") or ROOT.parent / "shared" / "data")  # bench --data
 
 #: (row name, segment overrides). Region growing uses the tolerance that scored best on the
 #: ``table`` scene in a sweep over 5, 10, 20, 40 mm per metre (see ``--sweep``).

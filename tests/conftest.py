@@ -2,12 +2,13 @@
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-SHARED_DATA = ROOT.parent / "shared" / "data"
+SHARED_DATA = Path(os.environ.get("DEPTHGRAM_DATA") or ROOT.parent / "shared" / "data")  # as depthgram bench reads it
 
 
 @pytest.fixture(scope="session")

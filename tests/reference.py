@@ -14,19 +14,13 @@ from numba import njit
 from numpy.typing import NDArray
 
 from depthgram.frame import Intrinsics
+from depthgram.segmentation._kernels.ransac import assign_planes, inliers_counted
 from depthgram.segmentation.attributes import Stats, label_stats
+from depthgram.segmentation.coplanar import coplanar_groups, near_planes
 from depthgram.segmentation.label import ACTIVE, BLOCK, HOLE, label_keyed, relabel
 from depthgram.segmentation.label.stats import N_COLUMNS, flush_run
-from depthgram.segmentation.planes import (
-    Plane,
-    _assign,
-    _inliers_counted,
-    coplanar_groups,
-    near_planes,
-    plane_residual_mask,
-    plane_sums,
-    planes_from_sums,
-)
+from depthgram.segmentation.plane_sums import plane_sums, planes_from_sums
+from depthgram.segmentation.ransac import Plane, plane_residual_mask
 
 __all__ = [
     "best_contact_numpy",
@@ -241,7 +235,7 @@ def plane_search_numpy(
     coefs = np.array([c for c, _, _ in found], np.float64)
     kernel = np.ones((3, 3), np.uint8)
     allowed = np.stack([np.asarray(cv2.dilate(m.view(np.uint8), kernel), np.uint8) for _, m, _ in found])
-    which = _assign(depth_mm, valid, coefs, allowed, s, float(tol_mm), float(tol_rel))
+    which = assign_planes(depth_mm, valid, coefs, allowed, s, float(tol_mm), float(tol_rel))
     masks = [(c, which == k, sp) for k, (c, _, sp) in enumerate(found, start=1)]
     return [Plane(c, m, int(m.sum()), sp) for c, m, sp in masks if m.sum() >= min_px]
 
@@ -413,7 +407,7 @@ def best_contact_numpy(contact: NDArray[np.int64], needed: NDArray[np.float64]) 
 def sensor_samples(
     depth: NDArray[np.float32], valid: NDArray[np.bool_], rows: int
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
-    """The sensor estimate's samples alone, as ``sensor._triples_span`` takes them without the span.
+    """The sensor estimate's samples alone, as ``noise_model._triples_span`` takes them without the span.
 
     Every ``rows``-th row: the depth of each pixel whose two row neighbours also have a reading,
     its first difference z[x+1] - z[x] (absolute) and its second difference
@@ -442,13 +436,13 @@ def sensor_samples(
 def sensor_ranges(depth: NDArray[np.float32], valid: NDArray[np.bool_], rows: int) -> NDArray[np.float64]:
     """Each depth range's row of the sensor estimate (median depth, step, sigma, 1), the steps one by one.
 
-    The route ``sensor._range_estimates_counted`` replaced: the samples (:func:`sensor_samples`),
+    The route ``noise_model._range_estimates_counted`` replaced: the samples (:func:`sensor_samples`),
     their stable order (numpy's), and the range estimates, counted
-    (``sensor._range_estimates_whole``) when every depth is a whole number of millimetres from
+    (``noise_model._range_estimates_whole``) when every depth is a whole number of millimetres from
     the smallest within 2**20 of it, else from masked copies and selections
-    (``sensor._range_estimates``). No rows below 200 samples.
+    (``noise_model._range_estimates``). No rows below 200 samples.
     """
-    from depthgram.segmentation.sensor import _range_estimates, _range_estimates_whole
+    from depthgram.segmentation.noise_model import _range_estimates, _range_estimates_whole
 
     z, d1, d2 = sensor_samples(depth, valid, rows)
     if z.size < 200:
@@ -469,7 +463,7 @@ def best_hypothesis_in_index_order(
     tol: NDArray[np.float64],
     ev: NDArray[np.int64],
 ) -> int:
-    """The RANSAC scoring ``planes._best_hypothesis`` replaced: hypotheses in index order.
+    """The RANSAC scoring ``_kernels.ransac.best_hypothesis`` replaced: hypotheses in index order.
 
     The first hypothesis with the most inliers among the points ``ev`` (``np.argmax`` of the
     scores), each scored by blocks of 256 points and left when it could not pass the best one
@@ -494,7 +488,7 @@ def best_hypothesis_in_index_order(
         for i0 in range(0, m, 256):
             if cnt + (m - i0) <= best:
                 break
-            cnt += _inliers_counted(a, b, c, ue[i0 : i0 + 256], ve[i0 : i0 + 256], ze[i0 : i0 + 256], te[i0 : i0 + 256])
+            cnt += inliers_counted(a, b, c, ue[i0 : i0 + 256], ve[i0 : i0 + 256], ze[i0 : i0 + 256], te[i0 : i0 + 256])
         if cnt > best:
             best = cnt
             arg = k

@@ -52,7 +52,7 @@ def test_the_tracker_keeps_each_frames_structure_for_the_next_shift() -> None:
     # the tracker computes a frame's gradient structure once and reads it again as the next
     # frame's previous one; OpenCV's phaseCorrelate windows its inputs in place, so the kept
     # structure must not go into it (it did: 58 of 59 shifts on 7-Scenes moved by 0.1 px)
-    from depthgram.dynamics.core import shift_structure, structure_shift
+    from depthgram.dynamics.camera_motion import shift_structure, structure_shift
 
     u, v = np.meshgrid(np.arange(W, dtype=np.float64), np.arange(H, dtype=np.float64))
     frames = [(2000.0 + _relief(u - 2 * k, v + k)).astype(np.float32) for k in range(4)]
@@ -117,7 +117,7 @@ def test_pipeline_hands_the_tracker_its_pixels() -> None:
     pytest.importorskip("depthgram.sensor")
     from depthgram import Pipeline
     from depthgram.segmentation import segment
-    from depthgram.segmentation.sensor import estimate_sensor
+    from depthgram.segmentation.noise_model import estimate_sensor
     from depthgram.sensor import simulate
 
     frames = [sf.frame for sf in simulate("crossing", 30, size=(176, 132), fps=30, seed=2)]
@@ -170,7 +170,7 @@ def test_pipeline_with_depth_from_mean_hands_over_no_pixels() -> None:
     pytest.importorskip("depthgram.sensor")
     from depthgram import Config, Pipeline
     from depthgram.segmentation import segment
-    from depthgram.segmentation.sensor import estimate_sensor
+    from depthgram.segmentation.noise_model import estimate_sensor
     from depthgram.sensor import simulate
 
     frames = [sf.frame for sf in simulate("crossing", 30, size=(176, 132), fps=30, seed=2)]
@@ -187,7 +187,7 @@ def test_pipeline_with_depth_from_mean_hands_over_no_pixels() -> None:
 
 
 def test_inner_edge_shift_reads_the_edge_inside_the_image() -> None:
-    from depthgram.dynamics.core import inner_edge_shift
+    from depthgram.dynamics.core_depth import inner_edge_shift
 
     size = (176, 132)
     # entering from the left: its right edge moved 4 px right, its centre 2 px

@@ -11,7 +11,8 @@ import pytest
 from numpy.typing import NDArray
 
 from depthgram.dynamics import FramePixels, Tracker, TrackerConfig
-from depthgram.dynamics.core import CameraMotion, EgoMotion, core_depth_change
+from depthgram.dynamics.camera_motion import CameraMotion, EgoMotion
+from depthgram.dynamics.core_depth import core_depth_change
 from depthgram.frame import Intrinsics
 from depthgram.sensor.geometry import Camera, cast
 from depthgram.sensor.scenes import build_scene
@@ -232,7 +233,7 @@ def test_a_swaying_camera_reads_still_and_moving_objects_without_lag(fps: float)
 
 
 def test_still_depth_change_hand_computed() -> None:
-    from depthgram.dynamics.core import still_depth_change
+    from depthgram.dynamics.core_depth import still_depth_change
 
     h, w = 60, 80
     k = Intrinsics(100.0, 100.0, 40.0, 30.0)

@@ -41,6 +41,7 @@ def test_core_dependencies_leave_the_heavy_ones_to_extras() -> None:
         ("soundfile", ["demo", "--out", "{tmp}/demo"], "sound,report"),
         ("uvicorn", ["view", "sim:table", "--no-browser"], "view"),
         ("mcap.writer", ["describe", "sim:table?frames=2", "--mcap", "{tmp}/a.mcap"], "mcap"),
+        ("sounddevice", ["listen", "sim:table?frames=2"], "listen"),
     ],
 )
 def test_a_missing_extra_is_named_on_the_command_line(

@@ -1,4 +1,4 @@
-"""RANSAC scoring in the order of the first block's counts (``planes._best_hypothesis``).
+"""RANSAC scoring in the order of the first block's counts (``_kernels.ransac.best_hypothesis``).
 
 The hypotheses are scored on a first block of points, then each in the order of those counts,
 and left when they can no longer be chosen; the choice must stay ``np.argmax`` of the full
@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from depthgram.segmentation.planes import _best_hypothesis
+from depthgram.segmentation._kernels.ransac import best_hypothesis as _best_hypothesis
 from reference import best_hypothesis_in_index_order
 
 
@@ -93,8 +93,9 @@ def test_ordered_scoring_keeps_the_first_of_equal_counts() -> None:
 def test_plane_pieces_percentiles_counted_are_numpys() -> None:
     # a found plane's depth spread: np.percentile(z_sub[pieces], (5, 50, 95)) whether the
     # depths are whole millimetres (counted) or not (selections), ties and one or two pixels too
+    from depthgram.segmentation._kernels.ransac import percentiles_counted as _percentiles_counted
+    from depthgram.segmentation._kernels.ransac import plane_pieces as _plane_pieces
     from depthgram.segmentation.order_stats import percentile32
-    from depthgram.segmentation.planes import _percentiles_counted, _plane_pieces
 
     rng = np.random.default_rng(9)
     for _ in range(400):

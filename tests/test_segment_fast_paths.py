@@ -14,8 +14,9 @@ import pytest
 from scipy import ndimage
 
 from depthgram.segmentation.label import label_stats_fused
+from depthgram.segmentation.noise_model import _percentile20
 from depthgram.segmentation.order_stats import kth_smallest, next_smallest
-from depthgram.segmentation.sensor import _median, _percentile20
+from depthgram.segmentation.order_stats import median_inplace as _median
 from depthgram.segmentation.surfaces import keep_large, merge_openings
 
 
@@ -169,7 +170,7 @@ def _merge_openings_numpy(
     labels: np.ndarray, depth: np.ndarray, objs: np.ndarray, z_mean: np.ndarray, focal: float, ring: int, jump: float
 ) -> np.ndarray | None:
     """merge_openings before its pair test and table were compiled (numpy around the ring kernel)."""
-    from depthgram.segmentation.surfaces import _opening_parents
+    from depthgram.segmentation._kernels.openings import opening_parents as _opening_parents
 
     n = z_mean.size - 1
     parent = np.arange(n + 1)
@@ -231,7 +232,7 @@ def test_merge_openings_compiled_pair_test_equals_numpys(seed: int) -> None:
 
 
 def test_float32_median_is_numpys_float32_mean() -> None:
-    from depthgram.segmentation.surfaces import _median32
+    from depthgram.segmentation._kernels.openings import median32 as _median32
 
     # two middle values whose float32 sum rounds: numpy's median rounds it the same way
     a = np.array([16777216.0, 16777218.0, 1.0, 3e7], np.float32)

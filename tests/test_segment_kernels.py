@@ -17,6 +17,7 @@ from depthgram.frame import Intrinsics
 from depthgram.segmentation.attributes import label_stats
 from depthgram.segmentation.binning import band_state, bin_pixels, depth_range
 from depthgram.segmentation.contacts import front_faces
+from depthgram.segmentation.coplanar import near_planes
 from depthgram.segmentation.label import (
     ACTIVE,
     BLOCK,
@@ -29,7 +30,7 @@ from depthgram.segmentation.label import (
 from depthgram.segmentation.label.keyed import label_two_classes
 from depthgram.segmentation.objects import SceneObject
 from depthgram.segmentation.orientation import _jumps, _jumps_cols, _one_sided, _one_sided_cols, upsample_classes
-from depthgram.segmentation.planes import near_planes, plane_sums, planes_from_sums
+from depthgram.segmentation.plane_sums import plane_sums, planes_from_sums
 from depthgram.segmentation.slices import slice_parts, support_pieces
 from depthgram.segmentation.validate import check_depth
 from reference import (
@@ -164,7 +165,7 @@ def test_two_classes_in_one_pass_equal_one_labelling_per_class_exactly() -> None
 
 def test_plane_sums_in_boxes_equal_plane_sums_of_the_wanted_labels() -> None:
     # reading each wanted label's box alone gives the rows of the full pass to the last bit
-    from depthgram.segmentation.planes import plane_sums_in_boxes
+    from depthgram.segmentation.plane_sums import plane_sums_in_boxes
 
     rng = np.random.default_rng(12)
     for t in range(60):
@@ -186,7 +187,7 @@ def test_plane_sums_in_boxes_equal_plane_sums_of_the_wanted_labels() -> None:
 
 def test_shares_beneath_equal_numpy() -> None:
     # the table of camera coordinates and one product per plane it replaced, as numpy gives them
-    from depthgram.segmentation.planes import shares_beneath
+    from depthgram.segmentation.plane_sums import shares_beneath
 
     rng = np.random.default_rng(13)
     depth = (rng.random((37, 53)) * 3000 + 400).astype(np.float32)
@@ -210,7 +211,7 @@ def test_shares_beneath_equal_numpy() -> None:
 def test_shares_beneath_by_hand() -> None:
     # a wall 1 m away seen by a camera whose rows v lie at y = 10 v mm; the floor 500 mm below
     # the camera (n = (0, -1, 0), d = 500): the rows with y > 650 mm lie more than 150 mm beneath it
-    from depthgram.segmentation.planes import shares_beneath
+    from depthgram.segmentation.plane_sums import shares_beneath
 
     depth = np.full((100, 7), 1000.0, np.float32)
     cam = Intrinsics(100.0, 100.0, 3.0, 0.0)
@@ -400,8 +401,8 @@ def test_slopes_match_the_passes_they_replaced() -> None:
     # occlusion edges along rows or columns
     import cv2
 
+    from depthgram.segmentation._kernels.creases import inverse_depth as _inverse
     from depthgram.segmentation.orientation import _slopes
-    from depthgram.segmentation.surfaces import _inverse
 
     f32 = np.float32
     fx, fy = f32(60.0), f32(58.0)
@@ -480,8 +481,8 @@ def test_orientation_inverse_and_mean_match_numpy() -> None:
     # the float32 numpy expressions they replaced
     import cv2
 
+    from depthgram.segmentation._kernels.creases import inverse_depth as _inverse
     from depthgram.segmentation.orientation import _box3_mean
-    from depthgram.segmentation.surfaces import _inverse
 
     rng = np.random.default_rng(16)
     z = rng.uniform(300, 6000, (41, 57)).astype(np.float32)
@@ -529,7 +530,7 @@ def test_upsample_classes_repeats_and_clears_holes(k: int) -> None:
 
 @pytest.mark.parametrize("shape", [(19, 23), (20, 24), (1, 1), (2, 7)])
 def test_crease_upsampling_repeats_where_there_is_a_reading(shape: tuple[int, int]) -> None:
-    from depthgram.segmentation.surfaces import _upsample2
+    from depthgram.segmentation._kernels.creases import upsample2 as _upsample2
 
     rng = np.random.default_rng(shape[0])
     valid = rng.random(shape) < 0.8
@@ -768,7 +769,8 @@ def test_sensor_order_statistics_equal_numpy(seed: int) -> None:
     # the estimator's median and 20th percentile replace np.median / np.percentile for speed:
     # on quantised values (many ties, as a sensor's differences are) and on odd and even sizes
     # they must give numpy's numbers exactly
-    from depthgram.segmentation.sensor import _median, _percentile20
+    from depthgram.segmentation.noise_model import _percentile20
+    from depthgram.segmentation.order_stats import median_inplace as _median
 
     rng = np.random.default_rng(seed)
     for n in (20, 21, 22, 37, 400, 1001):
@@ -783,7 +785,7 @@ def test_sensor_order_statistics_equal_numpy(seed: int) -> None:
 def test_stable_order_equals_numpy_stable_argsort(seed: int) -> None:
     # the radix sort of the sensor estimate against numpy's stable sort: millimetre depths
     # (many ties), tenths of a millimetre (scaled recordings) and any positive float32 depths
-    from depthgram.segmentation.sensor import stable_order
+    from depthgram.segmentation.noise_model import stable_order
 
     rng = np.random.default_rng(seed)
     for n in (1, 2, 17, 5000, 23_000):
@@ -801,7 +803,7 @@ def test_sensor_estimate_keeps_tied_depths_in_raster_order() -> None:
     # estimate; numpy's default sort left that to the CPU's SIMD level (three different models
     # on one frame with AVX-512, AVX2 and without). The estimate is the one with ties in raster
     # order, computed here from the same steps with numpy's stable sort.
-    from depthgram.segmentation.sensor import _fit_a_bz2, _range_estimates, estimate_sensor
+    from depthgram.segmentation.noise_model import _fit_a_bz2, _range_estimates, estimate_sensor
     from depthgram.sensor import simulate
 
     f = next(iter(simulate("table", 1, size=(176, 132), seed=0))).frame
@@ -819,7 +821,7 @@ def test_sensor_ranges_counted_for_whole_depths_equal_the_general_route() -> Non
     # whole-millimetre depths take the counting route of the per-range order statistics: the
     # same steps, medians and spreads to the last bit as the masked copies and selections, also
     # for a range too wide to count (falls back) and ranges with too few differences
-    from depthgram.segmentation.sensor import _range_estimates, _range_estimates_whole
+    from depthgram.segmentation.noise_model import _range_estimates, _range_estimates_whole
 
     rng = np.random.default_rng(21)
     for t in range(600):
@@ -899,8 +901,10 @@ def test_label_surfaces_equals_pairwise_definition(seed: int) -> None:
 def test_creases_compiled_equal_numpy(seed: int) -> None:
     # the compiled crease pass against the numpy one it replaced, on a tilted, bent surface with
     # noise, steps and holes, under a structured-light, a ToF and an estimated sensor model
-    from depthgram.segmentation.sensor import PROFILES, SensorModel
-    from depthgram.segmentation.surfaces import _creases_numpy, _inverse, concave_creases
+    from depthgram.segmentation._kernels.creases import inverse_depth as _inverse
+    from depthgram.segmentation.creases import _creases_numpy
+    from depthgram.segmentation.noise_model import PROFILES, SensorModel
+    from depthgram.segmentation.surfaces import concave_creases
 
     rng = np.random.default_rng(seed)
     h, w = 60, 80
@@ -932,7 +936,7 @@ def test_coplanar_groups_are_the_components_of_the_coplanar_pairs(seed: int) -> 
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components
 
-    from depthgram.segmentation.planes import coplanar_groups
+    from depthgram.segmentation.coplanar import coplanar_groups
 
     rng = np.random.default_rng(seed)
     for _ in range(50):
@@ -992,7 +996,7 @@ def test_merged_rows_equal_numpy_add_at() -> None:
 def test_join_near_is_near_planes_then_the_class_written() -> None:
     # the supports take the facing pixels on their planes straight into the class map: the
     # classes of near_planes on the facing candidates followed by a masked write
-    from depthgram.segmentation.planes import join_near
+    from depthgram.segmentation.coplanar import join_near
 
     rng = np.random.default_rng(8)
     for t in range(40):
@@ -1016,7 +1020,7 @@ def test_join_near_is_near_planes_then_the_class_written() -> None:
 def test_support_labelled_again_in_its_window_equals_the_whole_frame() -> None:
     # after join_near a class is labelled again inside class_window alone: its pixels all lie
     # there, and the pieces, tables and joined supports are those of the whole frame's pass
-    from depthgram.segmentation.planes import class_window, join_near
+    from depthgram.segmentation.coplanar import class_window, join_near
     from depthgram.segmentation.slices import support_pieces_lazy
 
     rng = np.random.default_rng(9)
@@ -1102,15 +1106,11 @@ def test_load_rare_kernels_loads_the_kernels_of_the_rare_branches() -> None:
     # kernels before the stream. With the very argument types of segment's calls: a frame that
     # takes the branches afterwards compiles no new signature
     from depthgram.segmentation import segment
+    from depthgram.segmentation._kernels.coplanar import coplanar_join
+    from depthgram.segmentation._kernels.plane_sums import planes_from_sums as planes_from_sums_kernel
+    from depthgram.segmentation._kernels.ransac import assign_planes, dilate3, search_planes
     from depthgram.segmentation.core import load_rare_kernels
     from depthgram.segmentation.label import keyed, stats
-    from depthgram.segmentation.planes import (
-        _assign,
-        _coplanar_join,
-        _dilate3,
-        _planes_from_sums,
-        _search_planes,
-    )
     from depthgram.segmentation.slices import _class_state, _drop_classes, _merge_rows
     from depthgram.sensor import simulate
 
@@ -1121,11 +1121,11 @@ def test_load_rare_kernels_loads_the_kernels_of_the_rare_branches() -> None:
         _merge_rows,
         _drop_classes,
         stats._stats,
-        _search_planes,
-        _planes_from_sums,
-        _coplanar_join,
-        _dilate3,
-        _assign,
+        search_planes,
+        planes_from_sums_kernel,
+        coplanar_join,
+        dilate3,
+        assign_planes,
     )
     before = [len(k.signatures) for k in kernels]
     assert all(before)
@@ -1206,7 +1206,7 @@ def test_compiled_3x3_solve_is_numpys_within_the_conditioning() -> None:
     # position)
     from numba import njit
 
-    from depthgram.segmentation.planes import _lu_solve3
+    from depthgram.segmentation._kernels.solve3 import lu_solve3 as _lu_solve3
 
     @njit(cache=False)
     def solve_all(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -1270,7 +1270,7 @@ def test_planes_from_sums_is_the_numpy_route_within_the_conditioning() -> None:
 def test_sensor_fit_least_squares_is_numpys_to_the_last_bit() -> None:
     # the fits of step and noise against depth squared over 2-12 depth ranges: the compiled
     # least squares (LAPACK's dgelsd through numba, numpy's rcond) gives numpy's numbers
-    from depthgram.segmentation.sensor import _lstsq_a_bz2
+    from depthgram.segmentation.noise_model import _lstsq_a_bz2
 
     rng = np.random.default_rng(13)
     for _ in range(2000):
@@ -1313,7 +1313,7 @@ def test_small_supports_are_numpys_test() -> None:
 def test_large_pieces_are_opencvs_8_connected_pieces() -> None:
     # the pieces of a found plane on the search grid: 8-connected (diagonal touches join),
     # those under the size dropped; OpenCV's labelling gives the same pixels
-    from depthgram.segmentation.planes import _large_pieces
+    from depthgram.segmentation._kernels.ransac import large_pieces as _large_pieces
     from reference import large_pieces_opencv
 
     rng = np.random.default_rng(15)
@@ -1349,7 +1349,7 @@ def test_prominent_peaks_are_scipys_find_peaks() -> None:
 def test_dilate3_is_opencvs_3x3_dilation() -> None:
     import cv2
 
-    from depthgram.segmentation.planes import _dilate3
+    from depthgram.segmentation._kernels.ransac import dilate3 as _dilate3
 
     rng = np.random.default_rng(17)
     for _ in range(100):
@@ -1420,7 +1420,7 @@ def test_sensor_ranges_in_one_call_equal_the_steps_one_by_one() -> None:
     # _range_fit (samples with their depth span, order, range estimates in one call) against
     # the samples, the stable order and the range estimates called one by one: whole-millimetre
     # depths (counting route), tenths of a millimetre (radix route), holes, too few samples
-    from depthgram.segmentation.sensor import (
+    from depthgram.segmentation.noise_model import (
         _lstsq_a_bz2,
         _range_estimates,
         _range_estimates_whole,
@@ -1568,7 +1568,7 @@ def test_sensor_estimate_holds_python_floats() -> None:
     # the estimated model's coefficients are Python floats, as the compiled solve returned
     # them before the fit moved into one call (numpy scalars once sent the creases to their
     # numpy route: the same numbers, 0.35 ms slower at 176 x 132)
-    from depthgram.segmentation.sensor import estimate_sensor
+    from depthgram.segmentation.noise_model import estimate_sensor
     from depthgram.sensor import simulate
 
     f = next(iter(simulate("table", 1, size=(176, 132), seed=0))).frame
@@ -1581,8 +1581,8 @@ def test_creases_of_an_estimated_model_take_the_compiled_route(monkeypatch: pyte
     # estimate_sensor's coefficients are numpy float64 scalars: the compiled route must take
     # them as the floats they hold (the numpy route, about 0.5 ms at 176 x 132, was taken for
     # every frame of the default method when the estimate began returning numpy scalars)
-    import depthgram.segmentation.surfaces as surfaces
-    from depthgram.segmentation.sensor import SensorModel, estimate_sensor
+    import depthgram.segmentation.creases as surfaces
+    from depthgram.segmentation.noise_model import SensorModel, estimate_sensor
     from depthgram.sensor import simulate
 
     frame = next(iter(simulate("table", 1, size=(176, 132), seed=0))).frame
@@ -1612,8 +1612,9 @@ def test_creases_of_an_estimated_model_take_the_compiled_route(monkeypatch: pyte
 def test_crease_state_is_surface_state_of_the_creases(seed: int) -> None:
     # the fused call against the two it replaced, on frames narrow and wide (the wide one
     # takes the half-resolution route), spans 1-4 and frames narrower than the span
-    from depthgram.segmentation.sensor import PROFILES
-    from depthgram.segmentation.surfaces import _inverse, concave_creases, crease_state, surface_state
+    from depthgram.segmentation._kernels.creases import inverse_depth as _inverse
+    from depthgram.segmentation.noise_model import PROFILES
+    from depthgram.segmentation.surfaces import concave_creases, crease_state, surface_state
 
     rng = np.random.default_rng(seed)
     for h, w, r in ((60, 80, 2), (61, 79, 3), (40, 400, 4), (5, 3, 2), (3, 9, 4), (30, 50, 1)):
@@ -1638,7 +1639,7 @@ def test_sensor_model_holds_python_floats_whatever_it_is_given() -> None:
     # estimate_sensor's least squares come out of a compiled call as numpy float64; the
     # creases' compiled route takes Python numbers only, and numpy promotes a float32 frame
     # by a numpy float64 scalar but not by a Python float
-    from depthgram.segmentation.sensor import SensorModel, estimate_sensor
+    from depthgram.segmentation.noise_model import SensorModel, estimate_sensor
     from depthgram.sensor import simulate
 
     m = SensorModel("x", np.float64(1.5), np.float64(2e-6), 3, np.float64(1e-6))

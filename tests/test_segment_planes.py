@@ -11,7 +11,7 @@ from numpy.typing import NDArray
 from depthgram.errors import InputError
 from depthgram.frame import Intrinsics
 from depthgram.segmentation import SegmentConfig, segment
-from depthgram.segmentation.planes import find_planes, plane_distance_mm, plane_normal, plane_residual_mask
+from depthgram.segmentation.ransac import find_planes, plane_distance_mm, plane_normal, plane_residual_mask
 
 W, H = 320, 240
 CAM = Intrinsics(300.0, 300.0, (W - 1) / 2.0, (H - 1) / 2.0)
@@ -131,7 +131,7 @@ def test_compiled_plane_search_equals_numpy() -> None:
 def test_sample_determinant_test_equals_numpy() -> None:
     # three grid points have a solvable plane exactly when numpy's LU determinant passes
     # |det| > 1e-6 (the numpy route's test), collinear samples included
-    from depthgram.segmentation.planes import _hypotheses
+    from depthgram.segmentation._kernels.ransac import sample_systems as _hypotheses
 
     rng = np.random.default_rng(0)
     for s in (1, 4, 16):
@@ -210,7 +210,8 @@ def test_the_compiled_draws_are_default_rngs_numbers_on_every_call() -> None:
     # for ranges whose rejection threshold is large and small, and the numbers run out cleanly
     from numba import njit
 
-    from depthgram.segmentation.planes import _bounded, _raw32
+    from depthgram.segmentation._kernels.ransac import bounded as _bounded
+    from depthgram.segmentation.ransac import _raw32
 
     @njit(cache=False)
     def draws(raw: np.ndarray, n: int, size: int, pos: int) -> tuple[np.ndarray, int]:

@@ -15,7 +15,7 @@ import pytest
 
 from depthgram.frame import Intrinsics
 from depthgram.segmentation import Segmentation, segment
-from depthgram.segmentation.planes import find_planes, plane_normal
+from depthgram.segmentation.ransac import find_planes, plane_normal
 
 NVLABS = Intrinsics(612.937, 613.173, 322.549, 248.158)  # camera_params.json
 OSD = Intrinsics(570.0, 570.0, 320.0, 240.0)  # nominal Kinect v1: OSD ships no intrinsics

@@ -12,7 +12,7 @@ import pytest
 
 from depthgram.frame import Intrinsics
 from depthgram.segmentation import evaluate, segment
-from depthgram.segmentation.sensor import PROFILES, estimate_sensor
+from depthgram.segmentation.noise_model import PROFILES, estimate_sensor
 from depthgram.sensor.geometry import Body, Box, Camera, Cylinder, Ellipsoid, Plane, cast
 
 W, H = 640, 480

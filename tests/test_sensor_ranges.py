@@ -1,4 +1,4 @@
-"""The sensor estimate's depth ranges from counts (``sensor._range_estimates_counted``).
+"""The sensor estimate's depth ranges from counts (``noise_model._range_estimates_counted``).
 
 Held to the route it replaced (``reference.sensor_ranges``: the samples, their stable order and
 the range estimates one by one) to the last bit, on frames that take the counting route (whole
@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from depthgram.segmentation.sensor import _range_estimates_counted, _range_fit, _whole_samples
+from depthgram.segmentation.noise_model import _range_estimates_counted, _range_fit, _whole_samples
 from reference import sensor_ranges
 
 
@@ -150,7 +150,7 @@ def test_counted_ranges_on_the_recordings(shared_data: Path) -> None:
 
 def test_a_frame_without_readings_gets_the_default_profile() -> None:
     # no sample, so no fit: the ToF profile, as for a frame too narrow for a second difference
-    from depthgram.segmentation.sensor import PROFILES, estimate_sensor
+    from depthgram.segmentation.noise_model import PROFILES, estimate_sensor
 
     for shape in ((0, 5), (5, 2), (5, 3), (4, 4), (132, 176)):
         assert estimate_sensor(np.zeros(shape, np.float32), np.zeros(shape, bool)) is PROFILES["tof"]

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import math
 from pathlib import Path
 
@@ -68,8 +69,13 @@ def test_nearer_object_is_louder_by_the_mapping(tmp_path: Path) -> None:
 def test_beep_rate_follows_nearness_and_ttc() -> None:
     m = SoundMapping()
     assert m.rate(2150.0) == pytest.approx(1.5 + 6.5 * 0.5)
-    assert m.rate(2150.0, ttc=2.0) == pytest.approx(8.0 * 3.0 / 2.0)  # sped up by ttc
+    # sped up by ttc, geometrically from 8 Hz at 3 s to 16 Hz at 0.5 s: 8 * (3 / ttc) ** (ln 2 / ln 6)
+    assert m.rate(2150.0, ttc=2.0) == pytest.approx(8.0 * 1.5 ** (math.log(2) / math.log(6)))
+    assert m.rate(2150.0, ttc=0.5) == pytest.approx(m.rate_max_hz)
     assert m.rate(2150.0, ttc=0.1) == m.rate_max_hz
+    # still rising between 1.5 s and 0.5 s to collision (the last second before impact changes)
+    ladder = [m.rate(2150.0, ttc=t) for t in (1.5, 1.2, 1.0, 0.8, 0.6, 0.5)]
+    assert all(b > a * 1.05 for a, b in itertools.pairwise(ladder))
     assert m.rate(2150.0, ttc=5.0) == pytest.approx(4.75)  # ttc above the alert: no change
     audio = render_scene(tree_of(obj(87.5, 65.5, 2150)), (W, H), duration_s=2.0, samplerate=SR)
     # First beep at t = 0, one every 1 / 4.75 s: floor(2 * 4.75) + 1 = 10 beeps in 2 s.

@@ -209,3 +209,99 @@ def test_a_damaged_bag_is_an_input_error_naming_the_file(tmp_path: Path, storage
         except Exception as exc:  # the point: nothing else may escape
             others.append((offset, f"{type(exc).__name__}: {exc}"))
     assert others == []
+
+
+def imu_msg(ts: Typestore, accel: tuple[float, float, float], t_ns: int, frame_id: str) -> object:
+    Header = ts.types["std_msgs/msg/Header"]
+    Time = ts.types["builtin_interfaces/msg/Time"]
+    Vec = ts.types["geometry_msgs/msg/Vector3"]
+    Quat = ts.types["geometry_msgs/msg/Quaternion"]
+    return ts.types["sensor_msgs/msg/Imu"](
+        header=Header(stamp=Time(sec=t_ns // 1_000_000_000, nanosec=t_ns % 1_000_000_000), frame_id=frame_id),
+        orientation=Quat(x=0.0, y=0.0, z=0.0, w=1.0),
+        orientation_covariance=np.full(9, -1.0),
+        angular_velocity=Vec(x=0.0, y=0.0, z=0.0),
+        angular_velocity_covariance=np.zeros(9),
+        linear_acceleration=Vec(x=accel[0], y=accel[1], z=accel[2]),
+        linear_acceleration_covariance=np.zeros(9),
+    )
+
+
+def static_tf(ts: Typestore, links: list[tuple[str, str, tuple[float, float, float, float]]]) -> object:
+    Header = ts.types["std_msgs/msg/Header"]
+    Time = ts.types["builtin_interfaces/msg/Time"]
+    TS = ts.types["geometry_msgs/msg/TransformStamped"]
+    Tf = ts.types["geometry_msgs/msg/Transform"]
+    Vec = ts.types["geometry_msgs/msg/Vector3"]
+    Quat = ts.types["geometry_msgs/msg/Quaternion"]
+    transforms = [
+        TS(
+            header=Header(stamp=Time(sec=T0, nanosec=0), frame_id=parent),
+            child_frame_id=child,
+            transform=Tf(translation=Vec(x=0.0, y=0.0, z=0.0), rotation=Quat(x=q[0], y=q[1], z=q[2], w=q[3])),
+        )
+        for parent, child, q in links
+    ]
+    return ts.types["tf2_msgs/msg/TFMessage"](transforms=transforms)
+
+
+def write_imu_bag(
+    path: Path,
+    accel: tuple[float, float, float],
+    imu_frame: str,
+    links: list[tuple[str, str, tuple[float, float, float, float]]] | None,
+    jitter: float = 0.0,
+) -> Path:
+    """Depth frames (frame "depth") at 10 Hz with an IMU at 200 Hz reading ``accel`` (+ sway ``jitter``)."""
+    ts = get_typestore(Stores.ROS2_HUMBLE)
+    rng = np.random.default_rng(5)
+    arrays = frames_u16(5)
+    with Writer2(path, version=9, storage_plugin=StoragePlugin.MCAP) as w:
+        img = w.add_connection("/cam/depth/image_raw", "sensor_msgs/msg/Image", typestore=ts)
+        imu = w.add_connection("/cam/imu", "sensor_msgs/msg/Imu", typestore=ts)
+        if links is not None:
+            tf = w.add_connection("/tf_static", "tf2_msgs/msg/TFMessage", typestore=ts)
+            w.write(tf, T0 * 1_000_000_000 - 1, ts.serialize_cdr(static_tf(ts, links), "tf2_msgs/msg/TFMessage"))
+        for k in range(100):
+            t_ns = T0 * 1_000_000_000 + k * 5_000_000
+            a = np.asarray(accel) + rng.normal(0, jitter, 3)
+            msg = imu_msg(ts, (float(a[0]), float(a[1]), float(a[2])), t_ns, imu_frame)
+            w.write(imu, t_ns, ts.serialize_cdr(msg, "sensor_msgs/msg/Imu"))
+            if k % 20 == 19:
+                i = k // 20
+                image = image_msg(ts, arrays[i], i, "16UC1")
+                w.write(img, t_ns + 1, ts.serialize_cdr(image, "sensor_msgs/msg/Image"))
+    return path
+
+
+def test_gravity_from_the_imu_in_the_camera_frame(tmp_path: Path) -> None:
+    # the camera looks 30 degrees down; the IMU shares the depth image's axes: it reads g upward
+    t = np.radians(30.0)
+    up = (0.0, -9.81 * np.cos(t), -9.81 * np.sin(t))
+    frames = list(read(write_imu_bag(tmp_path / "same.mcap", up, "depth", None, jitter=0.3)))
+    assert len(frames) == 5 and all(f.gravity is not None and f.gravity.source == "imu" for f in frames)
+    g = frames[-1].gravity
+    assert g is not None
+    np.testing.assert_allclose(g.vector, (0.0, np.cos(t), np.sin(t)), atol=0.02)
+    np.testing.assert_allclose(g.tilt_deg, 30.0, atol=1.0)
+    # the user's gravity wins over the IMU
+    given = next(iter(read(tmp_path / "same.mcap", tilt_deg=10.0)))
+    assert given.gravity is not None and given.gravity.source == "tilt"
+
+
+def test_gravity_from_an_imu_in_ros_body_axes_through_tf_static(tmp_path: Path) -> None:
+    # REP 103 body axes (x forward, y left, z up) under camera_link; the optical frame "depth" is the
+    # usual rotation of camera_link (roll -90, yaw -90 degrees). A level camera's IMU reads +g on z.
+    optical = (-0.5, 0.5, -0.5, 0.5)
+    links = [("camera_link", "depth", optical), ("camera_link", "imu_link", (0.0, 0.0, 0.0, 1.0))]
+    frames = list(read(write_imu_bag(tmp_path / "body.mcap", (0.0, 0.0, 9.81), "imu_link", links)))
+    g = frames[0].gravity
+    assert g is not None
+    np.testing.assert_allclose(g.vector, (0.0, 1.0, 0.0), atol=1e-9)  # down is +y in the image
+
+
+def test_an_imu_without_a_transform_warns_and_gives_no_gravity(tmp_path: Path) -> None:
+    bag = write_imu_bag(tmp_path / "lost.mcap", (0.0, 0.0, 9.81), "imu_link", None)
+    with pytest.warns(UserWarning, match=r"imu_link.*--gravity X Y Z or --tilt DEG"):
+        frames = list(read(bag))
+    assert all(f.gravity is None for f in frames) and len(frames) == 5

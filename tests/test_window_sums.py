@@ -180,8 +180,8 @@ def test_classes_from_window_sums_equal_the_opencv_route() -> None:
 
 
 def test_slopes_give_their_rows_ranges() -> None:
+    from depthgram.segmentation._kernels.creases import inverse_depth as _inverse
     from depthgram.segmentation.orientation import _slopes
-    from depthgram.segmentation.surfaces import _inverse
 
     rng = np.random.default_rng(2)
     z = (1500 + np.cumsum(rng.normal(0, 30, (30, 41)), axis=1)).astype(f32)
@@ -218,13 +218,11 @@ def _crease_args(rng: np.random.Generator, h: int, w: int, octaves: float) -> tu
 
 
 def test_creases_from_window_sums_equal_the_opencv_route() -> None:
-    from depthgram.segmentation.surfaces import (
-        _crease_state,
-        _crease_state_window,
-        _creases,
-        _creases_window,
-        _window_sums,
-    )
+    from depthgram.segmentation._kernels.creases import crease_state_from_sums as _crease_state
+    from depthgram.segmentation._kernels.creases import crease_state_window as _crease_state_window
+    from depthgram.segmentation._kernels.creases import creases_from_sums as _creases
+    from depthgram.segmentation._kernels.creases import creases_window as _creases_window
+    from depthgram.segmentation.creases import _window_sums
 
     rng = np.random.default_rng(11)
     c = np.array([1.0, 2e-6, 0.5, 1e-6], f32)
@@ -254,7 +252,8 @@ def test_a_refused_frame_takes_opencvs_route_to_the_same_result(monkeypatch: pyt
     # gets its classes, creases and labeller state from OpenCV's sums: the same results where
     # both routes apply
     from depthgram.segmentation import orientation, surfaces
-    from depthgram.segmentation.sensor import PROFILES
+    from depthgram.segmentation._kernels import creases as kernels_creases
+    from depthgram.segmentation.noise_model import PROFILES
     from depthgram.sensor import simulate
 
     f = next(iter(simulate("table", 1, size=(176, 132), seed=0))).frame
@@ -274,8 +273,8 @@ def test_a_refused_frame_takes_opencvs_route_to_the_same_result(monkeypatch: pyt
 
     for name in ("_classify_window",):
         monkeypatch.setattr(orientation, name, refuse)
-    for name in ("_creases_window", "_crease_state_window"):
-        monkeypatch.setattr(surfaces, name, refuse)
+    for name in ("creases_window", "crease_state_window"):
+        monkeypatch.setattr(kernels_creases, name, refuse)
     got = (
         orientation.orientation_classes(f.depth, f.valid, f.intrinsics),
         surfaces.concave_creases(f.depth, f.valid, sensor, **kw),

@@ -6,7 +6,7 @@ The public API, loaded lazily so that ``import depthgram`` stays light:
 - :func:`segment` (from :mod:`depthgram.segmentation`, the stage's package): one depth image to objects and a label map;
 - :func:`describe`: one depth image to its scene (objects, tree, sentence, plan);
 - :class:`Pipeline` and :class:`Config` (from :mod:`depthgram.pipeline`): frame in, scene out;
-- :class:`Frame` and :func:`make_frame` (from :mod:`depthgram.frame`).
+- :class:`Frame`, :class:`Intrinsics` and :func:`make_frame` (from :mod:`depthgram.frame`).
 """
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING, Any
 
 __version__ = "0.1.0"
 
-__all__ = ["Config", "Frame", "Pipeline", "describe", "make_frame", "read", "segment"]
+__all__ = ["Config", "Frame", "Intrinsics", "Pipeline", "describe", "make_frame", "read", "segment"]
 
 _LAZY = {
     "read": "depthgram.sources",
@@ -25,11 +25,12 @@ _LAZY = {
     "Config": "depthgram.pipeline",
     "describe": "depthgram.pipeline",
     "Frame": "depthgram.frame",
+    "Intrinsics": "depthgram.frame",
     "make_frame": "depthgram.frame",
 }
 
 if TYPE_CHECKING:
-    from depthgram.frame import Frame, make_frame
+    from depthgram.frame import Frame, Intrinsics, make_frame
     from depthgram.pipeline import Config, Pipeline, describe
     from depthgram.segmentation import segment
     from depthgram.sources import read

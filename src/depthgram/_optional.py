@@ -12,13 +12,14 @@ from contextlib import contextmanager
 
 from depthgram.errors import MissingExtraError
 
-__all__ = ["EXTRAS", "extra_for", "needs_extra"]
+__all__ = ["EXTRAS", "PIP_NAMES", "extra_for", "needs_extra", "package_of"]
 
 #: Top-level module of an optional dependency -> the extra of depthgram that installs it.
 EXTRAS = {
     "rosbags": "bags",
     "matplotlib": "report",
     "soundfile": "sound",
+    "sounddevice": "listen",
     "fastapi": "view",
     "starlette": "view",
     "uvicorn": "view",
@@ -33,13 +34,31 @@ EXTRAS = {
 }
 
 
+#: Top-level module -> the name pip installs it by, where the two differ.
+PIP_NAMES = {
+    "mcap_protobuf": "mcap-protobuf-support",
+    "foxglove_schemas_protobuf": "foxglove-schemas-protobuf",
+    "foxglove": "foxglove-sdk",
+}
+
+
+def package_of(module: str | None) -> str:
+    """Return the pip package that installs ``module`` (``matplotlib.backends`` -> ``matplotlib``).
+
+    Users install packages, not sub-modules: a message naming ``matplotlib.backends`` or
+    ``mcap.well_known`` sent them looking for something pip does not know (issue 32.6).
+    """
+    top = (module or "").partition(".")[0]
+    return PIP_NAMES.get(top, top)
+
+
 def extra_for(exc: ModuleNotFoundError) -> MissingExtraError | None:
     """Return the :class:`MissingExtraError` for a missing optional module, None for any other module."""
     top = (exc.name or "").partition(".")[0]
     extra = EXTRAS.get(top)
     if extra is None:
         return None
-    return MissingExtraError(f"this needs the optional package {top!r}: pip install 'depthgram[{extra}]'")
+    return MissingExtraError(f"this needs the optional package {package_of(top)!r}: pip install 'depthgram[{extra}]'")
 
 
 @contextmanager
@@ -57,5 +76,5 @@ def needs_extra(extra: str, what: str) -> Iterator[None]:
         yield
     except ModuleNotFoundError as exc:
         raise MissingExtraError(
-            f"{what} needs the optional package {exc.name!r}: pip install 'depthgram[{extra}]'"
+            f"{what} needs the optional package {package_of(exc.name)!r}: pip install 'depthgram[{extra}]'"
         ) from exc

@@ -3,8 +3,10 @@
 Each recording gets a folder ``OUT/<name>/`` with ``scenes.jsonl`` (the JSON lines of
 ``depthgram describe``), ``labels/`` (16-bit PNG label maps) and ``summary.json``, written last
 and atomically: a folder with a summary is finished. The summary names the full input (an
-existing path made absolute) and a hash of the settings; a re-run skips a folder only when both
-match, so swapped inputs or changed settings are processed again (issue 18.1).
+existing path made absolute), a hash of the settings and one of the input's files (their names,
+sizes and modification times); a re-run skips a folder only when all three match, so swapped
+inputs, changed settings or a recording re-recorded in place are processed again (issues 18.1,
+32.5).
 A recording that fails leaves ``error.txt`` and its error in the returned summary; the
 others still finish. A local worker process that dies (killed, out of memory) costs its
 recording one retry, in a process of its own; workers end when the parent does.
@@ -20,9 +22,10 @@ import shutil
 import threading
 import time
 import traceback
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from concurrent.futures import Future, ProcessPoolExecutor, as_completed
 from concurrent.futures.process import BrokenProcessPool
+from contextlib import contextmanager
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
@@ -35,6 +38,9 @@ __all__ = ["BatchResult", "input_key", "output_names", "process_recording", "run
 #: Marker a worker leaves in a recording's folder while it works on it (its process id).
 _RUNNING = ".running"
 _GLOB_CHARS = re.compile(r"[*?\[]")
+
+#: How long (s) a Dask scheduler has to answer by default (``batch --connect-timeout``).
+CONNECT_TIMEOUT_S = 30.0
 
 
 @dataclass(frozen=True)
@@ -66,6 +72,38 @@ def input_key(spec: str) -> str:
     if _GLOB_CHARS.search(text) and not os.path.isabs(text):
         return os.path.join(os.getcwd(), text)
     return text
+
+
+def content_hash(spec: str) -> str:
+    """Short hash (hex) of the files an input reads: each one's path, size and modification time.
+
+    A folder counts every file under it (a ROS 2 bag's ``metadata.yaml`` and storage, a folder's
+    frames and sidecars), a glob the files it matches; ``sim:`` and ``realsense:`` inputs have
+    no files (an empty string). Sizes and times, not a digest of the bytes: a resumed batch of
+    long recordings would otherwise read every one of them again to find it unchanged.
+    """
+    import glob
+
+    key = input_key(spec)
+    if key.startswith(("sim:", "realsense:")):
+        return ""
+    base = key.partition("?")[0]
+    if Path(key).exists():
+        base = key
+    if Path(base).is_dir():
+        files = sorted(str(Path(d) / f) for d, _, names in os.walk(base) for f in names)
+    elif Path(base).exists():
+        files = [base]
+    else:
+        files = sorted(glob.glob(key)) if _GLOB_CHARS.search(key) else []
+    rows = []
+    for f in files:
+        try:
+            st = os.stat(f)
+        except OSError:  # gone since listed, or a dangling link: the run will say so
+            continue
+        rows.append((f, st.st_size, st.st_mtime_ns))
+    return hashlib.sha256(json.dumps(rows).encode()).hexdigest()[:16]
 
 
 def settings_hash(config: Mapping[str, Any] | None, source_options: Mapping[str, Any] | None, track: bool) -> str:
@@ -115,7 +153,7 @@ def process_recording(
     of an earlier run in ``out_dir`` are replaced; nothing of it is left that could pass for
     this run's (the summary and an old ``error.txt`` go first, label maps are swapped in whole).
     """
-    from depthgram.commands.describe import label_file_name, write_label_map
+    from depthgram.label_maps import label_file_name, write_label_map
     from depthgram.pipeline import Config, Pipeline
     from depthgram.sources import open_source
 
@@ -127,6 +165,7 @@ def process_recording(
     shutil.rmtree(labels_part, ignore_errors=True)
     labels_part.mkdir()
     t0 = time.perf_counter()
+    content = content_hash(spec)  # before reading: a change made while it runs is seen next time
     pipe = Pipeline(Config.from_dict(config or {}), track=track)
     src = open_source(spec, **dict(source_options or {}))
     frames = objects = 0
@@ -143,6 +182,7 @@ def process_recording(
     summary = {
         "input": spec,
         "settings": settings_hash(config, source_options, track),
+        "content": content,
         "frames": frames,
         "objects": objects,
         "seconds": round(time.perf_counter() - t0, 3),
@@ -247,6 +287,7 @@ def run_batch(
     scheduler: str | None = None,
     track: bool = True,
     on_done: Callable[[BatchResult], None] | None = None,
+    connect_timeout_s: float = CONNECT_TIMEOUT_S,
 ) -> list[BatchResult]:
     """Process recordings, one task each; return one :class:`BatchResult` per input, in input order.
 
@@ -265,7 +306,12 @@ def run_batch(
         ``dask`` extra.
     on_done : callable, optional
         Called with each result as it finishes (progress display).
+    connect_timeout_s : float
+        How long (s) ``scheduler`` has to answer as a Dask scheduler before the batch gives up
+        with an :class:`~depthgram.errors.InputError` naming it.
     """
+    if not connect_timeout_s > 0:
+        raise InputError(f"--connect-timeout must be a positive number of seconds, got {connect_timeout_s}")
     root = Path(out_dir).resolve()  # absolute: a Dask worker runs in another folder
     root.mkdir(parents=True, exist_ok=True)
     names = output_names(inputs)
@@ -277,7 +323,12 @@ def run_batch(
     todo: list[int] = []
     for i, (spec, name) in enumerate(zip(inputs, names, strict=True)):
         done = _finished(root / name)
-        if done is not None and done.get("input") == keys[i] and done.get("settings") == settings:
+        if (
+            done is not None
+            and done.get("input") == keys[i]
+            and done.get("settings") == settings
+            and done.get("content") == content_hash(keys[i])
+        ):
             results[i] = BatchResult(spec, name, "skipped", done.get("frames", 0), done.get("objects", 0))
             if on_done:
                 on_done(results[i])
@@ -300,12 +351,7 @@ def run_batch(
         with needs_extra("dask", "--scheduler (a Dask cluster)"):
             from distributed import Client
             from distributed import as_completed as dask_completed
-        try:
-            # distributed has no type hints: its calls are untyped
-            client = Client(scheduler, timeout="20s")  # type: ignore[no-untyped-call]
-        except (OSError, ValueError, TypeError) as exc:
-            raise InputError(f"--scheduler {scheduler}: cannot reach a Dask scheduler there ({exc})") from None
-        with client:
+        with _connected(Client, scheduler, connect_timeout_s) as client:
             futs = {client.submit(_guarded, *a, pure=False): i for a, i in zip(args, todo, strict=True)}
             for fut in dask_completed(list(futs)):  # type: ignore[no-untyped-call]
                 i = futs[fut]
@@ -329,6 +375,41 @@ def run_batch(
     with atomic_open(root / "batch.json") as fh:
         fh.write(json.dumps([asdict(r) for r in ordered], indent=1))
     return ordered
+
+
+@contextmanager
+def _connected(client_type: Any, scheduler: str, timeout_s: float) -> Iterator[Any]:
+    """Yield a Dask client of ``scheduler`` made within ``timeout_s``, else raise an InputError naming it.
+
+    ``Client(timeout=...)`` bounds the TCP connection only: a server that accepts and never
+    answers (another service on the port) kept it waiting for its handshake for ever (issue
+    32.3). So the client is made in a thread of its own and given up on at the deadline; that
+    thread is a daemon, so a client that never comes does not keep the process alive.
+    """
+    made: list[Any] = []
+    failed: list[BaseException] = []
+
+    def connect() -> None:
+        try:
+            # distributed has no type hints: its calls are untyped
+            made.append(client_type(scheduler, timeout=f"{timeout_s}s"))
+        except BaseException as exc:  # handed to the caller below
+            failed.append(exc)
+
+    thread = threading.Thread(target=connect, name="depthgram-dask-connect", daemon=True)
+    thread.start()
+    thread.join(timeout_s + 1.0)  # Client's own timeout first, when it applies
+    if failed:
+        exc = failed[0]
+        raise InputError(f"--scheduler {scheduler}: cannot reach a Dask scheduler there ({exc})") from None
+    if not made:
+        raise InputError(
+            f"--scheduler {scheduler}: no answer as a Dask scheduler within {timeout_s:g} s "
+            "(is something else listening there? a Dask scheduler's default port is 8786; "
+            "--connect-timeout S waits longer)"
+        )
+    with made[0] as client:
+        yield client
 
 
 def _finished(folder: Path) -> dict[str, Any] | None:

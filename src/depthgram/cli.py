@@ -48,7 +48,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     os.environ.setdefault("OPENCV_LOG_LEVEL", "ERROR")
     _closed_streams()
     parser = build_parser()
-    args = parser.parse_args(argv)
+    args, extra = parser.parse_known_args(argv)
+    if extra:
+        parser.error(_unrecognized(args, extra))
     if not getattr(args, "_run", None):
         parser.print_help()
         return 2
@@ -78,6 +80,26 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         print(f"depthgram {args.command}: interrupted", file=sys.stderr)
         return 130
+
+
+def _unrecognized(args: argparse.Namespace, extra: list[str]) -> str:
+    """Return argparse's message for arguments left over, with a hint when the shell expanded a glob.
+
+    ``depthgram info rec/*.png`` unquoted reaches us as every file name: argparse's
+    "unrecognized arguments" then lists them all and says nothing of the cause (issue 32.6).
+    """
+    given = getattr(args, "input", None)
+    files = [given, *extra] if isinstance(given, str) else []
+    if len(files) < 2 or not all(Path(f).exists() and not f.startswith("-") for f in files):
+        return f"unrecognized arguments: {' '.join(extra)}"
+    parent = os.path.dirname(files[0])
+    suffixes = {Path(f).suffix for f in files}
+    pattern = os.path.join(parent, "*" + (suffixes.pop() if len(suffixes) == 1 else ""))
+    return (
+        f"one INPUT, but {len(files)} files were given ({files[0]} ... {files[-1]}): the shell expands an "
+        f"unquoted pattern into every file it matches; quote it: depthgram {args.command} '{pattern}' "
+        "(or give the folder)"
+    )
 
 
 class _ClosedStream(io.TextIOBase):

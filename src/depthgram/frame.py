@@ -8,9 +8,11 @@ datasets), metres (float images), a units-per-metre scale (TUM's 5000), and the 
 
 from __future__ import annotations
 
+import math
 import warnings
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -20,8 +22,10 @@ from depthgram.errors import InputError
 __all__ = [
     "DepthError",
     "Frame",
+    "Gravity",
     "Intrinsics",
     "UnitsWarning",
+    "as_gravity",
     "depth_from_8bit",
     "depth_to_8bit",
     "implausible_depth",
@@ -72,6 +76,84 @@ class Intrinsics:
         return Intrinsics(self.fx * sx, self.fy * sy, (self.cx + 0.5) * sx - 0.5, (self.cy + 0.5) * sy - 0.5)
 
 
+@dataclass(frozen=True)
+class Gravity:
+    """Which way is down, in the camera's frame, and how that is known.
+
+    Parameters
+    ----------
+    vector : (float, float, float)
+        Unit vector along gravity (pointing down) in camera coordinates: x right, y down, z
+        forward along the optical axis. A level camera has (0, 1, 0); one looking straight down
+        (0, 0, 1). Any length is accepted and normalised.
+    source : str
+        ``given`` (a vector from the user), ``tilt`` (a pitch from the user), ``imu`` (the
+        recording's accelerometer), ``file`` (a file beside the frames), ``simulator`` (exact).
+    """
+
+    vector: tuple[float, float, float]
+    source: str = "given"
+
+    def __post_init__(self) -> None:
+        try:
+            v = np.asarray(self.vector, dtype=np.float64).reshape(3)
+        except (TypeError, ValueError):
+            raise InputError(f"gravity: expected three numbers X Y Z, got {self.vector!r}") from None
+        norm = float(np.linalg.norm(v))
+        if not (np.all(np.isfinite(v)) and norm > 1e-9):
+            raise InputError(f"gravity: expected a finite, non-zero vector X Y Z, got {tuple(v.tolist())}")
+        object.__setattr__(self, "vector", tuple(float(x) + 0.0 for x in v / norm))  # no -0.0
+
+    @classmethod
+    def from_tilt(cls, tilt_deg: float, roll_deg: float = 0.0) -> Gravity:
+        """Gravity of a camera pitched down by ``tilt_deg`` degrees (negative: up), rolled by ``roll_deg``.
+
+        Pitch turns about the camera's x axis, so looking down by t moves gravity from (0, 1, 0)
+        toward the optical axis: (0, cos t, sin t). Roll (clockwise as the camera sees) then turns it
+        about z.
+        """
+        if not (math.isfinite(tilt_deg) and -90.0 <= tilt_deg <= 90.0):
+            raise InputError(f"tilt: expected degrees between -90 (up) and 90 (straight down), got {tilt_deg}")
+        if not math.isfinite(roll_deg):
+            raise InputError(f"roll: expected degrees, got {roll_deg}")
+        t, r = math.radians(tilt_deg), math.radians(roll_deg)
+        y, z = math.cos(t), math.sin(t)
+        return cls((-math.sin(r) * y, math.cos(r) * y, z), "tilt")
+
+    @property
+    def tilt_deg(self) -> float:
+        """How far the optical axis points below the horizon (degrees; negative: above)."""
+        return math.degrees(math.asin(max(-1.0, min(1.0, self.vector[2]))))
+
+    def to_dict(self) -> dict[str, object]:
+        """JSON-ready: the unit vector, its source and the tilt it means (degrees)."""
+        vector = [round(c, 6) for c in self.vector]
+        return {"vector": vector, "source": self.source, "tilt_deg": round(self.tilt_deg, 2)}
+
+
+def as_gravity(gravity: Gravity | Sequence[float] | None = None, tilt_deg: float | None = None) -> Gravity | None:
+    """Return the user's gravity (a :class:`Gravity` or X, Y, Z) or tilt (degrees down) as a :class:`Gravity`.
+
+    Raises
+    ------
+    InputError
+        Both given, or not three finite numbers, or a zero vector.
+    """
+    if gravity is not None and tilt_deg is not None:
+        raise InputError("give the gravity (--gravity X Y Z) or the tilt (--tilt DEG), not both")
+    if tilt_deg is not None:
+        return Gravity.from_tilt(float(tilt_deg))
+    if gravity is None or isinstance(gravity, Gravity):
+        return gravity
+    try:
+        xyz = tuple(float(v) for v in gravity)
+    except (TypeError, ValueError):
+        raise InputError(f"gravity: expected three numbers X Y Z, got {gravity!r}") from None
+    if len(xyz) != 3:
+        raise InputError(f"gravity: expected three numbers X Y Z, got {len(xyz)}")
+    return Gravity((xyz[0], xyz[1], xyz[2]))
+
+
 @dataclass(frozen=True, eq=False)
 class Frame:
     """One depth image and what is needed to read it right.
@@ -92,6 +174,14 @@ class Frame:
     name : str
         Where the frame came from (file name, ``bag:topic#n``, ``sim:table#3``); used in
         error messages and to name per-frame outputs.
+    meta : dict
+        Source-specific notes (the simulator's scene and seed; ``sensor_profile``, the sensor
+        model a named camera implies; ``intrinsics_from``, the file or profile of the intrinsics).
+    intrinsics_source : str
+        Where ``intrinsics`` came from (:data:`depthgram.sources.camera.INTRINSICS_SOURCES`:
+        ``given``, ``file``, ``bag``, ``device``, ``simulator``, ``profile``); "" without them.
+    gravity : Gravity or None
+        Which way is down in the camera's frame, when known.
     """
 
     depth: NDArray[np.float32]
@@ -101,6 +191,8 @@ class Frame:
     intrinsics: Intrinsics | None = None
     name: str = ""
     meta: dict[str, object] = field(default_factory=dict)
+    intrinsics_source: str = ""
+    gravity: Gravity | None = None
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -262,9 +354,18 @@ def make_frame(
     for v in invalid_values:
         valid &= arr != v
     valid &= arr > 0  # negative depth is no reading
-    depth = np.where(valid, arr, 0).astype(np.float32)
-    if scale_mm != 1.0:
-        depth *= np.float32(scale_mm)
+    with np.errstate(over="ignore"):  # an overflow is found and handled just below
+        depth = np.where(valid, arr, 0).astype(np.float32)
+        if scale_mm != 1.0:
+            depth *= np.float32(scale_mm)
+    if _may_overflow(arr.dtype, scale_mm):
+        # a reading beyond float32 once in mm (float64 1e300, float32's largest in metres) is
+        # no reading: left in, it is an infinite depth that every later stage would trip on
+        # (issue 32.2)
+        endless = np.isinf(depth)
+        if endless.any():
+            valid &= ~endless
+            depth[endless] = 0.0
     if max_mm is not None:
         too_far = depth > max_mm
         valid &= ~too_far
@@ -283,6 +384,15 @@ def make_frame(
             if found:
                 warn_units(where, found[0], _scale_hints(found[1]))
     return Frame(depth=depth, valid=valid, index=index, time_s=time_s, intrinsics=intrinsics, name=name)
+
+
+def _may_overflow(dtype: np.dtype[Any], scale_mm: float) -> bool:
+    # whether a finite raw value can leave float32's range once cast and scaled: checked so that
+    # the usual frames (16-bit mm, float32 read as they are) pay no pass for it
+    f32_max = float(np.finfo(np.float32).max)
+    if np.issubdtype(dtype, np.integer):
+        return float(np.iinfo(dtype).max) * scale_mm >= f32_max
+    return dtype != np.float32 or scale_mm > 1.0
 
 
 def depth_from_8bit(raw: ArrayLike, near_mm: float, far_mm: float) -> NDArray[np.float32]:

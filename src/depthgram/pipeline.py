@@ -25,17 +25,19 @@ from numpy.typing import NDArray
 from depthgram.act import ActConfig, Plan
 from depthgram.act import plan as plan_scene
 from depthgram.dynamics import FramePixels, Tracker, TrackerConfig
-from depthgram.dynamics.core import load_rare_kernels as load_rare_dynamics_kernels
+from depthgram.dynamics import warm_up as warm_up_dynamics
 from depthgram.errors import InputError
-from depthgram.frame import Frame, Intrinsics
+from depthgram.focal_length import estimate_focal_length
+from depthgram.frame import Frame, Gravity, Intrinsics, as_gravity
 from depthgram.scene import TreeConfig, build_tree, to_sentence, tree_to_dict
 from depthgram.scene.tree import Motion, SceneTree
-from depthgram.segmentation import SegmentConfig, segment
-from depthgram.segmentation.core import load_rare_kernels
+from depthgram.segmentation import SegmentConfig, SensorModel, estimate_sensor, segment, sensor_model
+from depthgram.segmentation import warm_up as warm_up_segmentation
 from depthgram.segmentation.label import relabel
 from depthgram.segmentation.objects import SceneObject, Segmentation
-from depthgram.segmentation.sensor import SensorModel, estimate_sensor
+from depthgram.segmentation.orientation import default_intrinsics
 from depthgram.sound import SoundMapping
+from depthgram.sources.camera import Camera, IntrinsicsWarning, resolve_camera
 from depthgram.sources.prefetch import prefetch
 from depthgram.stills import kinship
 
@@ -211,6 +213,9 @@ class SceneResult:
     #: Why this frame was taken as a still unrelated to the previous one (no motion read into
     #: it; ids start again): the ``stills`` setting or what the data showed. Empty otherwise.
     still: str = ""
+    #: The intrinsics the frame was segmented with and where they came from, and the sensor model
+    #: (:meth:`Pipeline.camera_record`): on the first frame of a run, and wherever they change.
+    camera: Mapping[str, Any] | None = None
 
     @property
     def sentence(self) -> str:
@@ -224,12 +229,18 @@ class SceneResult:
         nodes = {n["id"]: n for n in tree["nodes"]}
         objects = [_object_record(o, nodes.get(o.id, {}), self.motions.get(o.id)) for o in self.segmentation.objects]
         occluded = [_object_record(o, {}, m) for o, m in self.occluded]
-        return {
+        rec: dict[str, Any] = {
             "frame": f.index,
             "time_s": f.time_s,
             "source": f.name,
             "size": list(f.size),
             "unit": "mm",
+        }
+        if self.camera is not None:
+            rec["camera"] = dict(self.camera)
+        if f.gravity is not None:
+            rec["gravity"] = f.gravity.to_dict()
+        return rec | {
             "objects": objects,
             "occluded": occluded,
             "relations": tree["relations"],
@@ -281,6 +292,8 @@ def _object_record(o: SceneObject, node: Mapping[str, Any], m: Motion | None) ->
 
 #: Frames between two estimates of the sensor model in a stream.
 _SENSOR_EVERY = 30
+#: frames without intrinsics that try to read the focal length from their scene
+_FOCAL_TRIES = 5
 #: Unrelated successive pairs that, once they are at least half of the pairs seen, make a source
 #: without timestamps a folder of stills (:meth:`Pipeline._still_reason`).
 _STILLS_EVIDENCE = 2
@@ -301,6 +314,20 @@ class Pipeline:
         (:func:`depthgram.stills.kinship`); a source without timestamps whose unrelated pairs
         come as often as related ones (two at least) is taken for a folder of stills from then on.
 
+    intrinsics : Intrinsics or (fx, fy, cx, cy), optional
+        Pinhole intrinsics (px) of the frames, overriding theirs (``--intrinsics``).
+    camera : str or path, optional
+        A calibration file or a camera profile (``--camera``;
+        :func:`depthgram.sources.camera.resolve_camera`), overriding the frames' intrinsics; a
+        profile also names the sensor model when the configuration's is ``auto``.
+    gravity : Gravity or (x, y, z), optional
+        Which way is down in camera coordinates (``--gravity``), put on every frame.
+    tilt_deg : float, optional
+        The camera looks down by this many degrees (``--tilt``), instead of ``gravity``.
+
+    Frames without intrinsics are segmented with a guess (a 64-degree field of view), with an
+    :class:`~depthgram.sources.camera.IntrinsicsWarning` naming the options that tell the camera.
+
     Examples
     --------
     >>> from depthgram import Pipeline, read
@@ -309,9 +336,25 @@ class Pipeline:
     ...     print(result.sentence)
     """
 
-    def __init__(self, config: Config | None = None, *, track: bool = True) -> None:
+    def __init__(
+        self,
+        config: Config | None = None,
+        *,
+        track: bool = True,
+        intrinsics: Intrinsics | tuple[float, float, float, float] | None = None,
+        camera: str | Path | Camera | None = None,
+        gravity: Gravity | tuple[float, float, float] | None = None,
+        tilt_deg: float | None = None,
+    ) -> None:
         self.config = config or Config()
         self.track = track
+        self.camera = resolve_camera(intrinsics, camera)
+        self.gravity = as_gravity(gravity, tilt_deg)
+        self._said_camera: dict[str, Any] | None = None  # the camera record last given in a result
+        self._warned_guess = False
+        self._warned_estimate = False
+        self._focal: Intrinsics | None = None  # the focal length read from the scene, once found
+        self._focal_tries = 0
         self._tracker = Tracker(self.config.tracker)
         self._sensor: SensorModel | None = None
         self._sensor_age = 0
@@ -327,6 +370,95 @@ class Pipeline:
         self._prev = None
         self._untimed_stills = ""
         self._untimed_pairs = [0, 0]
+        self._said_camera = None
+        self._focal, self._focal_tries = None, 0
+
+    def _calibrated(self, frame: Frame) -> Frame:
+        """Return ``frame`` with this pipeline's camera and gravity; warn once when its intrinsics are a guess."""
+        cam, changes = self.camera, {}
+        if cam is not None:
+            meta = {**frame.meta, "intrinsics_from": cam.origin} if cam.origin else dict(frame.meta)
+            if cam.sensor:
+                meta["sensor_profile"] = cam.sensor
+            changes = {"intrinsics": cam.for_size(frame.size), "intrinsics_source": cam.source, "meta": meta}
+        if self.gravity is not None:
+            changes["gravity"] = self.gravity
+        if changes:
+            frame = dataclasses.replace(frame, **changes)  # type: ignore[arg-type]
+        if frame.intrinsics is None:
+            k = self._scene_focal(frame)
+            if k is not None:
+                return dataclasses.replace(frame, intrinsics=k, intrinsics_source="estimated")
+        if frame.intrinsics is None and not self._warned_guess:
+            self._warned_guess = True
+            k = default_intrinsics(frame.shape)
+            warnings.warn(
+                f"{frame.name or f'frame {frame.index}'}: no camera intrinsics, and the scene does not show its "
+                f"focal length (no support seen at an angle with surfaces square to it): guessed fx = fy = "
+                f"{k.fx:.0f} px (a 64-degree field of view); tell the camera with --intrinsics FX FY CX CY or "
+                "--camera FILE|PROFILE (in Python: intrinsics= or camera=)",
+                IntrinsicsWarning,
+                stacklevel=2,
+            )
+        return frame
+
+    def _scene_focal(self, frame: Frame) -> Intrinsics | None:
+        """Return the intrinsics read from the scene for a frame without any (the first few frames try).
+
+        A camera's focal length does not change within a recording: the first frame that shows it
+        (:func:`depthgram.focal_length.estimate_focal_length`) sets it for the rest, scaled to
+        each frame's size, and the user is told once.
+        """
+        if self._focal is None and self._focal_tries < _FOCAL_TRIES:
+            self._focal_tries += 1
+            found = estimate_focal_length(frame.depth, frame.valid)
+            if found is not None:
+                self._focal = found.intrinsics
+                if not self._warned_estimate:
+                    self._warned_estimate = True
+                    warnings.warn(
+                        f"{frame.name or f'frame {frame.index}'}: no camera intrinsics: estimated fx = fy = "
+                        f"{found.intrinsics.fx:.0f} px from the scene (the right angles between a support seen "
+                        f"{found.tilt_deg:.0f} degrees from face-on and what rises from it; principal point at "
+                        "the centre); tell the camera with --intrinsics FX FY CX CY or --camera FILE|PROFILE "
+                        "(in Python: intrinsics= or camera=) to be sure",
+                        IntrinsicsWarning,
+                        stacklevel=3,
+                    )
+        k = self._focal
+        if k is None or (k.cx, k.cy) == ((frame.shape[1] - 1) / 2.0, (frame.shape[0] - 1) / 2.0):
+            return k
+        # a frame of another size (a resized stream): the same field of view
+        h, w = frame.shape
+        scale = w / (2.0 * k.cx + 1.0)
+        return Intrinsics(k.fx * scale, k.fy * scale, (w - 1) / 2.0, (h - 1) / 2.0)
+
+    def camera_record(self, frame: Frame) -> dict[str, Any]:
+        """Return what the JSON says of the camera of ``frame``: intrinsics (px), where from, sensor model.
+
+        ``source`` is one of :data:`depthgram.sources.camera.INTRINSICS_SOURCES`: ``guessed``
+        (with the guess the segmentation used) when the frame has no intrinsics.
+        """
+        k = frame.intrinsics
+        source = frame.intrinsics_source or "given"
+        if k is None:
+            k, source = default_intrinsics(frame.shape), "guessed"
+        rec: dict[str, Any] = {
+            "intrinsics": {"fx": round(k.fx, 3), "fy": round(k.fy, 3), "cx": round(k.cx, 3), "cy": round(k.cy, 3)},
+            "intrinsics_source": source,
+        }
+        origin = frame.meta.get("intrinsics_from")
+        if origin:
+            rec["intrinsics_from"] = str(origin)
+        seg = self.config.segment
+        hint = frame.meta.get("sensor_profile")
+        if seg.sensor != "auto":
+            rec["sensor"], rec["sensor_source"] = seg.sensor, "config"
+        elif hint and seg.method == "surfaces":
+            rec["sensor"], rec["sensor_source"] = str(hint), "profile"
+        else:
+            rec["sensor"], rec["sensor_source"] = "auto", "estimated"
+        return rec
 
     def _still_reason(self, frame: Frame) -> str:
         """Why ``frame`` must not be tracked from the previous one ("" when it may)."""
@@ -364,6 +496,9 @@ class Pipeline:
         seg = self.config.segment
         if seg.method != "surfaces" or seg.sensor != "auto":
             return None
+        hint = frame.meta.get("sensor_profile")
+        if isinstance(hint, str):
+            return sensor_model(hint)  # a named camera's model: as if the configuration named it
         if self._sensor is None or self._sensor_age >= _SENSOR_EVERY:
             self._sensor = estimate_sensor(frame.depth, frame.valid)
             self._sensor_age = 0
@@ -382,6 +517,8 @@ class Pipeline:
         """
         t0 = time.perf_counter()
         throwaway = Pipeline(self.config, track=self.track)
+        throwaway.camera, throwaway.gravity = self.camera, self.gravity
+        throwaway._warned_guess = throwaway._warned_estimate = True
         throwaway.process(frame)
         # A second frame, so that the tracker reads motion (its core's kernel) here too.
         later = None if frame.time_s is None else frame.time_s + 1.0 / 30.0
@@ -395,8 +532,8 @@ class Pipeline:
                 throwaway._tracker.update((), t, frame.size)
         # Kernels that only rare branches of the segmentation reach compiled, on a fresh install,
         # at the first frame taking them: 470 ms in the middle of a 7-Scenes stream.
-        load_rare_kernels()
-        load_rare_dynamics_kernels()
+        warm_up_segmentation()
+        warm_up_dynamics()
         return time.perf_counter() - t0
 
     def process(self, frame: Frame) -> SceneResult:
@@ -408,6 +545,7 @@ class Pipeline:
     def _segmented(self, frame: Frame) -> tuple[Frame, Segmentation, float, Future[None] | None]:
         """Segment ``frame`` with its image motion started beside: what :meth:`_describe` takes."""
         t0 = time.perf_counter()
+        frame = self._calibrated(frame)
         args = _segment_args(frame, self.config.segment, self._sensor_model(frame))
         motion = self._prepare_motion(frame)
         return frame, _segment(*args), t0, motion
@@ -467,6 +605,11 @@ class Pipeline:
             occluded = tuple((dataclasses.replace(t.last, id=t.id), _occluded_motion(t)) for t in update.occluded)
         tree = build_tree(seg.objects, frame.size, motion=motions or None, config=cfg.tree, labels=seg.labels)
         action_plan = plan_scene(tree, frame, config=cfg.act)
+        camera: dict[str, Any] | None = self.camera_record(frame)
+        if camera == self._said_camera:
+            camera = None
+        else:
+            self._said_camera = camera
         return SceneResult(
             frame=frame,
             segmentation=seg,
@@ -476,6 +619,7 @@ class Pipeline:
             plan=action_plan,
             latency_s=time.perf_counter() - t0,
             still=still,
+            camera=camera,
         )
 
     def run(self, frames: Iterable[Frame], *, read_ahead: int = 2, workers: int = 1) -> Iterator[SceneResult]:
@@ -546,7 +690,8 @@ class Pipeline:
         pool = ProcessPoolExecutor(max_workers=workers, mp_context=ctx)
         pending: deque[tuple[Frame, Future[Segmentation], float]] = deque()
         try:
-            for frame in frames:
+            for raw in frames:
+                frame = self._calibrated(raw)
                 args = _segment_args(frame, self.config.segment, self._sensor_model(frame))
                 pending.append((frame, pool.submit(_segment, *args, True), time.perf_counter()))
                 if len(pending) > workers:
@@ -638,7 +783,11 @@ def describe(
     from depthgram.frame import Frame, make_frame
 
     if isinstance(depth_mm, Frame):
-        frame = depth_mm if intrinsics is None else dataclasses.replace(depth_mm, intrinsics=intrinsics)
+        frame = (
+            depth_mm
+            if intrinsics is None
+            else dataclasses.replace(depth_mm, intrinsics=intrinsics, intrinsics_source="given")
+        )
     else:
         frame = make_frame(depth_mm, intrinsics=intrinsics, name="array")
     return Pipeline(config, track=False).process(frame)

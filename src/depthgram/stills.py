@@ -13,7 +13,7 @@ folder of images without a rate), where a user is likeliest to hand over stills.
 A hand-held camera that turns fast moves the whole image by several pixels between two frames,
 which alone makes their depths disagree along every edge (7-Scenes: 6 of 299 pairs below
 :data:`MIN_AGREE_UNTIMED`, the lowest at 62 %). A pair that falls short is compared again
-after one image shift (:func:`depthgram.dynamics.core.image_shift`, phase correlation): then
+after one image shift (:func:`depthgram.dynamics.camera_motion.image_shift`, phase correlation): then
 the lowest 7-Scenes pair agrees on 87 %, while unrelated stills stay at 2-9 %.
 """
 
@@ -25,7 +25,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from depthgram.dynamics.core import image_shift
+from depthgram.dynamics.camera_motion import image_shift
 from depthgram.frame import Frame
 
 __all__ = ["MIN_AGREE", "MIN_AGREE_UNTIMED", "Kinship", "kinship"]

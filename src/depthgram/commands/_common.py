@@ -73,7 +73,8 @@ def add_source_arguments(p: argparse.ArgumentParser, *, input_optional: bool = F
         metavar="INPUT",
         nargs="?" if input_optional else None,
         help="file, folder or glob of depth frames, .npy/.npz stack, ROS bag / MCAP, realsense:[SERIAL], "
-        "or sim:SCENE (table, corridor, approach, crossing, ball_wall, touching; ?sensor=sl: structured light)",
+        "or sim:SCENE (table, corridor, approach, crossing, ball_wall, touching, arm_down, arm_45, chest_walk; "
+        "?sensor=sl: structured light)",
     )
     add_reading_arguments(p)
 
@@ -137,6 +138,32 @@ def add_reading_arguments(p: argparse.ArgumentParser) -> None:
     )
     g.add_argument("--topic", default=None, help="depth Image topic of a ROS bag (when it has several)")
     g.add_argument("--key", default=None, help="array name inside an .npz")
+    g.add_argument(
+        "--intrinsics",
+        type=float,
+        nargs=4,
+        default=None,
+        metavar=("FX", "FY", "CX", "CY"),
+        help="camera intrinsics in pixels, for the frames as read (override sidecars, a bag's CameraInfo)",
+    )
+    g.add_argument(
+        "--camera",
+        default=None,
+        metavar="FILE_OR_PROFILE",
+        help="calibration file (ROS camera_info or OpenCV/Kalibr YAML, Open3D JSON, 3x3 matrix text) or a "
+        "camera profile (kinect-v1, xtion, realsense-d435, azure-kinect-nfov, ...: intrinsics and sensor model)",
+    )
+    g.add_argument(
+        "--gravity",
+        type=float,
+        nargs=3,
+        default=None,
+        metavar=("X", "Y", "Z"),
+        help="which way is down in camera coordinates (x right, y down, z forward; any length); overrides a bag's IMU",
+    )
+    g.add_argument(
+        "--tilt", type=float, default=None, metavar="DEG", help="the camera looks down DEG degrees (no roll)"
+    )
 
 
 def reading_options(args: argparse.Namespace) -> dict[str, Any]:
@@ -149,6 +176,10 @@ def reading_options(args: argparse.Namespace) -> dict[str, Any]:
         "encoding": args.encoding,
         "topic": args.topic,
         "key": args.key,
+        "intrinsics": tuple(args.intrinsics) if args.intrinsics is not None else None,
+        "camera": args.camera,
+        "gravity": tuple(args.gravity) if args.gravity is not None else None,
+        "tilt_deg": args.tilt,
     }
     if args.depth_range is not None:
         kwargs["depth_range_mm"] = tuple(args.depth_range)

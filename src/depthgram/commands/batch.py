@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from depthgram.commands._common import add_reading_arguments, load_config, reading_options
+from depthgram.commands._common import add_config_arguments, add_reading_arguments, load_config, reading_options
 
 NAME = "batch"
 HELP = "process many recordings (local cores, or a Dask cluster with --scheduler); resumable"
@@ -22,7 +22,14 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         metavar="ADDRESS",
         help="Dask distributed scheduler address, e.g. tcp://10.0.0.5:8786",
     )
-    p.add_argument("--config", default=None, metavar="TOML", help="pipeline settings")
+    p.add_argument(
+        "--connect-timeout",
+        type=float,
+        default=None,
+        metavar="S",
+        help="seconds the scheduler has to answer as a Dask scheduler (default: 30)",
+    )
+    add_config_arguments(p)  # --config and --method, as describe takes them
     add_reading_arguments(p)  # the same reading options as every command, applied to each recording
     p.add_argument("--quiet", action="store_true", help="no per-recording lines")
 
@@ -52,6 +59,7 @@ def run(args: argparse.Namespace) -> int:
         scheduler=args.scheduler,
         track=True,
         on_done=show,
+        **({} if args.connect_timeout is None else {"connect_timeout_s": args.connect_timeout}),
     )
     failed = [r for r in results if r.status == "failed"]
     print(

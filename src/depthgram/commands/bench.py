@@ -1,13 +1,15 @@
 """depthgram bench: run the stage benchmarks in benchmarks/ and print their tables.
 
-The benchmarks are scripts of the source checkout (they read ``../shared/data`` beside it and
-are not part of the wheel): from an installed depthgram, pass ``--dir CHECKOUT/benchmarks``.
+The benchmarks are scripts of the source checkout (they read the real recordings from
+``--data``, the ``DEPTHGRAM_DATA`` environment variable or ``../shared/data`` beside it, and are
+not part of the wheel): from an installed depthgram, pass ``--dir CHECKOUT/benchmarks``.
 """
 
 from __future__ import annotations
 
 import argparse
 import importlib.util
+import os
 import sys
 from pathlib import Path
 
@@ -32,6 +34,13 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "suites", nargs="*", default=[], metavar="SUITE", help=f"which benchmarks: {', '.join(SUITES)} (default: all)"
     )
     p.add_argument("--quick", action="store_true", help="fewer repetitions (a rough figure in seconds)")
+    p.add_argument(
+        "--data",
+        default=None,
+        metavar="DIR",
+        help="folder of the real recordings the benchmarks read (default: $DEPTHGRAM_DATA, else ../shared/data "
+        "beside the checkout)",
+    )
     p.add_argument(
         "--dir",
         default=None,
@@ -63,6 +72,11 @@ def run(args: argparse.Namespace) -> int:
         )
     if not folder.is_dir():
         raise InputError(f"--dir {folder}: no such folder (expected a depthgram checkout's benchmarks/)")
+    if args.data is not None:
+        if not Path(args.data).is_dir():
+            raise InputError(f"--data {args.data}: no such folder (expected the real recordings, e.g. ../shared/data)")
+        # the scripts read where the recordings are from the environment, as when run on their own
+        os.environ["DEPTHGRAM_DATA"] = str(Path(args.data).resolve())
     status = 0
     for name in args.suites or list(SUITES):
         path = folder / SUITES[name]

@@ -39,7 +39,9 @@ def run(args: argparse.Namespace) -> int:
     for scene, frames in (("table", 1), ("approach", args.frames)):
         src = open_source(f"sim:{scene}?frames={frames}")
         pipe = Pipeline()
-        report = ReportWriter(out / scene / "report", every=max(1, frames // 4), max_pictures=4)
+        report = ReportWriter(
+            out / scene / "report", every=max(1, frames // 4), max_pictures=4, source=f"sim:{scene}?frames={frames}"
+        )
         fps = src.fps or 30.0
         sonifier: Sonifier | None = None
         last = None
@@ -57,6 +59,6 @@ def run(args: argparse.Namespace) -> int:
         if last is None:
             raise InputError(f"sim:{scene}: the simulator gave no frame")
         (out / scene / "plan.txt").write_text(plan_to_text(last.plan) + "\n", encoding="utf-8")
-        print(f"{scene}: {frames} frame(s) -> {out / scene}/ (scenes.jsonl, sound.wav, plan.txt, {page.name})")
+        print(f"{scene}: {frames} frame(s) -> {out / scene}/ (scenes.jsonl, sound.wav, plan.txt), report {page}")
         print(f"  last sentence: {last.sentence}")
     return 0

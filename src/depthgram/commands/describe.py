@@ -5,7 +5,6 @@ from __future__ import annotations
 import argparse
 import json
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 from depthgram.commands._common import (
     STDOUT,
@@ -16,10 +15,6 @@ from depthgram.commands._common import (
     output_target,
     pipeline_results,
 )
-
-if TYPE_CHECKING:
-    import numpy as np
-    from numpy.typing import NDArray
 
 NAME = "describe"
 HELP = "describe every frame: objects, tree, sentence, motion (JSON lines or text)"
@@ -52,40 +47,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     )
 
 
-def label_file_name(frame_name: str, index: int) -> str:
-    """Label map file name, after the input frame's file when it has one."""
-    stem = Path(frame_name).stem if frame_name and ":" not in frame_name else ""
-    if stem and "#" in Path(frame_name).name:  # a frame of a stack ("st.npy#2"): every frame its own map
-        stem = f"{Path(frame_name.partition('#')[0]).stem}-{index:06d}"
-    return f"{stem or f'{index:06d}'}.png"
-
-
-def write_label_map(path: Path, labels: NDArray[np.integer], frame_name: str) -> None:
-    """Write ``labels`` (object or track id per pixel) as a 16-bit PNG.
-
-    Raises
-    ------
-    InputError
-        When an id does not fit in 16 bits (track ids grow over a long recording and would
-        wrap silently), or the file cannot be written.
-    """
-    import cv2
-
-    from depthgram.errors import InputError
-
-    top = int(labels.max(initial=0))
-    if top > 65535:
-        raise InputError(f"{frame_name}: object id {top} is above 65535; cannot write a 16-bit PNG label map ({path})")
-    from depthgram.atomic import atomic_path
-
-    with atomic_path(path) as tmp:
-        if not cv2.imwrite(str(tmp), labels.astype("uint16")):
-            raise InputError(f"{path}: could not write the label map")
-
-
 def run(args: argparse.Namespace) -> int:
     """Run the command on parsed ``args``; return the exit status."""
     from contextlib import ExitStack
+
+    from depthgram.label_maps import label_file_name, write_label_map
 
     json_to, text_to = output_target(args, "json"), output_target(args, "text")
     if args.format is not None:

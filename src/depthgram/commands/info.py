@@ -49,11 +49,27 @@ def format_info(info: object) -> str:
     if info.duration_s is not None:
         lines.append(f"duration    {info.duration_s:.3f} s")
     k = info.intrinsics
-    intr = "unknown" if k is None else f"fx {k.fx:.2f}  fy {k.fy:.2f}  cx {k.cx:.2f}  cy {k.cy:.2f} px"
-    lines.append(f"intrinsics  {intr}")
+    if k is None:
+        from depthgram.segmentation.orientation import default_intrinsics
+
+        k = default_intrinsics((h, w))
+        said = "guessed: a 64-degree field of view; give --intrinsics FX FY CX CY or --camera FILE|PROFILE"
+    else:
+        origin = getattr(info, "intrinsics_from", "")
+        said = (getattr(info, "intrinsics_source", "") or "given") + (f" from {origin}" if origin else "")
+    lines.append(f"intrinsics  fx {k.fx:.2f}  fy {k.fy:.2f}  cx {k.cx:.2f}  cy {k.cy:.2f} px ({said})")
+    gravity = getattr(info, "gravity", None)
+    if gravity:
+        x, y, z = gravity["vector"]
+        lines.append(
+            f"gravity     {x:.3f} {y:.3f} {z:.3f} (camera x right, y down, z forward; "
+            f"looking {gravity['tilt_deg']:.1f} degrees down; {gravity['source']})"
+        )
     sensor = getattr(info, "sensor", None)
-    if sensor:
+    if sensor and sensor.startswith("auto"):
         lines.append(f"sensor      {sensor} (estimated from the first frame; set [segment] sensor to a profile)")
+    elif sensor:
+        lines.append(f"sensor      {sensor}")
     return "\n".join(lines)
 
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 
 from depthgram.commands._common import add_config_arguments
+from depthgram.commands.sonify import PRESETS
 
 NAME = "lesson"
 HELP = "write one short WAV per sound cue (left/right, near/far, height, size, glides, approach) with a line each"
@@ -14,7 +15,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     """Add this command's options to ``p``."""
     p.add_argument("folder", metavar="DIR", help="folder to write the WAVs and lesson.txt into (made if missing)")
     add_config_arguments(p)
-    p.add_argument("--preset", default=None, help="sound mapping preset (overrides the config's [sound])")
+    p.add_argument(
+        "--preset",
+        default=None,
+        choices=PRESETS,
+        help="sound mapping preset (overrides the config's [sound]): %(choices)s",
+    )
     p.add_argument("--samplerate", type=int, default=22050, help="samples per second")
 
 

@@ -37,7 +37,7 @@ def run(args: argparse.Namespace) -> int:
     n = source_len(src)
     every = max(1, (n or args.pictures) // args.pictures)
     # with a known length the pictured frames are spread from the first to the last
-    writer = ReportWriter(args.out, every=every, max_pictures=args.pictures, frames=n)
+    writer = ReportWriter(args.out, every=every, max_pictures=args.pictures, frames=n, source=str(args.input))
     writer.add_all(results)
     index = writer.finish()
     print(f"report written: {index}")

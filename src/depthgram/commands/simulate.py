@@ -23,7 +23,10 @@ MAX_SIDE = 4096
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Declare the sub-command's arguments."""
-    parser.add_argument("scene", help="scene name: table, corridor, approach, crossing, ball_wall, touching")
+    parser.add_argument(
+        "scene",
+        help="scene name: table, corridor, approach, crossing, ball_wall, touching, arm_down, arm_45, chest_walk",
+    )
     parser.add_argument("--frames", type=int, default=1, help="number of frames (default 1)")
     parser.add_argument("--size", default="176x132", help="image size WxH in pixels (default 176x132)")
     parser.add_argument("--out", required=True, help="output folder (created when missing)")

@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import argparse
+import io
+import sys
 from collections import Counter
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -18,6 +20,10 @@ if TYPE_CHECKING:
 NAME = "sonify"
 HELP = "render the scene to stereo audio for a listener (WAV): a recording at its real time, a still as a scan"
 
+#: The sound presets, for --preset: depthgram.sound.PRESETS's names (a test holds them equal),
+#: written out because importing the sound package would slow every command's start.
+PRESETS = ("calm", "default", "detailed")
+
 #: Silence (s) before each still after the first, so that one scene is heard ending.
 GAP_S = 0.3
 
@@ -31,8 +37,13 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "least twice. The cues: docs/sound-mapping.md; learn them with 'depthgram lesson DIR'."
     )
     add_pipeline_arguments(p)
-    p.add_argument("--wav", required=True, metavar="OUT.wav", help="audio file to write")
-    p.add_argument("--preset", default=None, help="sound mapping preset (overrides the config's [sound])")
+    p.add_argument("--wav", required=True, metavar="OUT.wav", help="audio file to write ('-': standard output)")
+    p.add_argument(
+        "--preset",
+        default=None,
+        choices=PRESETS,
+        help="sound mapping preset (overrides the config's [sound]): %(choices)s",
+    )
     p.add_argument("--samplerate", type=int, default=22050, help="samples per second")
     p.add_argument(
         "--still-duration",
@@ -65,7 +76,7 @@ class _Writer:
         self.stills: list[tuple[SceneResult, float]] = []
         self.streamed = 0
         self.periods: Counter[str] = Counter()
-        self.voiced: set[int] = set()
+        self.voiced = 0  # distinct voices of the recordings
         self.most = (0, 0)
         self.left_out: Counter[str] = Counter()
         self._last_period = 0.0
@@ -115,7 +126,7 @@ class _Writer:
         self._last_period = period
         if self.stream is None:
             self.stream = Sonifier(self.mapping, self.sr, r.frame.size)
-        audio = self.stream.push(r.tree, period, r.segmentation.objects)
+        audio = self.stream.push(r.tree, period, r.segmentation.objects, r.frame.intrinsics)
         if fade:  # the run ends: fade out over the ramp, so that it lasts as long as it did and ends without a click
             k = min(len(audio), max(1, round(self.mapping.ramp_s * self.sr)))
             audio[len(audio) - k :] *= np.linspace(1.0, 0.0, k, dtype=np.float32)[:, None]
@@ -123,8 +134,10 @@ class _Writer:
         self.frames += 1
         self.streamed += 1
         sel = select(r.tree, self.mapping)
-        self.voiced.update(n.id for n in sel.beeps)
-        self.most = max(self.most, (len(sel.beeps), len(sel.glides)))
+        now = self.stream.voices_now
+        self.most = max(self.most, (sum(k[0] == "o" for k in now), sum(k[0] == "g" for k in now)))
+        if fade:
+            self.voiced += self.stream.chooser.distinct
         self.left_out.update(why.split("(")[-1].rstrip(")") for _, why in sel.left_out)
 
     def _still(self, r: SceneResult) -> None:
@@ -160,7 +173,7 @@ class _Writer:
             lines.append(
                 f"  recordings at their real time ({rates or 'one frame'}); up to {self.most[0]} "
                 f"object(s) beeping and {self.most[1]} surface(s) humming at once, "
-                f"{len(self.voiced)} object id(s) voiced in all"
+                f"{self.voiced} distinct object voice(s) in all"
             )
             for why, n in self.left_out.most_common():
                 lines.append(f"  {n} time(s) a node was left out: {why}")
@@ -182,14 +195,18 @@ def run(args: argparse.Namespace) -> int:
         raise InputError(f"--samplerate must be between 4000 and 192000, got {args.samplerate}")
     if args.still_duration is not None and not 0 < args.still_duration <= 60:
         raise InputError(f"--still-duration must be in (0, 60] s, got {args.still_duration}")
+    to_stdout = args.wav == "-"
     out_dir = Path(args.wav).resolve().parent
-    if not out_dir.is_dir():
+    if not to_stdout and not out_dir.is_dir():
         raise InputError(f"{args.wav}: cannot write the audio, folder {out_dir} does not exist")
     mapping = SoundMapping.preset(args.preset) if args.preset else load_config(args).sound
     src, results = pipeline_results(args, NAME)
     fps = getattr(src, "fps", None) or args.fps
-    # Streamed to disk frame by frame: a long recording never sits in memory as audio.
-    with sf.SoundFile(args.wav, "w", samplerate=args.samplerate, channels=2, subtype="PCM_16") as wav:
+    # Streamed to disk frame by frame: a long recording never sits in memory as audio. A WAV's
+    # header holds its length, which a pipe cannot go back to write: standard output gets the
+    # whole file at the end.
+    target: Any = io.BytesIO() if to_stdout else args.wav
+    with sf.SoundFile(target, "w", samplerate=args.samplerate, channels=2, subtype="PCM_16", format="WAV") as wav:
         w = _Writer(wav, mapping, args.samplerate, fps, args.still_duration, args.input)
         try:
             for result in results:
@@ -197,10 +214,17 @@ def run(args: argparse.Namespace) -> int:
             w.close()
         except BaseException:
             wav.close()
-            Path(args.wav).unlink(missing_ok=True)  # no half-written file that looks like a result
+            if not to_stdout:
+                Path(args.wav).unlink(missing_ok=True)  # no half-written file that looks like a result
             raise
     if not w.frames:
-        Path(args.wav).unlink(missing_ok=True)
+        if not to_stdout:
+            Path(args.wav).unlink(missing_ok=True)
         raise InputError(f"{args.input}: no frame to sonify")
+    if to_stdout:
+        sys.stdout.buffer.write(target.getvalue())
+        sys.stdout.flush()
+        print("\n".join(w.summary("standard output")), file=sys.stderr)
+        return 0
     print("\n".join(w.summary(args.wav)))
     return 0

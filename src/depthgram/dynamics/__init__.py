@@ -8,8 +8,9 @@
 Motion(track_id=1, v_radial=-410.2, ttc=1.9, status='visible', v_sigma=21.5, fps_assumed=None)
 """
 
+from depthgram.dynamics.camera_motion import FramePixels, image_shift
 from depthgram.dynamics.config import TrackerConfig
-from depthgram.dynamics.core import FramePixels, core_depth_change, image_shift
+from depthgram.dynamics.core_depth import core_depth_change, warm_up
 from depthgram.dynamics.evaluate import BodyScore, TrackingScore, evaluate_tracking
 from depthgram.dynamics.flow import fit_radial_velocity, time_to_collision
 from depthgram.dynamics.match import assign, bbox_iou, match_cost
@@ -32,4 +33,5 @@ __all__ = [
     "image_shift",
     "match_cost",
     "time_to_collision",
+    "warm_up",
 ]

@@ -131,7 +131,7 @@ class TrackerConfig:
         Where each object's depth change between frames (mm) is read: ``core``, over the
         object's core, the pixels in it now that, moved back by the image motion, were in the
         same track's segment in the previous frame, so pixels entering or leaving its outline
-        do not move it (:mod:`depthgram.dynamics.core`; compare on 7-Scenes' posed truth with
+        do not move it (:mod:`depthgram.dynamics.core_depth`; compare on 7-Scenes' posed truth with
         ``benchmarks/bench_tracking.py --depth core|mean``); or ``mean``, the change of the
         object's mean depth alone, as the paper. ``core`` needs each frame's depth and label
         map and costs about 5 ms per 640x480 frame, more with ``image_motion = "camera"``
@@ -141,9 +141,9 @@ class TrackerConfig:
         How the core's pixels are moved back to the previous frame (with ``depth_from =
         "core"``): ``camera``, each pixel by the image motion of its still point under the
         camera's own motion, found by ICP on the two frames' depth
-        (:class:`depthgram.dynamics.core.EgoMotion`; needs the frame's intrinsics, else it
+        (:class:`depthgram.dynamics.camera_motion.EgoMotion`; needs the frame's intrinsics, else it
         falls back to ``shift``), or ``shift``, one shift for the whole frame by phase
-        correlation (:func:`depthgram.dynamics.core.image_shift`). Either way each tracked
+        correlation (:func:`depthgram.dynamics.camera_motion.image_shift`). Either way each tracked
         object's own image motion is tried beside it. Compare with
         ``benchmarks/bench_tracking.py --image-motion camera|shift``.
     """

@@ -16,8 +16,8 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import ndimage
 
+from depthgram.dynamics.camera_motion import FramePixels
 from depthgram.dynamics.config import TrackerConfig
-from depthgram.dynamics.core import FramePixels
 from depthgram.dynamics.tracker import Tracker
 from depthgram.segmentation.objects import SceneObject
 
@@ -225,7 +225,7 @@ def evaluate_tracking(
         segmentation method's name (``slices``, ...): that method.
     core : bool
         Hand the tracker each frame's pixels, as the pipeline does, so that it reads each
-        object's depth change from its core (:mod:`depthgram.dynamics.core`); False: from
+        object's depth change from its core (:mod:`depthgram.dynamics.core_depth`); False: from
         the objects' depths alone.
 
     Returns

@@ -21,7 +21,15 @@ from depthgram.segmentation.label import label_stats_fused, relabel
 from depthgram.segmentation.label.stats import COUNT, KEY, SUM_X, SUM_XZ, SUM_Y, SUM_YZ, SUM_Z, SUM_ZZ
 from depthgram.segmentation.objects import SceneObject, new_object
 
-__all__ = ["ObjectSpec", "Stats", "attribute_rows", "fused_stats", "label_stats", "make_objects", "objects_from_rows"]
+__all__ = [
+    "ObjectSpec",
+    "Stats",
+    "attribute_rows",
+    "fused_stats",
+    "label_stats",
+    "make_objects",
+    "objects_from_rows",
+]
 
 
 @dataclass(frozen=True, eq=False)
@@ -95,7 +103,7 @@ def fused_stats(
 
 
 @njit(cache=True, nogil=True)
-def _attribute_table(
+def attribute_table(
     count: NDArray[np.float64],
     sz: NDArray[np.float64],
     szz: NDArray[np.float64],
@@ -108,7 +116,11 @@ def _attribute_table(
     cx: float,
     cy: float,
 ) -> NDArray[np.float64]:
-    # per label 1..n: count, mean depth, depth std, center x, y, centroid X, Y (mm), area (mm²)
+    """Return per label 1..n: count, mean depth, depth std, center x, y, centroid X, Y (mm), area (mm²).
+
+    The sums are those of :class:`Stats` (index 0 unused); compiled, for the callers that
+    build the table inside compiled code (the slice parts of compound objects).
+    """
     n = count.size - 1
     out = np.empty((max(n, 0), 8), np.float64)
     for i in range(1, n + 1):
@@ -140,8 +152,8 @@ def attribute_rows(sums: NDArray[np.float64], intrinsics: Intrinsics) -> NDArray
 
 @njit(cache=True, nogil=True)
 def _table_attributes(sums: NDArray[np.float64], fx: float, fy: float, cx: float, cy: float) -> NDArray[np.float64]:
-    # _attribute_table of the table's columns: one array to pass instead of seven
-    return _attribute_table(
+    # attribute_table of the table's columns: one array to pass instead of seven
+    return attribute_table(
         sums[:, COUNT], sums[:, SUM_Z], sums[:, SUM_ZZ], sums[:, SUM_X], sums[:, SUM_Y],
         sums[:, SUM_XZ], sums[:, SUM_YZ], fx, fy, cx, cy,
     )  # fmt: skip
@@ -228,7 +240,7 @@ def make_objects(
     # statistics pass on small frames
     sxz = stats.sxz if metric and stats.sxz is not None else stats.sz
     syz = stats.syz if metric and stats.syz is not None else stats.sz
-    table = _attribute_table(
+    table = attribute_table(
         stats.count, stats.sz, stats.szz, stats.sx, stats.sy, sxz, syz, *cam,
     ).tolist()  # fmt: skip
     if stats.boxes is not None:

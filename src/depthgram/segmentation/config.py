@@ -9,7 +9,7 @@ from functools import lru_cache
 from typing import Any
 
 from depthgram.errors import InputError
-from depthgram.segmentation.sensor import PROFILES
+from depthgram.segmentation.noise_model import PROFILES
 
 __all__ = ["METHODS", "SegmentConfig"]
 
@@ -138,7 +138,7 @@ class SegmentConfig:
         Deprecated (one release): pixels when >= 1, a fraction when < 1.
     support_planes : bool
         ``slices`` method: also find the dominant oblique planes with a robust fit of
-        ``1/Z = a u + b v + c`` (:func:`depthgram.segmentation.planes.find_planes`), so that a table
+        ``1/Z = a u + b v + c`` (:func:`depthgram.segmentation.ransac.find_planes`), so that a table
         top seen from above at a slant is a support whatever the camera's pitch; its pixels join
         the horizontal (or wall) supports of the orientation field. Planes are searched among
         the pixels the field left facing, so the two complement each other: planes alone lose
@@ -158,8 +158,8 @@ class SegmentConfig:
         Most support planes searched for per frame.
     sensor : str
         ``auto`` (default): the depth step and noise are estimated from each frame
-        (:func:`depthgram.segmentation.sensor.estimate_sensor`); or a named profile of
-        :data:`depthgram.segmentation.sensor.PROFILES` (``kinect-v1``, ``xtion``,
+        (:func:`depthgram.segmentation.noise_model.estimate_sensor`); or a named profile of
+        :data:`depthgram.segmentation.noise_model.PROFILES` (``kinect-v1``, ``xtion``,
         ``primesense``, ``realsense-d400``, ``azure-kinect``, ``tof``). Sets every depth
         tolerance of the ``surfaces`` method and the width of its histogram bins.
     join_resolutions : float

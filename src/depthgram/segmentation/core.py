@@ -14,10 +14,15 @@ from depthgram.segmentation.attributes import ObjectSpec, Stats, attribute_rows,
 from depthgram.segmentation.coarse import grid_frame, grid_step, to_full_resolution
 from depthgram.segmentation.config import SegmentConfig
 from depthgram.segmentation.contacts import front_faces, side_faces
+from depthgram.segmentation.coplanar import class_window, coplanar_groups, join_near
+from depthgram.segmentation.creases import crease_scale_px, crease_state, inverse_depth
 from depthgram.segmentation.histogram import Bands, bin_index, depth_bands, log_bin_counts
 from depthgram.segmentation.label import label_bands_stats, label_stats_fused, label_two_classes, relabel
-from depthgram.segmentation.label.stats import COUNT, KEY, N_COLUMNS, N_SUMS, SUM_Z, add_rows
+from depthgram.segmentation.label.stats import COUNT, KEY, N_SUMS, SUM_Z, add_rows
+from depthgram.segmentation.noise_model import SensorModel, estimate_sensor, sensor_model
 from depthgram.segmentation.objects import Histogram, SceneObject, Segmentation
+from depthgram.segmentation.openings import merge_openings
+from depthgram.segmentation.order_stats import median_inplace
 from depthgram.segmentation.orientation import (
     FACING,
     HORIZONTAL,
@@ -28,21 +33,11 @@ from depthgram.segmentation.orientation import (
     upsample_classes,
 )
 from depthgram.segmentation.paper_slices import paper_slices
-from depthgram.segmentation.planes import _assign as assign_planes
-from depthgram.segmentation.planes import (
-    class_window,
-    coplanar_groups,
-    find_planes,
-    join_near,
-    plane_normal,
-    plane_sums_in_boxes,
-    planes_from_sums,
-    shares_beneath,
-)
+from depthgram.segmentation.plane_sums import plane_sums_in_boxes, planes_from_sums, shares_beneath
+from depthgram.segmentation.ransac import find_planes, plane_normal
+from depthgram.segmentation.ransac import warm_up as warm_up_ransac
 from depthgram.segmentation.region import region_grow
-from depthgram.segmentation.sensor import SensorModel, _median, estimate_sensor, sensor_model
 from depthgram.segmentation.slices import (
-    _merge_rows,
     add_through,
     compound_parts,
     drop_classes,
@@ -51,17 +46,11 @@ from depthgram.segmentation.slices import (
     support_kind,
     support_pieces_lazy,
 )
-from depthgram.segmentation.surfaces import (
-    _inverse,
-    crease_scale_px,
-    crease_state,
-    facing_halves,
-    merge_openings,
-    surfaces_kept,
-)
+from depthgram.segmentation.slices import warm_up as warm_up_slices
+from depthgram.segmentation.surfaces import facing_halves, surfaces_kept
 from depthgram.segmentation.validate import check_depth_far
 
-__all__ = ["load_rare_kernels", "segment"]
+__all__ = ["load_rare_kernels", "segment", "warm_up"]
 
 #: The defaults, built once: validating a config on every call is a visible share of a small frame.
 _DEFAULTS = SegmentConfig()
@@ -143,7 +132,7 @@ def segment(
     return replace(seg, beyond_far_px=n_far) if n_far else seg
 
 
-def load_rare_kernels() -> None:
+def warm_up() -> None:
     """Load (on a fresh install: compile) the compiled kernels that only some frames reach.
 
     The first frame of a stream loads the kernels its own branches take; one taking a branch
@@ -151,7 +140,7 @@ def load_rare_kernels() -> None:
     coplanar pieces joined, small pieces dropped, the statistics after merged openings, a face
     folded into its support, the first supports) loaded or compiled its kernels in the middle
     of the stream (470 ms on a fresh install). A real-time caller runs this before the stream,
-    after a first frame (``Pipeline.warm_up``).
+    after a first frame (``Pipeline.warm_up``). ``load_rare_kernels`` is its former name.
     """
     z = np.full((2, 2), 1000.0, np.float32)
     ok = np.ones((2, 2), np.bool_)
@@ -165,8 +154,7 @@ def load_rare_kernels() -> None:
         np.zeros((2, 2), np.int32), np.zeros(1, np.int32), 0, classes.copy(), FACING, np.zeros((0, 4), np.int64)
     )
     # coplanar pieces joined: their rows added
-    rows = np.zeros((3, N_COLUMNS), np.float64)
-    _merge_rows(np.array([0, 1, 1], np.int32), 1, rows, np.zeros((3, 9), np.float64), np.zeros((3, 4), np.int64))
+    warm_up_slices()
     # merged openings: the statistics of the joined surfaces
     label_stats_fused(np.zeros((2, 2), np.int32), 0, z, np.zeros((2, 2), np.float32))
     # a front or side face of a support: the contacts, and its row added to the support's
@@ -188,9 +176,13 @@ def load_rare_kernels() -> None:
     coplanar_groups(np.eye(3), np.ones(3), np.ones(3))
     # the pixels of the planes found (a 2 x 2 frame finds none; 7-Scenes on the grid of a
     # 640 px frame first found one at frame 5: 367 ms on a fresh install)
-    assign_planes(z, ok, np.zeros((1, 3), np.float64), np.ones((1, 1, 1), np.uint8), 2, 8.0, 0.01)
+    warm_up_ransac()
     # the window sums of a frame whose values span too many octaves for float64 (OpenCV's)
     load_opencv_routes()
+
+
+#: The former name of :func:`warm_up`.
+load_rare_kernels = warm_up
 
 
 def _segment(
@@ -313,7 +305,7 @@ def _surface_objects(
     )
     mean = sums[:, SUM_Z] / np.maximum(sums[:, COUNT], 1.0)
     # np.median's value, compiled (the numpy call cost more than the selection here)
-    step = t0 + t2 * _median(mean[1:].copy()) ** 2 if n else t0
+    step = t0 + t2 * median_inplace(mean[1:].copy()) ** 2 if n else t0
     joined = merge_openings(labels, depth, boxes, mean, focal_px=cam.fx, ring_px=2 * r, jump_mm=4.0 * step)
     if joined is not None:
         labels = relabel(labels, joined)
@@ -782,13 +774,13 @@ def _orientation(
     Orientation is a property of surfaces many pixels wide, so a 2x (4x) subsampled frame gives
     the same classes at a quarter (sixteenth) of the cost; the class map is then repeated back.
     Support pixels are refined at full resolution afterwards (plane test, depth continuity).
-    Also returns the frame's 1000 / Z and readings (``surfaces._inverse``) when the field read
+    Also returns the frame's 1000 / Z and readings (``creases.inverse_depth``) when the field read
     every pixel, for the creases (None otherwise).
     """
     w = depth.shape[1]
     k = 1 if w <= 320 else 2 if w <= 960 else 4
     if k == 1:
-        inverse = _inverse(np.ascontiguousarray(depth, np.float32), np.ascontiguousarray(ok, np.bool_))
+        inverse = inverse_depth(np.ascontiguousarray(depth, np.float32), np.ascontiguousarray(ok, np.bool_))
         cls = orientation_classes(
             depth, ok, cam, window_px=cfg.normal_window_px, oblique_deg=cfg.oblique_deg, jump_rel=cfg.jump_rel,
             inverse=inverse,

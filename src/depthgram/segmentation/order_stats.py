@@ -14,7 +14,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-__all__ = ["kth_pair", "kth_smallest", "next_smallest", "percentile32"]
+__all__ = ["kth_pair", "kth_smallest", "median_inplace", "next_smallest", "percentile32"]
 
 
 @njit(cache=True, nogil=True)
@@ -144,3 +144,14 @@ def percentile32(a: NDArray[np.float32], q: float, weak: bool) -> float:
     if t >= 0.5:
         return np.float64(hi) - np.float64(diff) * (1.0 - t)
     return np.float64(lo) + np.float64(diff) * t
+
+
+@njit(cache=True, nogil=True)
+def median_inplace(a: NDArray[np.float64]) -> float:
+    """Return ``np.median`` of a 1-D float64 array, reordering it in place."""
+    n = a.size
+    h = n // 2
+    if n % 2:
+        return kth_pair(a, h)[0]
+    lo, hi = kth_pair(a, h - 1)
+    return (lo + hi) / 2.0

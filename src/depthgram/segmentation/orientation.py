@@ -19,7 +19,8 @@ from numba import njit
 from numpy.typing import NDArray
 
 from depthgram.frame import Intrinsics
-from depthgram.segmentation.surfaces import _crease_state, _creases, _inverse
+from depthgram.segmentation.creases import inverse_depth
+from depthgram.segmentation.creases import warm_up as warm_up_creases
 from depthgram.segmentation.window import bits_range, exact_rows, start_columns, window_row
 
 __all__ = ["default_intrinsics", "load_opencv_routes", "orientation_classes"]
@@ -64,7 +65,7 @@ def orientation_classes(
         Relative depth step between neighbours marking an occlusion edge.
     inverse : ndarray of float32, shape (2, H, W), optional
         ``1000 / depth_mm`` and the readings (1 / 0) as two planes, as
-        ``depthgram.segmentation.surfaces._inverse`` gives them, when the caller has them (the
+        :func:`depthgram.segmentation.creases.inverse_depth` gives them, when the caller has them (the
         creases take the same).
 
     Returns
@@ -80,16 +81,13 @@ def load_opencv_routes() -> None:
     The orientation field and the creases sum their windows themselves where float64 adds them
     exactly (:mod:`depthgram.segmentation.window`); a frame whose values span too many octaves
     takes OpenCV's sums and the kernels that read them (:func:`_classify`,
-    ``surfaces._crease_state`` and ``surfaces._creases``). No frame of the recordings at hand
+    :func:`depthgram.segmentation.creases.warm_up`). No frame of the recordings at hand
     does, so a stream would load them in its middle.
     """
     f = np.float32(1.0)
     ok = np.ones((2, 2), np.bool_)
     _classify(np.zeros((2, 2, 3), np.float32), np.ones((2, 2), np.float32), ok, ~ok, f, f, f, f, f)
-    sums = np.ones((2, 2, 2), np.float32)
-    c = np.ones(4, np.float32)
-    _crease_state(sums, ok, ok, c, f, 1, f, f)
-    _creases(sums, ok, c, f, 1, f, f)
+    warm_up_creases()
 
 
 def _field(
@@ -106,7 +104,7 @@ def _field(
     # 1000 / Z (1/m keeps float32 well scaled) and the readings as 1 / 0, in one pass, as two
     # planes
     if inverse is None:
-        inverse = _inverse(np.ascontiguousarray(depth_mm, np.float32), np.ascontiguousarray(valid, np.bool_))
+        inverse = inverse_depth(np.ascontiguousarray(depth_mm, np.float32), np.ascontiguousarray(valid, np.bool_))
     # a 3 x 3 valid-weighted mean, then differences over `step` px: the slope of a distant floor
     # (1/Z changes by 1 / (h fy) per row) must stand above the noise of one difference
     # the mean is defined wherever a 3 x 3 neighbour has a reading, which bridges a sieve of
@@ -173,7 +171,8 @@ def _slopes(
 ) -> tuple[NDArray[np.float32], NDArray[np.float32], NDArray[np.bool_], NDArray[np.int64]]:
     """Return the 3 x 3 mean of 1/Z, the kept slopes (3, H, W), the occlusion edges and the slopes' ranges.
 
-    ``inverse`` (2, H, W): 1000 / Z and the readings (:func:`_inverse`). The mean is numpy's
+    ``inverse`` (2, H, W): 1000 / Z and the readings
+    (:func:`~depthgram.segmentation.creases.inverse_depth`). The mean is numpy's
     ``s_inv / np.maximum(s_m, 1e-6)`` (float32) of OpenCV's 3 x 3 unnormalised box sums with
     replicated borders (:func:`_box3_mean`, the same sums); the slopes are :func:`_one_sided`
     along rows and columns of the mean where it is defined, kept under 80 degrees

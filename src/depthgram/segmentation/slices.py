@@ -21,12 +21,24 @@ from numba import njit
 from numpy.typing import NDArray
 
 from depthgram.frame import Intrinsics
-from depthgram.segmentation.attributes import _attribute_table
+from depthgram.segmentation.attributes import attribute_table
+from depthgram.segmentation.coplanar import coplanar_groups
 from depthgram.segmentation.label import ACTIVE, BLOCK, HOLE, label_keyed_planes, relabel
-from depthgram.segmentation.label.stats import COUNT, KEY, N_SUMS, SUM_X, SUM_XZ, SUM_Y, SUM_YZ, SUM_Z, SUM_ZZ
+from depthgram.segmentation.label.stats import (
+    COUNT,
+    KEY,
+    N_COLUMNS,
+    N_SUMS,
+    SUM_X,
+    SUM_XZ,
+    SUM_Y,
+    SUM_YZ,
+    SUM_Z,
+    SUM_ZZ,
+)
 from depthgram.segmentation.objects import SceneObject, new_object
 from depthgram.segmentation.orientation import HORIZONTAL, VERTICAL
-from depthgram.segmentation.planes import coplanar_groups, planes_from_sums
+from depthgram.segmentation.plane_sums import planes_from_sums
 
 __all__ = [
     "add_through",
@@ -38,6 +50,7 @@ __all__ = [
     "support_kind",
     "support_pieces",
     "support_pieces_lazy",
+    "warm_up",
 ]
 
 
@@ -231,7 +244,7 @@ def _part_table(
     """
     sums, boxes = _part_sums(labels, depth, oid, x0, y0, x1, y1, step, horizontal, n)
     sz = sums[:, SUM_Z]
-    attrs = _attribute_table(
+    attrs = attribute_table(
         sums[:, COUNT], sz, sums[:, SUM_ZZ], sums[:, SUM_X], sums[:, SUM_Y],
         sums[:, SUM_XZ] if metric else sz, sums[:, SUM_YZ] if metric else sz, fx, fy, cx, cy,
     )  # fmt: skip
@@ -485,7 +498,7 @@ def support_pieces(
     The pixels of class ``cls`` are labelled while depth stays continuous between neighbours
     (within ``jump_rel`` of the depth, across at most ``bridge`` px of holes), and pieces of one
     plane cut apart by occluders are joined
-    (:func:`depthgram.segmentation.planes.coplanar_groups`). One labelling pass gathers the
+    (:func:`depthgram.segmentation.coplanar.coplanar_groups`). One labelling pass gathers the
     statistics table (:mod:`depthgram.segmentation.label.stats`), its relabelling pass the
     plane sums (:func:`depthgram.segmentation.label.keyed.label_keyed_planes`);
     pieces joined into one plane add their rows (the sums are additive), so neither is taken
@@ -533,7 +546,7 @@ def support_pieces_lazy(
     (dropping small supports) does it once, and does not solve the same planes again.
 
     ``window`` ``(y0, y1, x0, x1)`` (half-open, px), when it holds every pixel of the class
-    (:func:`depthgram.segmentation.planes.class_window`), gives the same results reading these
+    (:func:`depthgram.segmentation.coplanar.class_window`), gives the same results reading these
     rows and columns alone; the labels are 0 outside it.
     """
     h, w = valid.shape
@@ -602,3 +615,12 @@ def _merge_rows(
         mboxes[g, 2] = max(mboxes[g, 2], boxes[i, 2])
         mboxes[g, 3] = max(mboxes[g, 3], boxes[i, 3])
     return msums, mplanes, mboxes
+
+
+def warm_up() -> None:
+    """Load (on a fresh install: compile) the kernel that adds the rows of coplanar pieces joined.
+
+    Only frames whose support pieces join reach it (:func:`depthgram.segmentation.core.warm_up`).
+    """
+    rows = np.zeros((3, N_COLUMNS), np.float64)
+    _merge_rows(np.array([0, 1, 1], np.int32), 1, rows, np.zeros((3, 9), np.float64), np.zeros((3, 4), np.int64))

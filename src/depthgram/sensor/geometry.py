@@ -28,6 +28,7 @@ __all__ = [
     "Camera",
     "Cylinder",
     "Ellipsoid",
+    "Gait",
     "Linear",
     "Plane",
     "Primitive",
@@ -190,6 +191,43 @@ class BackAndForth:
 
 
 @dataclass(frozen=True)
+class Gait:
+    """The world as a walking, body-worn camera sees it: a steady approach with the gait's bob and sway.
+
+    Offset ``v t + (sway sin(pi f t), bob sin(2 pi f t), 0)`` (mm): the body rises and falls once
+    per step (``step_hz``) and sways sideways once per stride (two steps). Every body of a scene
+    gets the same gait, so the camera moves and the world stands still; the sway is a translation
+    (the camera's own pitch does not swing).
+
+    Attributes
+    ----------
+    v : tuple of float
+        Steady velocity of the world relative to the camera (mm/s): minus the walking velocity.
+    bob_mm, sway_mm : float
+        Vertical and sideways amplitudes (mm), world relative to the camera.
+    step_hz : float
+        Steps per second.
+    """
+
+    v: Vec = (0.0, 0.0, -1200.0)
+    bob_mm: float = 20.0
+    sway_mm: float = 15.0
+    step_hz: float = 2.0
+
+    def position(self, t: float) -> Arr:
+        """Offset (mm) at time ``t`` (s)."""
+        w = 2.0 * np.pi * self.step_hz
+        gait = np.array([self.sway_mm * np.sin(0.5 * w * t), self.bob_mm * np.sin(w * t), 0.0])
+        return np.asarray(np.asarray(self.v, dtype=np.float64) * t + gait, dtype=np.float64)
+
+    def velocity(self, t: float) -> Arr:
+        """Velocity (mm/s) at time ``t`` (s): the derivative of :meth:`position`."""
+        w = 2.0 * np.pi * self.step_hz
+        gait = np.array([0.5 * w * self.sway_mm * np.cos(0.5 * w * t), w * self.bob_mm * np.cos(w * t), 0.0])
+        return np.asarray(np.asarray(self.v, dtype=np.float64) + gait, dtype=np.float64)
+
+
+@dataclass(frozen=True)
 class Body:
     """A rigid body of the scene: one ground-truth instance.
 
@@ -205,7 +243,7 @@ class Body:
         Geometry in world coordinates at offset zero (mm).
     reflectivity : float
         Diffuse reflectivity at the sensor's wavelength, 0..1.
-    motion : Linear or BackAndForth
+    motion : Linear, BackAndForth or Gait
         Offset of the parts over time.
     parent : int or None
         Id of the body it stands on.
@@ -216,13 +254,13 @@ class Body:
     kind: str
     parts: tuple[Primitive, ...]
     reflectivity: float = 0.5
-    motion: Linear | BackAndForth = Linear()
+    motion: Linear | BackAndForth | Gait = Linear()
     parent: int | None = None
 
     @property
     def moving(self) -> bool:
         """True when the body may move."""
-        return isinstance(self.motion, BackAndForth) or any(self.motion.v)
+        return isinstance(self.motion, (BackAndForth, Gait)) or any(self.motion.v)
 
     def intersect(self, origin: Arr, dirs: Arr, t: float) -> Arr:
         """Ray parameter of the nearest hit on any part at time ``t`` (s); inf where none."""

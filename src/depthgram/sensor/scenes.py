@@ -9,9 +9,11 @@ paper's "multiple beams of different frequencies to extend the sensor range".
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 from depthgram.errors import InputError
+from depthgram.frame import Gravity
 from depthgram.sensor.geometry import (
     BackAndForth,
     Body,
@@ -19,12 +21,21 @@ from depthgram.sensor.geometry import (
     Camera,
     Cylinder,
     Ellipsoid,
+    Gait,
     Linear,
     Plane,
 )
 from depthgram.sensor.tof import ToFConfig
 
-__all__ = ["APPROACH_SPEED_MM_S", "RUSH_SPEED_MM_S", "SCENES", "STEADY_SPEED_MM_S", "SceneSpec", "build_scene"]
+__all__ = [
+    "APPROACH_SPEED_MM_S",
+    "RUSH_SPEED_MM_S",
+    "SCENES",
+    "STEADY_SPEED_MM_S",
+    "WALK_SPEED_MM_S",
+    "SceneSpec",
+    "build_scene",
+]
 
 #: Speed (mm/s) of the hand in ``approach``: toward the sensor for 2 s, then away for 2 s.
 APPROACH_SPEED_MM_S = 600.0
@@ -40,6 +51,12 @@ class SceneSpec:
     camera: Camera
     bodies: tuple[Body, ...]
     tof: ToFConfig
+
+    @property
+    def gravity(self) -> Gravity:
+        """Which way is down in the camera's frame: exact, from the camera's pitch (source ``simulator``)."""
+        g = Gravity.from_tilt(self.camera.pitch_deg)
+        return Gravity(g.vector, "simulator")
 
 
 def _back_wall(z: float) -> Plane:
@@ -155,6 +172,110 @@ def _touching(w: int, h: int) -> SceneSpec:
     return SceneSpec("touching", cam, bodies, ToFConfig())
 
 
+#: Height (mm) of the table top in the arm scenes, and the clutter's centre on it (x, z).
+ARM_TABLE_Y = 750.0
+ARM_CLUTTER_XZ = (0.0, 1100.0)
+#: Distance (mm) from the arm camera to the clutter's centre on the table, along its optical axis.
+ARM_DOWN_MM = 650.0
+ARM_45_MM = 600.0
+
+
+def _clutter(top_y: float) -> tuple[Body, ...]:
+    """Return a table top with clutter around :data:`ARM_CLUTTER_XZ`: flat things lying down, a mug, a box.
+
+    Flat objects stand 18-25 mm above the table (a dish, a book, a screwdriver, a banana): a few
+    sensor resolutions at arm's length, the case issue 28 names. The table fills the arm camera's
+    view; the box shows its top and two sides at 45 degrees.
+    """
+    cx, cz = ARM_CLUTTER_XZ
+    legs = tuple(
+        Box((x - 25.0, 0.0, z - 25.0), (x + 25.0, top_y - 40.0, z + 25.0))
+        for x in (-600.0, 600.0)
+        for z in (750.0, 1450.0)
+    )
+    table = Box((-650.0, top_y - 40.0, 700.0), (650.0, top_y, 1500.0))
+    return (
+        Body(1, "floor", "floor", (FLOOR,), 0.4),
+        Body(2, "back_wall", "wall", (_back_wall(2300.0),), 0.7),
+        Body(3, "table", "object", (table, *legs), 0.5, parent=1),
+        Body(4, "dish", "object", (Cylinder((cx - 130.0, top_y, cz + 80.0), 75.0, 18.0),), 0.8, parent=3),
+        Body(
+            5,
+            "book",
+            "object",
+            (Box((cx + 20.0, top_y, cz + 40.0), (cx + 170.0, top_y + 25.0, cz + 150.0)),),
+            0.6,
+            parent=3,
+        ),
+        Body(
+            6,
+            "screwdriver",
+            "object",
+            (Box((cx - 60.0, top_y, cz - 140.0), (cx + 120.0, top_y + 18.0, cz - 115.0)),),
+            0.6,
+            parent=3,
+        ),
+        Body(
+            7,
+            "banana",
+            "object",
+            (Ellipsoid((cx - 150.0, top_y + 20.0, cz - 90.0), (70.0, 20.0, 22.0)),),
+            0.7,
+            parent=3,
+        ),
+        Body(8, "mug", "object", (Cylinder((cx + 60.0, top_y, cz - 30.0), 40.0, 100.0),), 0.8, parent=3),
+        Body(
+            9,
+            "box",
+            "object",
+            (Box((cx + 140.0, top_y, cz - 140.0), (cx + 210.0, top_y + 140.0, cz - 60.0)),),
+            0.6,
+            parent=3,
+        ),
+    )
+
+
+def _arm_down(w: int, h: int) -> SceneSpec:
+    # An arm camera straight above the clutter: the table is a plane facing the sensor, and only
+    # the objects' heights tell them from it.
+    cx, cz = ARM_CLUTTER_XZ
+    cam = Camera(w, h, position=(cx, ARM_TABLE_Y + ARM_DOWN_MM, cz), pitch_deg=90.0)
+    return SceneSpec("arm_down", cam, _clutter(ARM_TABLE_Y), ToFConfig())
+
+
+def _arm_45(w: int, h: int) -> SceneSpec:
+    # The same clutter from an arm camera looking 45 degrees down at its centre.
+    cx, cz = ARM_CLUTTER_XZ
+    d = ARM_45_MM / math.sqrt(2.0)
+    cam = Camera(w, h, position=(cx, ARM_TABLE_Y + d, cz - d), pitch_deg=45.0)
+    return SceneSpec("arm_45", cam, _clutter(ARM_TABLE_Y), ToFConfig())
+
+
+#: Walking speed (mm/s) of the chest-worn camera in ``chest_walk``.
+WALK_SPEED_MM_S = 1200.0
+#: Height (mm) and downward tilt (degrees) of the chest-worn camera.
+CHEST_HEIGHT_MM = 1300.0
+CHEST_TILT_DEG = 30.0
+
+
+def _chest_walk(w: int, h: int) -> SceneSpec:
+    # A blind user's chest camera, tilted down 30 degrees, walking down a hallway at 1.2 m/s with
+    # the gait's bob and sway: a box, a bag lying on the floor and a pole ahead. The floor runs
+    # to about 5 m in the view: a second modulation frequency unwraps it, as in ``corridor``.
+    gait = Gait(v=(0.0, 0.0, -WALK_SPEED_MM_S))
+    cam = Camera(w, h, position=(0.0, CHEST_HEIGHT_MM, 0.0), pitch_deg=CHEST_TILT_DEG)
+    half_w = 1200.0
+    bodies = (
+        Body(1, "floor", "floor", (FLOOR,), 0.5, gait),
+        Body(2, "left_wall", "wall", (Plane((-half_w, 0.0, 0.0), (1.0, 0.0, 0.0)),), 0.8, gait),
+        Body(3, "right_wall", "wall", (Plane((half_w, 0.0, 0.0), (-1.0, 0.0, 0.0)),), 0.8, gait),
+        Body(4, "box", "object", (Box((-500.0, 0.0, 2600.0), (-100.0, 450.0, 2900.0)),), 0.7, gait, parent=1),
+        Body(5, "bag", "object", (Ellipsoid((300.0, 60.0, 2300.0), (180.0, 60.0, 120.0)),), 0.6, gait, parent=1),
+        Body(6, "pole", "object", (Cylinder((500.0, 0.0, 3600.0), 50.0, 2200.0),), 0.6, gait, parent=1),
+    )
+    return SceneSpec("chest_walk", cam, bodies, ToFConfig(f_mod2_hz=40e6))
+
+
 #: Speeds (mm/s) of the balls of ``ball_approach`` and ``ball_rush``, straight at the sensor at a
 #: constant speed (issue 30: 600 mm/s is judged at 30 frames/s, 1.5 m/s at 15 frames/s).
 STEADY_SPEED_MM_S = 600.0
@@ -224,6 +345,9 @@ _BUILDERS = {
     "crossing": _crossing,
     "ball_wall": _ball_wall,
     "touching": _touching,
+    "arm_down": _arm_down,
+    "arm_45": _arm_45,
+    "chest_walk": _chest_walk,
     "ball_approach": _ball_approach,
     "ball_rush": _ball_rush,
     "pass_behind": _pass_behind,

@@ -9,7 +9,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from depthgram.errors import InputError
-from depthgram.frame import Frame
+from depthgram.frame import Frame, Gravity
 from depthgram.sensor import structured
 from depthgram.sensor.geometry import cast_times, static_hits
 from depthgram.sensor.scenes import SceneSpec, build_scene
@@ -102,6 +102,10 @@ class SimFrame:
     shadow : ndarray of bool, shape (H, W) or None
         Structured light: pixels with a surface that the projector cannot light (read
         invalid). None for ToF.
+    gravity : Gravity or None
+        Which way is down in the camera's frame, exact (the camera's pitch). Truth, like the
+        rest: the frame itself carries no gravity, as a camera without an IMU gives none
+        (``Pipeline(gravity=sim.gravity)`` hands it over).
     """
 
     frame: Frame
@@ -110,6 +114,7 @@ class SimFrame:
     truth: tuple[TruthObject, ...]
     amplitude: NDArray[np.float32] | None = None
     shadow: NDArray[np.bool_] | None = None
+    gravity: Gravity | None = None
 
 
 def sensor_name(sensor: str) -> str:
@@ -265,7 +270,8 @@ def render_structured(
         name=f"sim:{spec.name}#{index}",
         meta={"scene": spec.name, "fps": fps, "sensor": "structured-light"},
     )
-    return SimFrame(frame, true_depth, instances, _truth(spec, instances, true_depth, t), None, shadow)
+    truth = _truth(spec, instances, true_depth, t)
+    return SimFrame(frame, true_depth, instances, truth, None, shadow, gravity=spec.gravity)
 
 
 def render(
@@ -323,7 +329,8 @@ def render(
         name=f"sim:{spec.name}#{index}",
         meta={"scene": spec.name, "fps": fps},
     )
-    return SimFrame(frame, true_depth, instances, _truth(spec, instances, true_depth, t), amp.astype(np.float32))
+    truth = _truth(spec, instances, true_depth, t)
+    return SimFrame(frame, true_depth, instances, truth, amp.astype(np.float32), gravity=spec.gravity)
 
 
 def _truth(

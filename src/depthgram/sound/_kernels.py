@@ -13,7 +13,7 @@ import numpy as np
 from numba import njit
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True)
 def pulse_voice(
     out_l: np.ndarray,
     out_r: np.ndarray,
@@ -25,6 +25,7 @@ def pulse_voice(
     pulse: float,
     samplerate: float,
     ramp_n: float,
+    ramp_done: float,
     duty_max: float,
     scale: float,
     f0: float,
@@ -43,15 +44,16 @@ def pulse_voice(
     """Add one beeping voice to ``out_l``/``out_r``; return its (oscillator, pulse) phases.
 
     Parameters move linearly from the old value (``*0``) to the new (``*1``) over ``ramp_n``
-    samples: frequency ``f`` (Hz), rate ``r`` (Hz), beep length ``b`` (s), gain ``g``, left and
-    right pan ``l``, ``q``. ``cross``: cross-fade from ``table_old`` (a timbre change).
+    samples, of which ``ramp_done`` were already played by earlier calls (a ramp longer than one
+    audio block spans several): frequency ``f`` (Hz), rate ``r`` (Hz), beep length ``b`` (s), gain
+    ``g``, left and right pan ``l``, ``q``. ``cross``: cross-fade from ``table_old`` (a timbre change).
     Phases are in cycles; a negative pulse phase waits for the first beep.
     """
     n_table = table_new.shape[0]
     mask = n_table - 1
     n_hann = hann.shape[0] - 1
     for i in range(out_l.shape[0]):
-        w = 1.0 - (i + 1.0) / ramp_n
+        w = 1.0 - (i + 1.0 + ramp_done) / ramp_n
         if w < 0.0:
             w = 0.0
         f = f1 + (f0 - f1) * w

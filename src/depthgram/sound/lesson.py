@@ -120,7 +120,8 @@ def lesson(mapping: SoundMapping, samplerate: int = 22050) -> list[Cue]:
         Cue(
             "07-approaching",
             f"An object coming at you at 1 m/s from 5 m to 0.4 m: under {m.ttc_alert:g} s to "
-            f"collision its beeps accelerate into a rattle (up to {m.rate_max_hz:g} per second).",
+            f"collision its beeps accelerate into a rattle that keeps quickening until {m.ttc_floor_s:g} s "
+            f"before impact (up to {m.rate_max_hz:g} per second).",
             np.concatenate(chunks),
         )
     )

@@ -76,6 +76,26 @@ class SoundMapping:
     ramp_s : float
         Time (s) over which a voice's parameters move to a new frame's values, and a new or
         vanishing voice fades; keeps the stream free of clicks.
+    ttc_floor_s : float
+        Time to collision (s) at which the warning's beep rate reaches ``rate_max_hz``: between
+        ``ttc_alert`` and this the rate keeps rising (geometrically), so the last second before
+        an impact still changes.
+    pan_azimuth_deg : float
+        Azimuth (degrees from straight ahead) heard hard left or right when the camera's
+        intrinsics are known; nearer directions pan in proportion.
+    confirm_frames : int
+        Frames in a row a tracked object must be seen before it gets a voice in a stream (an
+        approaching object gets one at once).
+    facing_area : float
+        Fraction of the view from which an object is a surface facing the camera (a wall
+        ahead): in a stream it hums steadily among the surfaces instead of beeping.
+    hold_frames : int
+        Frames a stream's voice waits, on its last parameters, for its lost object to be found
+        again (by the tracker, or as a new track where it was) before it fades out.
+    min_semitones, min_pan, min_rate_ratio : float
+        Two voices sounding together differ by at least ``min_semitones`` in pitch, or
+        ``min_pan`` in pan position (0 left .. 1 right), or a factor ``min_rate_ratio`` in beep
+        rate; in a stream, pitch moves on a ladder of ``min_semitones`` steps to keep them apart.
     """
 
     name: str = "default"
@@ -100,10 +120,18 @@ class SoundMapping:
     pan_width: float = 1.0
     scan: str = "left_to_right"
     scan_s: float = 0.25
-    max_voices: int = 6
+    max_voices: int = 4
     max_glides: int = 3
     master_gain: float = 0.35
     ramp_s: float = 0.02
+    ttc_floor_s: float = 0.5
+    pan_azimuth_deg: float = 45.0
+    confirm_frames: int = 3
+    hold_frames: int = 10
+    facing_area: float = 0.4
+    min_semitones: float = 3.0
+    min_pan: float = 0.2
+    min_rate_ratio: float = 1.5
 
     def __post_init__(self) -> None:
         def bad(what: str) -> InputError:
@@ -127,6 +155,8 @@ class SoundMapping:
             "glide_period_s",
             "master_gain",
             "ramp_s",
+            "ttc_floor_s",
+            "min_semitones",
         ):
             if getattr(self, name) <= 0:
                 raise bad(f"{name} must be > 0, got {getattr(self, name)!r}")
@@ -151,6 +181,18 @@ class SoundMapping:
             raise bad("gains must satisfy gain_far_db <= gain_near_db <= 0 and glide_gain_db <= 0 (dB)")
         if self.glide_octaves < 0 or self.scan_s < 0:
             raise bad("glide_octaves and scan_s must be >= 0")
+        if self.ttc_floor_s >= self.ttc_alert:
+            raise bad(f"ttc_floor_s ({self.ttc_floor_s}) must be under ttc_alert ({self.ttc_alert})")
+        if not 0 < self.pan_azimuth_deg <= 90:
+            raise bad(f"pan_azimuth_deg must be in (0, 90], got {self.pan_azimuth_deg}")
+        if int(self.confirm_frames) != self.confirm_frames or not 1 <= self.confirm_frames <= 300:
+            raise bad(f"confirm_frames must be an integer in 1..300, got {self.confirm_frames!r}")
+        if int(self.hold_frames) != self.hold_frames or not 0 <= self.hold_frames <= 300:
+            raise bad(f"hold_frames must be an integer in 0..300, got {self.hold_frames!r}")
+        if not 0 < self.facing_area <= 1:
+            raise bad(f"facing_area must be in (0, 1], got {self.facing_area}")
+        if not 0 <= self.min_pan <= 1 or self.min_rate_ratio < 1:
+            raise bad(f"min_pan must be in [0, 1] and min_rate_ratio >= 1, got {self.min_pan}, {self.min_rate_ratio}")
         if self.scan not in SCANS:
             raise bad(f"scan must be one of {SCANS}, got {self.scan!r}")
         for name in ("max_voices", "max_glides"):
@@ -205,7 +247,10 @@ class SoundMapping:
         """Beep repetition rate (Hz) at this depth (mm), sped up by a short time to collision."""
         r = self.rate_far_hz + (self.rate_near_hz - self.rate_far_hz) * self.nearness(depth_mm)
         if ttc is not None and 0 < ttc < self.ttc_alert:
-            r = max(r, self.rate_near_hz * self.ttc_alert / ttc)
+            # Geometric from rate_near_hz at ttc_alert to rate_max_hz at ttc_floor_s: every halving
+            # of the time left speeds the beep by the same ratio, down to the floor.
+            k = math.log(self.rate_max_hz / self.rate_near_hz) / math.log(self.ttc_alert / self.ttc_floor_s)
+            r = max(r, self.rate_near_hz * (self.ttc_alert / max(ttc, self.ttc_floor_s)) ** k)
         return min(r, self.rate_max_hz)
 
     def pitch(self, y: float, height: int) -> float:
@@ -217,6 +262,12 @@ class SoundMapping:
         """Equal-power (left, right) amplitudes of an image column."""
         p = min(max(x / max(width - 1, 1), 0.0), 1.0)
         p = 0.5 + (p - 0.5) * self.pan_width
+        return math.cos(p * math.pi / 2), math.sin(p * math.pi / 2)
+
+    def pan_azimuth(self, azimuth_rad: float) -> tuple[float, float]:
+        """Equal-power (left, right) amplitudes of a direction (rad, positive to the right)."""
+        a = math.degrees(azimuth_rad) / self.pan_azimuth_deg
+        p = 0.5 + 0.5 * min(max(a, -1.0), 1.0) * self.pan_width
         return math.cos(p * math.pi / 2), math.sin(p * math.pi / 2)
 
     def weight(self, area_fraction: float) -> tuple[int, float]:

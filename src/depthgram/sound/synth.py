@@ -17,6 +17,7 @@ import functools
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, replace
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -32,6 +33,8 @@ __all__ = [
     "Selection",
     "Sonifier",
     "Voice",
+    "beep_voice",
+    "glide_voice",
     "render_scene",
     "select",
     "still_seconds",
@@ -164,7 +167,6 @@ def voices(
         Beeping objects first (nearest first), then glides; :func:`select` says which nodes
         were left out and why.
     """
-    w, h = frame_size
     sel = select(tree, mapping)
     by_id = {o.id: o for o in objects}
     if mapping.scan == "left_to_right":
@@ -172,36 +174,96 @@ def voices(
     else:
         ranked = list(sel.beeps)  # already nearest first; "none" ignores the order
     rank = {n.id: i / max(len(ranked) - 1, 1) for i, n in enumerate(ranked)}
-    out: list[Voice] = []
-    for n in sel.beeps:
-        f = mapping.pitch(n.center_xy[1], h)
-        g = mapping.gain(n.depth)
-        pan = mapping.pan(n.center_xy[0], w)
-        harm, beep = mapping.weight(n.area / float(w * h))
-        order = rank[n.id] if mapping.scan != "none" else 0.0
-        rate = mapping.rate(n.depth, n.ttc)
-        out.append(Voice(("o", n.id), f, f, g, g, pan, pan, rate, beep, harm, order))
-    for n in sel.glides:
-        d_near, d_far, x_near, x_far = _extent(n, by_id)
-        fc = mapping.pitch(n.center_xy[1], h)
-        span = mapping.glide_octaves * (mapping.nearness(d_near) - mapping.nearness(d_far))
-        k = 10.0 ** (mapping.glide_gain_db / 20.0)
-        out.append(
-            Voice(
-                ("g", n.id),
-                fc * 2.0 ** (span / 2),
-                fc * 2.0 ** (-span / 2),
-                k * mapping.gain(d_near),
-                k * mapping.gain(d_far),
-                mapping.pan(x_near, w),
-                mapping.pan(x_far, w),
-                0.0,
-                0.0,
-                1,
-                0.0,
-            )
-        )
+    out = [beep_voice(n, frame_size, mapping, order=rank[n.id] if mapping.scan != "none" else 0.0) for n in sel.beeps]
+    out += [glide_voice(n, frame_size, mapping, by_id) for n in sel.glides]
     return out
+
+
+def _pan(x: float, frame_size: tuple[int, int], mapping: SoundMapping, intrinsics: Any) -> tuple[float, float]:
+    """Equal-power gains of an image column: from its azimuth when the intrinsics are known."""
+    if intrinsics is None:
+        return mapping.pan(x, frame_size[0])
+    return mapping.pan_azimuth(math.atan2(x - intrinsics.cx, intrinsics.fx))
+
+
+def beep_voice(
+    n: Node, frame_size: tuple[int, int], mapping: SoundMapping, intrinsics: Any = None, *, order: float = 0.0
+) -> Voice:
+    """Return the beeping voice of one object node.
+
+    Parameters
+    ----------
+    n : Node
+    frame_size : tuple of int
+        (width, height) of the frame (px).
+    mapping : SoundMapping
+    intrinsics : Intrinsics, optional
+        The camera's: the pan then follows the object's azimuth (``pan_azimuth_deg``).
+    order : float
+        Scan position in 0..1 (when it first sounds).
+
+    Returns
+    -------
+    Voice
+    """
+    w, h = frame_size
+    f = mapping.pitch(n.center_xy[1], h)
+    g = mapping.gain(n.depth)
+    pan = _pan(n.center_xy[0], frame_size, mapping, intrinsics)
+    harm, beep = mapping.weight(n.area / float(w * h))
+    return Voice(("o", n.id), f, f, g, g, pan, pan, mapping.rate(n.depth, n.ttc), beep, harm, order)
+
+
+def glide_voice(
+    n: Node,
+    frame_size: tuple[int, int],
+    mapping: SoundMapping,
+    objects: Mapping[int, SceneObject] | None = None,
+    intrinsics: Any = None,
+    *,
+    facing: bool = False,
+) -> Voice:
+    """Return the gliding hum of one surface node, between its near and far ends.
+
+    Parameters
+    ----------
+    n : Node
+    frame_size : tuple of int
+        (width, height) of the frame (px).
+    mapping : SoundMapping
+    objects : mapping of int to SceneObject, optional
+        The segmentation's objects by id: the glide spans the surface's real nearest and
+        farthest slices when given, else an assumed extent.
+    intrinsics : Intrinsics, optional
+        The camera's, for the azimuth of the ends.
+    facing : bool
+        A surface facing the camera (all at one depth): a steady hum at its centre, no glide.
+
+    Returns
+    -------
+    Voice
+    """
+    if facing:
+        d_near = d_far = n.depth
+        x_near = x_far = n.center_xy[0]
+    else:
+        d_near, d_far, x_near, x_far = _extent(n, objects or {})
+    fc = mapping.pitch(n.center_xy[1], frame_size[1])
+    span = mapping.glide_octaves * (mapping.nearness(d_near) - mapping.nearness(d_far))
+    k = 10.0 ** (mapping.glide_gain_db / 20.0)
+    return Voice(
+        ("g", n.id),
+        fc * 2.0 ** (span / 2),
+        fc * 2.0 ** (-span / 2),
+        k * mapping.gain(d_near),
+        k * mapping.gain(d_far),
+        _pan(x_near, frame_size, mapping, intrinsics),
+        _pan(x_far, frame_size, mapping, intrinsics),
+        0.0,
+        0.0,
+        1,
+        0.0,
+    )
 
 
 def still_seconds(voices_: Sequence[Voice], mapping: SoundMapping, *, beeps: int = 2) -> float:
@@ -234,10 +296,32 @@ def still_seconds(voices_: Sequence[Voice], mapping: SoundMapping, *, beeps: int
 
 @dataclass
 class _State:
-    voice: Voice
+    voice: Voice  # the parameters at the start of the current ramp
+    target: Voice  # the parameters the ramp moves to
+    done: int = 0  # samples of the ramp already played (a ramp may span several audio blocks)
     osc: float = 0.0  # oscillator phase (cycles)
     pulse: float = 0.0  # pulse or glide phase (cycles); negative: waiting for its first beep
     fading: bool = False
+
+
+def _lerp_voice(a: Voice, b: Voice, t: float) -> Voice:
+    """Return the voice a share ``t`` (0..1) of the way from ``a`` to ``b`` (where a cut ramp stands)."""
+
+    def mix(x: float, y: float) -> float:
+        return x + (y - x) * t
+
+    return replace(
+        b,
+        freq_a=mix(a.freq_a, b.freq_a),
+        freq_b=mix(a.freq_b, b.freq_b),
+        gain_a=mix(a.gain_a, b.gain_a),
+        gain_b=mix(a.gain_b, b.gain_b),
+        pan_a=(mix(a.pan_a[0], b.pan_a[0]), mix(a.pan_a[1], b.pan_a[1])),
+        pan_b=(mix(a.pan_b[0], b.pan_b[0]), mix(a.pan_b[1], b.pan_b[1])),
+        rate=mix(a.rate, b.rate),
+        beep_s=mix(a.beep_s, b.beep_s),
+        harmonics=b.harmonics if t >= 0.5 else a.harmonics,
+    )
 
 
 @functools.lru_cache(maxsize=16)
@@ -274,6 +358,120 @@ def _soft_limit(x: NDArray[np.float64]) -> NDArray[np.float64]:
     return np.where(a <= _KNEE, x, np.sign(x) * over)
 
 
+class _Bank:
+    """The voices sounding now, each with its phases and its ramp toward the latest targets.
+
+    Shared by :class:`Sonifier` (one call per frame) and :class:`depthgram.sound.live.LiveSonifier`
+    (one call per audio block, many per frame): a ramp longer than a call goes on in the next.
+    """
+
+    def __init__(self, mapping: SoundMapping, samplerate: int) -> None:
+        self.mapping = mapping
+        self.samplerate = samplerate
+        self.states: dict[tuple[str, int], _State] = {}
+        self._tables = _wavetables(mapping.harmonics_max)
+        self._hann = _hann_table()
+        from depthgram.sound._kernels import pulse_voice  # numba: loaded only when sound is made
+
+        self._pulse_voice = pulse_voice
+
+    def warm_up(self) -> None:
+        """Compile the kernels now (a beep and a glide, rendered and thrown away), not in a live callback."""
+        probe = _Bank(self.mapping, self.samplerate)
+        beep = Voice(("o", 0), 440.0, 440.0, 0.5, 0.5, (0.7, 0.7), (0.7, 0.7), 4.0, 0.05, 2, 0.0)
+        glide = replace(beep, key=("g", 0), freq_b=330.0, rate=0.0, beep_s=0.0, harmonics=1)
+        probe.render({beep.key: beep, glide.key: glide}, 64)
+
+    def render(self, targets: Mapping[tuple[str, int], Voice], n: int) -> NDArray[np.float64]:
+        """Return ``n`` stereo samples (float64, limited to -1..1) moving every voice toward ``targets``.
+
+        A voice missing from ``targets`` fades out over the ramp and is then dropped; a new one
+        starts from silence.
+        """
+        sr = self.samplerate
+        m = self.mapping
+        r = max(1, round(m.ramp_s * sr))
+        ticks = np.arange(1, n + 1, dtype=np.float64)
+        out_l = np.zeros(n)
+        out_r = np.zeros(n)
+        goal = dict(targets)
+        for key, st in self.states.items():
+            if key not in goal:  # gone from the scene: fade out over the ramp, then drop
+                if not st.fading:
+                    st.fading = True
+                    goal[key] = replace(st.target, gain_a=0.0, gain_b=0.0)
+                else:
+                    goal[key] = st.target
+            else:
+                st.fading = False
+        for key, new in goal.items():
+            if key not in self.states:
+                # A beep starts from silence by its envelope; a glide fades in from gain 0.
+                first = new if key[0] == "o" else replace(new, gain_a=0.0, gain_b=0.0)
+                pulse = -m.scan_s * new.order * new.rate if key[0] == "o" else 0.0
+                self.states[key] = _State(first, new, 0, 0.0, pulse)
+            st = self.states[key]
+            if new != st.target:
+                # A new target mid-ramp starts from where the ramp stands, never from a jump.
+                st.voice = _lerp_voice(st.voice, st.target, min(st.done / r, 1.0))
+                st.target, st.done = new, 0
+            elif st.done >= r:
+                st.voice = new
+            old = st.voice
+            done = st.done
+            # Weight of the old value along the call: 1 -> 0 over the ramp, then 0.
+            old_w = np.clip(1.0 - (ticks + done) / r, 0.0, 1.0) if done < r else None
+
+            def ramp(a: float, b: float, old_w: NDArray[np.float64] | None = old_w) -> NDArray[np.float64] | float:
+                return b if a == b or old_w is None else b + (a - b) * old_w
+
+            if key[0] == "o":
+                st.osc, st.pulse = self._pulse_voice(
+                    out_l,
+                    out_r,
+                    self._tables[new.harmonics],
+                    self._tables[old.harmonics],
+                    self._hann,
+                    old.harmonics != new.harmonics,
+                    st.osc,
+                    st.pulse,
+                    float(sr),
+                    float(r),
+                    float(min(done, r)),
+                    m.duty_max,
+                    m.master_gain,
+                    old.freq_a,
+                    new.freq_a,
+                    old.rate,
+                    new.rate,
+                    old.beep_s,
+                    new.beep_s,
+                    old.gain_a,
+                    new.gain_a,
+                    old.pan_a[0],
+                    new.pan_a[0],
+                    old.pan_a[1],
+                    new.pan_a[1],
+                )
+            else:
+                # A glide: continuous tone, parameters following the triangle near -> far -> near.
+                gp = st.pulse + ticks / (sr * m.glide_period_s)
+                tri = 1.0 - np.abs(2.0 * (gp - np.floor(gp)) - 1.0)
+                fa, fb = ramp(old.freq_a, new.freq_a), ramp(old.freq_b, new.freq_b)
+                freq = fa * np.power(np.divide(fb, fa), tri)
+                gain = (ramp(old.gain_a, new.gain_a) * (1 - tri) + ramp(old.gain_b, new.gain_b) * tri) * m.master_gain
+                cyc = st.osc + np.cumsum(freq) / sr
+                wave = self._tables[new.harmonics][(cyc * _TABLE).astype(np.int64) & (_TABLE - 1)] * gain
+                out_l += wave * (ramp(old.pan_a[0], new.pan_a[0]) * (1 - tri) + ramp(old.pan_b[0], new.pan_b[0]) * tri)
+                out_r += wave * (ramp(old.pan_a[1], new.pan_a[1]) * (1 - tri) + ramp(old.pan_b[1], new.pan_b[1]) * tri)
+                st.osc = float(cyc[-1] % 1.0)
+                st.pulse = float(gp[-1] % 1.0)
+            st.done = min(done + n, r)
+        for key in [k for k, s in self.states.items() if s.fading and s.done >= r]:
+            del self.states[key]
+        return _soft_limit(np.column_stack((out_l, out_r)))
+
+
 class Sonifier:
     """Streams scenes to stereo audio with phase continuity across frames.
 
@@ -306,25 +504,29 @@ class Sonifier:
         self.mapping = mapping or SoundMapping()
         self.samplerate = int(samplerate)
         self.frame_size = frame_size
-        self._states: dict[tuple[str, int], _State] = {}
         self._seconds = 0.0
         self._samples = 0
-        self._tables = _wavetables(self.mapping.harmonics_max)
-        self._hann = _hann_table()
-        from depthgram.sound._kernels import pulse_voice  # numba: loaded only when sound is made
+        self._bank = _Bank(self.mapping, self.samplerate)
+        from depthgram.sound.choose import Chooser  # choose imports this module's voice makers
 
-        self._pulse_voice = pulse_voice
+        self.chooser = Chooser(self.mapping)
+        self.voices_now: dict[tuple[str, int], Voice] = {}  # the voices of the last push, by key
 
     @property
     def seconds(self) -> float:
         """Total duration (s) pushed so far."""
         return self._seconds
 
-    def push(self, tree: SceneTree, duration_s: float, objects: Sequence[SceneObject] = ()) -> NDArray[np.float32]:
+    def push(
+        self, tree: SceneTree, duration_s: float, objects: Sequence[SceneObject] = (), intrinsics: Any = None
+    ) -> NDArray[np.float32]:
         """Audio for one frame of ``duration_s`` seconds.
 
         ``objects`` are the frame's segmented objects (``SceneResult.segmentation.objects``):
-        with them a surface's glide spans its real near and far ends.
+        with them a surface's glide spans its real near and far ends. ``intrinsics`` (the
+        frame's) make the pan follow each object's azimuth. The voices are chosen frame after
+        frame by :attr:`chooser` (:class:`depthgram.sound.choose.Chooser`): a voice belongs to a
+        tracked object, and concurrent voices are kept apart.
 
         The number of samples is chosen so that the total over all pushes is the rounded total
         duration: a sequence's audio lasts exactly as long as the sequence.
@@ -336,13 +538,16 @@ class Sonifier:
         """
         if not isinstance(duration_s, (int, float)) or not math.isfinite(duration_s) or duration_s < 0:
             raise InputError(f"frame duration must be a finite number of seconds >= 0, got {duration_s!r}")
+        self.voices_now = self.chooser.voices(tree, self._size_of(tree), objects, intrinsics)
+        return self._push_targets(self.voices_now, duration_s)
+
+    def _push_targets(self, targets: dict[tuple[str, int], Voice], duration_s: float) -> NDArray[np.float32]:
         total = round((self._seconds + duration_s) * self.samplerate)
         n = total - self._samples
         self._seconds += duration_s
         if n <= 0:
             return np.zeros((0, 2), np.float32)
         self._samples = total
-        targets = {v.key: v for v in voices(tree, self._size_of(tree), self.mapping, objects)}
         return self._render(targets, n).astype(np.float32)
 
     def _size_of(self, tree: SceneTree) -> tuple[int, int]:
@@ -357,78 +562,7 @@ class Sonifier:
         return size
 
     def _render(self, targets: dict[tuple[str, int], Voice], n: int) -> NDArray[np.float64]:
-        sr = self.samplerate
-        m = self.mapping
-        r = max(1, round(m.ramp_s * sr))
-        # Weight of the old value along the push: 1 -> 0 over the ramp, then 0.
-        old_w = np.clip(1.0 - (np.arange(n) + 1.0) / r, 0.0, 1.0)
-        ticks = np.arange(1, n + 1, dtype=np.float64)
-        out_l = np.zeros(n)
-        out_r = np.zeros(n)
-        for key, gone in self._states.items():
-            if key not in targets:  # gone from the scene: fade out over the ramp, then drop
-                gone.fading = True
-                targets[key] = replace(gone.voice, gain_a=0.0, gain_b=0.0)
-        for key, new in targets.items():
-            if key not in self._states:
-                # A beep starts from silence by its envelope; a glide fades in from gain 0.
-                first = new if key[0] == "o" else replace(new, gain_a=0.0, gain_b=0.0)
-                self._states[key] = _State(first, 0.0, -m.scan_s * new.order * new.rate if key[0] == "o" else 0.0)
-            st = self._states[key]
-            old = st.voice
-
-            def ramp(a: float, b: float) -> NDArray[np.float64] | float:
-                return b if a == b else b + (a - b) * old_w
-
-            if key[0] == "o":
-                st.osc, st.pulse = self._pulse_voice(
-                    out_l,
-                    out_r,
-                    self._tables[new.harmonics],
-                    self._tables[old.harmonics],
-                    self._hann,
-                    old.harmonics != new.harmonics,
-                    st.osc,
-                    st.pulse,
-                    float(sr),
-                    float(r),
-                    m.duty_max,
-                    m.master_gain,
-                    old.freq_a,
-                    new.freq_a,
-                    old.rate,
-                    new.rate,
-                    old.beep_s,
-                    new.beep_s,
-                    old.gain_a,
-                    new.gain_a,
-                    old.pan_a[0],
-                    new.pan_a[0],
-                    old.pan_a[1],
-                    new.pan_a[1],
-                )
-                st.voice = new
-                continue
-            # A glide: continuous tone, parameters following the triangle near -> far -> near.
-            gp = st.pulse + ticks / (sr * m.glide_period_s)
-            tri = 1.0 - np.abs(2.0 * (gp - np.floor(gp)) - 1.0)
-            fa, fb = ramp(old.freq_a, new.freq_a), ramp(old.freq_b, new.freq_b)
-            freq = fa * np.power(np.divide(fb, fa), tri)
-            gain = (ramp(old.gain_a, new.gain_a) * (1 - tri) + ramp(old.gain_b, new.gain_b) * tri) * m.master_gain
-            cyc = st.osc + np.cumsum(freq) / sr
-            wave = self._tables[new.harmonics][(cyc * _TABLE).astype(np.int64) & (_TABLE - 1)]
-            out_l += (
-                wave * gain * (ramp(old.pan_a[0], new.pan_a[0]) * (1 - tri) + ramp(old.pan_b[0], new.pan_b[0]) * tri)
-            )
-            out_r += (
-                wave * gain * (ramp(old.pan_a[1], new.pan_a[1]) * (1 - tri) + ramp(old.pan_b[1], new.pan_b[1]) * tri)
-            )
-            st.osc = float(cyc[-1] % 1.0)
-            st.pulse = float(gp[-1] % 1.0)
-            st.voice = new
-        for key in [k for k, s in self._states.items() if s.fading]:
-            del self._states[key]
-        return _soft_limit(np.column_stack((out_l, out_r)))
+        return self._bank.render(targets, n)
 
 
 def render_scene(
@@ -464,9 +598,13 @@ def render_scene(
     ndarray of float32, shape (round(duration_s * samplerate), 2)
     """
     s = Sonifier(mapping, samplerate, frame_size)
+    # A still is one scene heard whole: its nearest objects, no stream's history to choose by.
+    still = voices(tree, s._size_of(tree), s.mapping, objects)
     if duration_s is None:
-        duration_s = still_seconds(voices(tree, s._size_of(tree), s.mapping, objects), s.mapping)
-    audio = s.push(tree, duration_s, objects)
+        duration_s = still_seconds(still, s.mapping)
+    if not isinstance(duration_s, (int, float)) or not math.isfinite(duration_s) or duration_s < 0:
+        raise InputError(f"duration must be a finite number of seconds >= 0, got {duration_s!r}")
+    audio = s._push_targets({v.key: v for v in still}, duration_s)
     r = min(len(audio), max(1, round(s.mapping.ramp_s * samplerate)))
     if r:
         audio[-r:] *= np.linspace(1.0, 0.0, r, dtype=np.float32)[:, None]

@@ -2,11 +2,15 @@
 
 Depth comes from ``sensor_msgs/Image`` messages: ``16UC1``/``mono16`` in millimetres,
 ``32FC1`` in metres (as REP 118 says), ``8UC1``/``mono8`` as the paper's 8-bit depth. Frame
-times come from the message header (the log time when the header stamp is zero).
+times come from the message header (the log time when the header stamp is zero). Gravity comes
+from a ``sensor_msgs/Imu`` topic when there is one, turned into the depth image's axes by the
+bag's ``/tf_static`` (:mod:`depthgram.sources.imu`).
 """
 
 from __future__ import annotations
 
+import dataclasses
+import warnings
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -15,17 +19,20 @@ import numpy as np
 
 from depthgram._optional import needs_extra
 from depthgram.errors import DepthgramError, InputError
-from depthgram.frame import Frame, Intrinsics
+from depthgram.frame import Frame, Gravity, Intrinsics
 from depthgram.sources.base import Source
 from depthgram.sources.config import SourceConfig
 from depthgram.sources.decode import to_frame
 from depthgram.sources.images import check_size
+from depthgram.sources.imu import GravityFilter, StaticFrames
 
 __all__ = ["BAG_SUFFIXES", "BagSource", "image_array"]
 
 BAG_SUFFIXES = frozenset({".bag", ".mcap", ".db3"})
 _IMAGE = "sensor_msgs/msg/Image"
 _INFO = "sensor_msgs/msg/CameraInfo"
+_IMU = "sensor_msgs/msg/Imu"
+_TF = "tf2_msgs/msg/TFMessage"
 _DTYPES = {"16uc1": "u2", "mono16": "u2", "32fc1": "f4", "8uc1": "u1", "mono8": "u1", "16sc1": "i2"}
 
 
@@ -95,6 +102,7 @@ class BagSource(Source):
     """
 
     kind = "bag"
+    intrinsics_source = "bag"  # its CameraInfo
 
     def __init__(
         self,
@@ -120,6 +128,8 @@ class BagSource(Source):
                 mine = [c for c in conns if c.topic == self.topic]
                 self.n = sum(int(c.msgcount) for c in mine)
                 self.intrinsics = intrinsics or self._camera_info(reader, conns)
+                self.imu_topic = self._choose_imu(sorted({c.topic for c in conns if c.msgtype == _IMU}))
+                self.static = self._static_frames(reader, conns) if self.imu_topic else StaticFrames()
         except DepthgramError:  # ours already (a missing extra, a bad topic): as it is
             raise
         except Exception as exc:
@@ -159,6 +169,50 @@ class BagSource(Source):
             return Intrinsics(float(k[0]), float(k[4]), float(k[2]), float(k[5]))
         return None
 
+    def _choose_imu(self, imus: list[str]) -> str | None:
+        """Return the IMU topic nearest the depth topic (the longest shared namespace), or None."""
+        if not imus:
+            return None
+
+        def shared(topic: str) -> int:
+            a, b = topic.split("/"), self.topic.split("/")
+            n = 0
+            while n < min(len(a), len(b)) and a[n] == b[n]:
+                n += 1
+            return n
+
+        return max(imus, key=lambda t: (shared(t), "accel" in t or "imu" in t, t))
+
+    def _static_frames(self, reader: Any, conns: list[Any]) -> StaticFrames:
+        frames = StaticFrames()
+        tfs = [c for c in conns if c.msgtype == _TF and c.topic.rstrip("/").endswith("tf_static")]
+        if not tfs:
+            return frames
+        for conn, _, raw in reader.messages(connections=tfs):
+            for t in reader.deserialize(raw, conn.msgtype).transforms:
+                q = t.transform.rotation
+                frames.add(str(t.header.frame_id), str(t.child_frame_id), (q.x, q.y, q.z, q.w))
+        return frames
+
+    def _gravity(self, down: Any, imu_frame: str, camera_frame: str) -> Gravity | None:
+        """Return gravity in the depth image's axes from the IMU's ``down``, or None (with a warning) when unlinked."""
+        if down is None:
+            return None
+        rot = self.static.rotation(camera_frame, imu_frame)
+        if rot is None:
+            if not getattr(self, "_warned_tf", False):
+                self._warned_tf = True
+                warnings.warn(
+                    f"{self.path}: the IMU ({self.imu_topic}, frame {imu_frame!r}) has no static transform to the "
+                    f"depth image's frame {camera_frame!r} in /tf_static: gravity is not read from it; give it "
+                    "with --gravity X Y Z or --tilt DEG",
+                    UserWarning,
+                    stacklevel=3,
+                )
+            return None
+        v = rot @ down
+        return Gravity((float(v[0]), float(v[1]), float(v[2])), "imu")
+
     def __len__(self) -> int:
         return self.n
 
@@ -171,10 +225,13 @@ class BagSource(Source):
         except Exception as exc:
             raise InputError(f"{self.path}: cannot read the bag, damaged or not a bag ({exc})") from None
         try:
-            conns = [c for c in reader.connections if c.topic == self.topic]
+            imu = self.imu_topic if self.gravity is None else None  # the user's gravity wins: skip the IMU
+            conns = [c for c in reader.connections if c.topic in (self.topic, imu)]
             first: tuple[int, int] | None = None
-            for i, (conn, log_ns, raw) in enumerate(_messages(reader, conns, self.path, self.topic)):
-                where = f"{self.path} topic {self.topic} (frame {i})"
+            accel, imu_frame = GravityFilter(), ""
+            i = 0
+            for conn, log_ns, raw in _messages(reader, conns, self.path, self.topic):
+                where = f"{self.path} topic {conn.topic} (frame {i})"
                 try:
                     msg = reader.deserialize(raw, conn.msgtype)
                 except Exception as exc:
@@ -182,6 +239,11 @@ class BagSource(Source):
                         f"{where}: cannot decode the message at log time {log_ns} ns, the bag is damaged "
                         f"({type(exc).__name__}: {exc})"
                     ) from None
+                if conn.topic != self.topic:
+                    a = msg.linear_acceleration
+                    accel.add((float(a.x), float(a.y), float(a.z)), log_ns * 1e-9)
+                    imu_frame = str(msg.header.frame_id)
+                    continue
                 stamp = msg.header.stamp
                 t = stamp.sec + stamp.nanosec * 1e-9
                 frame = to_frame(
@@ -193,6 +255,10 @@ class BagSource(Source):
                     intrinsics=self.intrinsics,
                     name=f"bag:{self.topic}#{i}",
                 )
+                if imu is not None:
+                    gravity = self._gravity(accel.down(), imu_frame, str(msg.header.frame_id))
+                    if gravity is not None:
+                        frame = dataclasses.replace(frame, gravity=gravity)
                 if first is None:
                     first = frame.size
                 elif frame.size != first:
@@ -200,6 +266,7 @@ class BagSource(Source):
                         f"{where}: image is {frame.size[0]}x{frame.size[1]} px but frame 0 is "
                         f"{first[0]}x{first[1]} px; all frames of a sequence must have one size"
                     )
-                yield frame
+                yield self.calibrated(frame)
+                i += 1
         finally:
             reader.close()

@@ -2,15 +2,20 @@
 
 from __future__ import annotations
 
+import dataclasses
 import sys
 from abc import ABC, abstractmethod
 from collections.abc import Iterator
 from dataclasses import asdict, dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
 
-from depthgram.frame import Frame, Intrinsics
+from depthgram.frame import Frame, Gravity, Intrinsics
+
+if TYPE_CHECKING:
+    from depthgram.sources.camera import Camera
 
 __all__ = ["DepthSummary", "Source", "SourceInfo"]
 
@@ -48,6 +53,13 @@ class SourceInfo:
     sensor : str or None
         The camera's depth step and noise as estimated from the first frame with readings
         (:func:`depthgram.segmentation.sensor.estimate_sensor`), for people; None without one.
+    intrinsics_source : str
+        Where the intrinsics came from (``given``, ``file``, ``bag``, ``device``, ``simulator``,
+        ``profile``); "" without intrinsics (the segmentation then guesses them).
+    intrinsics_from : str
+        The calibration file (or sidecar) or camera profile they came from, when one did.
+    gravity : dict or None
+        The first frame's gravity (:meth:`depthgram.frame.Gravity.to_dict`), when known.
     """
 
     path: str
@@ -63,6 +75,9 @@ class SourceInfo:
     intrinsics: Intrinsics | None = None
     duration_s: float | None = None
     sensor: str | None = None
+    intrinsics_source: str = ""
+    intrinsics_from: str = ""
+    gravity: dict[str, object] | None = None
 
     def to_dict(self) -> dict[str, object]:
         """Plain JSON-ready dictionary."""
@@ -130,6 +145,14 @@ class Source(ABC):
     live : bool
         A camera delivering frames as they happen: never read ahead, since a frame queued
         while the pipeline works would be stale by the time it is processed.
+    intrinsics_source : str
+        Where the source's own intrinsics came from (``file``, ``bag``, ``device``,
+        ``simulator``), "" without them.
+    camera : Camera or None
+        The camera the user named (``intrinsics=`` / ``camera=``): it wins over the source's own
+        intrinsics, scaled to each frame's size (:meth:`calibrated`).
+    gravity : Gravity or None
+        Gravity the user gave (``gravity=`` / ``tilt_deg=``); wins over a recording's IMU.
     """
 
     name: str = ""
@@ -137,6 +160,33 @@ class Source(ABC):
     fps: float | None = None
     intrinsics: Intrinsics | None = None
     live: bool = False
+    intrinsics_source: str = ""
+    intrinsics_from: str = ""
+    camera: Camera | None = None
+    gravity: Gravity | None = None
+
+    def calibrated(self, frame: Frame) -> Frame:
+        """Return ``frame`` with the user's camera and gravity, and where its intrinsics came from.
+
+        Every source passes its frames through this before yielding them.
+        """
+        cam, grav = self.camera, self.gravity
+        changes: dict[str, object] = {}
+        if cam is not None:
+            k = cam.for_size(frame.size)
+            self.intrinsics, self.intrinsics_source = k, cam.source
+            changes.update(intrinsics=k, intrinsics_source=cam.source)
+            if cam.origin:
+                frame.meta["intrinsics_from"] = cam.origin
+            if cam.sensor:
+                frame.meta["sensor_profile"] = cam.sensor
+        elif frame.intrinsics is not None and not frame.intrinsics_source and self.intrinsics_source:
+            changes["intrinsics_source"] = self.intrinsics_source
+            if self.intrinsics_from:
+                frame.meta["intrinsics_from"] = self.intrinsics_from
+        if grav is not None:
+            changes["gravity"] = grav
+        return dataclasses.replace(frame, **changes) if changes else frame  # type: ignore[arg-type]
 
     @abstractmethod
     def __iter__(self) -> Iterator[Frame]:
@@ -149,6 +199,15 @@ class Source(ABC):
     def __repr__(self) -> str:
         return f"<{type(self).__name__} {self.kind} {self.name!r}>"
 
+    def _sensor_said(self, estimated: str | None) -> str | None:
+        """Return the sensor line of :meth:`info`: the named camera's model, else the estimate."""
+        name = self.camera.sensor if self.camera is not None else None
+        if not name:
+            return estimated
+        from depthgram.segmentation.sensor import sensor_model
+
+        return f"{sensor_model(name).describe()} (camera profile {self.camera.origin if self.camera else ''})"
+
     def info(self, *, progress: bool = False) -> SourceInfo:
         """Stream every frame once and summarise the source.
 
@@ -159,6 +218,7 @@ class Source(ABC):
         """
         summary = DepthSummary()
         size: tuple[int, int] = (0, 0)
+        gravity: Gravity | None = None
         times: list[float] = []
         count = 0
         frames: Iterator[Frame] = iter(self)
@@ -170,7 +230,7 @@ class Source(ABC):
         try:
             for frame in frames:
                 if count == 0:
-                    size = frame.size
+                    size, gravity = frame.size, frame.gravity
                 summary.add(frame)
                 if frame.time_s is not None:
                     times.append(frame.time_s)
@@ -195,8 +255,11 @@ class Source(ABC):
             depth_median_mm=summary.median(),
             depth_max_mm=summary.hi if summary.valid else None,
             invalid_fraction=1.0 - summary.valid / summary.pixels if summary.pixels else 1.0,
-            sensor=summary.sensor,
+            sensor=self._sensor_said(summary.sensor),
             fps=fps,
             intrinsics=self.intrinsics,
             duration_s=duration,
+            intrinsics_source=self.intrinsics_source if self.intrinsics is not None else "",
+            intrinsics_from=self.camera.origin if self.camera is not None else self.intrinsics_from,
+            gravity=gravity.to_dict() if gravity is not None else None,
         )

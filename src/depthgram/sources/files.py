@@ -73,6 +73,8 @@ class FilesSource(Source):
         Frame rate (frames/s).
     """
 
+    intrinsics_source = "file"  # a sidecar beside the frames
+
     def __init__(
         self,
         paths: Sequence[Path],
@@ -126,4 +128,4 @@ class FilesSource(Source):
                     f"{path} (frame {i}) is {frame.size[0]}x{frame.size[1]} px but {first[0]} (frame 0) is "
                     f"{first[1][0]}x{first[1][1]} px; all frames of a sequence must have one size"
                 )
-            yield frame
+            yield self.calibrated(frame)

@@ -2,13 +2,13 @@
 
 from __future__ import annotations
 
+import atexit
 import os
 import re
 import struct
 import sys
 import tempfile
 import threading
-import zipfile
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -44,7 +44,9 @@ def _read_npz(path: Path, key: str | None, where: str) -> NDArray[np.generic]:
             names = list(z.files)
             shapes = {n: tuple(z[n].shape) for n in names}
             return np.asarray(z[npz_pick(names, shapes, key, where)])
-    except (ValueError, OSError, zipfile.BadZipFile, EOFError) as exc:
+    except InputError:
+        raise
+    except Exception as exc:  # numpy's header parser and zipfile raise many types for damage (issue 32.2)
         raise InputError(f"{where}: cannot read the .npz ({exc})") from None
 
 
@@ -62,6 +64,8 @@ def _stderr_captured() -> Iterator[list[str]]:
     with _CAPTURE_LOCK:
         if not _CAPTURE_FILE:
             _CAPTURE_FILE.append(tempfile.TemporaryFile())
+            # closed at exit: left to the garbage collector it is a ResourceWarning (issue 32.6)
+            atexit.register(_CAPTURE_FILE[0].close)
         tmp = _CAPTURE_FILE[0]
         tmp.seek(0)
         tmp.truncate()
@@ -147,7 +151,7 @@ def read_image(path: Path, *, key: str | None = None, where: str | None = None) 
     if suffix == ".npy":
         try:
             arr: NDArray[np.generic] = np.load(path, mmap_mode="r", allow_pickle=False)
-        except (ValueError, OSError, EOFError) as exc:
+        except Exception as exc:  # numpy's header parser and zipfile raise many types for damage (issue 32.2)
             raise InputError(f"{where}: cannot read the .npy ({exc})") from None
         if arr.ndim >= 2:
             check_size(int(arr.shape[0]), int(arr.shape[1]), where)

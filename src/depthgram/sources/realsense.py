@@ -69,6 +69,7 @@ class RealSenseSource(Source):
 
     kind = "realsense"
     live = True
+    intrinsics_source = "device"  # the camera's own calibration
 
     def __init__(self, spec: RealSenseSpec, *, name: str = PREFIX, timeout_ms: int = 5000) -> None:
         self.spec = spec
@@ -112,13 +113,15 @@ class RealSenseSource(Source):
                 depth = frames.get_depth_frame()
                 t_ms = float(depth.get_timestamp())
                 t0 = t_ms if t0 is None else t0
-                yield make_frame(
-                    _as_array(depth.get_data()),
-                    scale_mm=scale_mm,
-                    index=index,
-                    time_s=(t_ms - t0) / 1000.0,
-                    intrinsics=self.intrinsics,
-                    name=f"{self.name}#{index}",
+                yield self.calibrated(
+                    make_frame(
+                        _as_array(depth.get_data()),
+                        scale_mm=scale_mm,
+                        index=index,
+                        time_s=(t_ms - t0) / 1000.0,
+                        intrinsics=self.intrinsics,
+                        name=f"{self.name}#{index}",
+                    )
                 )
                 index += 1
         finally:

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import zipfile
 from collections.abc import Iterator
+from contextlib import ExitStack
 from pathlib import Path
 from typing import IO
 
@@ -33,7 +34,7 @@ def _read_header(fh: IO[bytes], where: str) -> tuple[tuple[int, ...], bool, np.d
             shape, fortran, dtype = npformat.read_array_header_1_0(fh)
         else:
             shape, fortran, dtype = npformat.read_array_header_2_0(fh)
-    except (ValueError, EOFError) as exc:
+    except Exception as exc:  # numpy's header parser and zipfile raise many types for damage (issue 32.2)
         raise InputError(f"{where}: not a valid array ({exc})") from None
     return tuple(shape), bool(fortran), dtype
 
@@ -47,13 +48,17 @@ def npz_member_header(path: Path, key: str | None) -> tuple[str, tuple[int, ...]
                 if n.endswith(".npy"):
                     with zf.open(n) as fh:
                         headers[n[:-4]] = _read_header(fh, f"{path}[{n[:-4]}]")
-    except (zipfile.BadZipFile, OSError, EOFError) as exc:
+    except InputError:
+        raise
+    except Exception as exc:  # numpy's header parser and zipfile raise many types for damage (issue 32.2)
         raise InputError(f"{path}: cannot read the .npz ({exc})") from None
     name = npz_pick(list(headers), {k: v[0] for k, v in headers.items()}, key, str(path))
     return (name, *headers[name])
 
 
 class _StackSource(Source):
+    intrinsics_source = "file"  # a sidecar beside the stack
+
     def __init__(
         self, path: Path, cfg: SourceConfig, n: int, *, name: str, intrinsics: Intrinsics | None, fps: float | None
     ) -> None:
@@ -109,7 +114,7 @@ class NpyStackSource(_StackSource):
     ) -> None:
         try:
             self.stack = np.load(path, mmap_mode="r", allow_pickle=False)
-        except (ValueError, OSError, EOFError) as exc:
+        except Exception as exc:  # numpy's header parser and zipfile raise many types for damage (issue 32.2)
             raise InputError(f"{path}: cannot read the .npy ({exc})") from None
         if self.stack.ndim != 3:
             raise InputError(f"{path}: expected an (N, H, W) stack, got shape {self.stack.shape}")
@@ -118,7 +123,7 @@ class NpyStackSource(_StackSource):
     def __iter__(self) -> Iterator[Frame]:
         for i in range(self.n):
             # Copy one frame out of the map so that pages of earlier frames can be dropped.
-            yield self._frame(np.array(self.stack[i]), i)
+            yield self.calibrated(self._frame(np.array(self.stack[i]), i))
 
 
 class NpzStackSource(_StackSource):
@@ -158,16 +163,26 @@ class NpzStackSource(_StackSource):
     def __iter__(self) -> Iterator[Frame]:
         _, h, w = self.shape
         nbytes = h * w * self.dtype.itemsize
-        with zipfile.ZipFile(self.path) as zf, zf.open(self.member + ".npy") as fh:
-            _read_header(fh, str(self.path))
-            if self.fortran:
+        with ExitStack() as opened:
+            try:
+                zf = opened.enter_context(zipfile.ZipFile(self.path))
+                fh = opened.enter_context(zf.open(self.member + ".npy"))
+                _read_header(fh, str(self.path))
                 # Fortran order interleaves frames; rare enough to accept a full load.
-                full = npformat.read_array(fh, allow_pickle=False)
+                full = npformat.read_array(fh, allow_pickle=False) if self.fortran else None
+            except InputError:
+                raise
+            except Exception as exc:  # zipfile and numpy raise many types for damage (issue 32.2)
+                raise InputError(f"{self.path}[{self.member}]: cannot read the .npz ({exc})") from None
+            if full is not None:
                 for i in range(self.n):
-                    yield self._frame(np.ascontiguousarray(full[i]), i)
+                    yield self.calibrated(self._frame(np.ascontiguousarray(full[i]), i))
                 return
             for i in range(self.n):
-                buf = fh.read(nbytes)
+                try:
+                    buf = fh.read(nbytes)
+                except Exception as exc:  # zipfile: a CRC error, a damaged deflate stream (issue 32.2)
+                    raise InputError(f"{self.path}[{self.member}] (frame {i}): cannot read the .npz ({exc})") from None
                 if len(buf) != nbytes:
                     raise InputError(f"{self.path}[{self.member}] (frame {i}): truncated stack")
-                yield self._frame(np.frombuffer(buf, self.dtype).reshape(h, w), i)
+                yield self.calibrated(self._frame(np.frombuffer(buf, self.dtype).reshape(h, w), i))

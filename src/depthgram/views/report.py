@@ -89,10 +89,19 @@ class ReportWriter:
     frames : int, optional
         How many frames the recording has: the pictured ones are then ``max_pictures`` spread
         evenly from the first to the last (:func:`spread`).
+    source : str
+        What was read (a folder, a bag, ``sim:approach``), named on the page; without it, the
+        first frame's name.
     """
 
     def __init__(
-        self, out_dir: str | Path, *, every: int = 1, max_pictures: int = 8, frames: int | None = None
+        self,
+        out_dir: str | Path,
+        *,
+        every: int = 1,
+        max_pictures: int = 8,
+        frames: int | None = None,
+        source: str = "",
     ) -> None:
         self.out = Path(out_dir)
         self.out.mkdir(parents=True, exist_ok=True)
@@ -103,7 +112,7 @@ class ReportWriter:
         self._sections: list[str] = []
         self._series = _Series()
         self._n = 0
-        self._source = ""
+        self._source = source
 
     def add(self, result: SceneResult) -> None:
         """Take one frame's result: picture it if chosen, extend the track series."""

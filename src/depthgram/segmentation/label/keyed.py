@@ -22,9 +22,9 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
+from depthgram.segmentation._kernels.plane_sums import flush_plane_run
 from depthgram.segmentation.label.stats import N_COLUMNS, flush_run
 from depthgram.segmentation.label.unionfind import find, fold_tables, resolve, resolve_tables, union
-from depthgram.segmentation.planes import flush_plane_run
 
 __all__ = ["ACTIVE", "BLOCK", "HOLE", "label_keyed", "label_keyed_planes", "label_keyed_stats", "label_two_classes"]
 
@@ -271,10 +271,10 @@ def _relabel_planes(
     spans: NDArray[np.int64],
 ) -> NDArray[np.float64]:
     # The relabelling pass of resolve, gathering on the way the plane sums that
-    # planes._plane_sums takes from the final labels: the same runs of one final label along a
+    # _kernels.plane_sums.plane_sums takes from the final labels: the same runs of one final label along a
     # row, the same float64 operations in the same order, hence the same numbers, without a
     # second pass over the image. Each run is added by planes.flush_plane_run, as there; the
-    # per-pixel sums below must stay those of planes._plane_sums (tests/test_segment_kernels.py
+    # per-pixel sums below must stay those of _kernels.plane_sums.plane_sums (tests/test_segment_kernels.py
     # compares the two). Only the window rows y0..y1 - 1, columns x0..x1 - 1 of _label_runs,
     # and of each row only its labelled span (`spans`, from the labeller): the pixels outside
     # it are 0 and stay 0 (final[0] is 0), and a run of 0 adds nothing.
@@ -341,7 +341,7 @@ def label_keyed_planes(
     """:func:`label_keyed_stats` and the plane sums of its components, gathered while relabelling.
 
     Returns what ``label_keyed_stats`` returns, then the table of
-    :func:`depthgram.segmentation.planes.plane_sums` on the returned labels (same numbers),
+    :func:`depthgram.segmentation.plane_sums.plane_sums` on the returned labels (same numbers),
     shape (n + 1, 9), for pixel focal lengths ``fx``, ``fy`` and principal point ``cx``, ``cy``
     (px).
 

@@ -1,0 +1,156 @@
+"""depthgram listen: play the scene on the audio device as the frames arrive."""
+
+from __future__ import annotations
+
+import argparse
+import gc
+import itertools
+import json
+import sys
+import time
+from pathlib import Path
+
+from depthgram.commands._common import add_pipeline_arguments, load_config, open_input
+
+NAME = "listen"
+HELP = "play the scene's sound live on the audio device, from a camera, a recording at its own rate or sim:"
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    """Add this command's options to ``p``."""
+    p.epilog = (
+        "The sound is made in the audio device's callback; each new frame only moves the voices' "
+        "targets, so a slow frame freezes the scene for a moment but never delays the sound. A "
+        "recording plays at its own rate (late frames are dropped as a live sensor loses them). "
+        "Needs pip install 'depthgram[listen]' and PortAudio (Debian: libportaudio2)."
+    )
+    add_pipeline_arguments(p, workers=False)  # one frame at a time: latency is the point
+    p.add_argument("--device", default=None, metavar="NAME_OR_INDEX", help="output device (default: the system's)")
+    p.add_argument("--block", type=int, default=256, metavar="N", help="samples per audio block (default 256)")
+    p.add_argument("--samplerate", type=int, default=48000, metavar="HZ", help="samples per second (default 48000)")
+    p.add_argument("--preset", default=None, help="sound mapping preset (overrides the config's [sound])")
+    p.add_argument(
+        "--log",
+        default=None,
+        metavar="FILE",
+        help="one JSON line per frame heard: frame, latency_ms, underflows, callback_ms",
+    )
+    p.add_argument("--wav", default=None, metavar="FILE", help="also write exactly what was played to this WAV")
+    p.add_argument("--seconds", type=float, default=None, metavar="S", help="stop after S seconds (a camera)")
+
+
+def _device(text: str | None) -> int | str | None:
+    if text is None:
+        return None
+    return int(text) if text.strip().lstrip("-").isdigit() else text
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run the command on parsed ``args``; return the exit status."""
+    from depthgram._optional import needs_extra
+    from depthgram.errors import InputError
+    from depthgram.pipeline import Pipeline
+    from depthgram.sound import SoundMapping
+    from depthgram.sound.live import AudioProcess, percentiles
+    from depthgram.sources.prefetch import prefetch
+    from depthgram.views.player import Pacer
+
+    if not 8000 <= args.samplerate <= 192000:
+        raise InputError(f"--samplerate must be between 8000 and 192000 Hz, got {args.samplerate}")
+    if not 16 <= args.block <= 16384:
+        raise InputError(f"--block must be between 16 and 16384 samples, got {args.block}")
+    if args.seconds is not None and args.seconds <= 0:
+        raise InputError(f"--seconds must be > 0, got {args.seconds}")
+    for opt, path in (("--log", args.log), ("--wav", args.wav)):
+        if path is not None and not Path(path).resolve().parent.is_dir():
+            raise InputError(f"{opt} {path}: folder {Path(path).resolve().parent} does not exist")
+    mapping = SoundMapping.preset(args.preset) if args.preset else load_config(args).sound
+    src = open_input(args)
+    pipe = Pipeline(load_config(args))
+    fps = getattr(src, "fps", None) or args.fps
+    period = 1.0 / fps if fps else 1.0 / 30  # a source with no rate (a camera) is taken as it comes
+    frames = prefetch(src, ahead=2)
+    first = next(frames, None)
+    if first is None:
+        raise InputError(f"{args.input}: no frame to play")
+    pipe.warm_up(first)
+
+    log = open(args.log, "w", encoding="utf-8") if args.log else None  # closed in the finally below
+    if args.wav:
+        with needs_extra("sound", "writing the played sound (--wav)"):
+            import soundfile  # noqa: F401 - the audio process writes it; fail here, before the device opens
+    audio = AudioProcess(mapping, args.samplerate, first.size, _device(args.device), args.block, args.wav)
+    latencies: list[float] = []
+    played = dropped = 0
+
+    def write_events() -> None:
+        for ev in audio.drain():
+            if ev.latency_ms is not None:
+                latencies.append(ev.latency_ms)
+            if log is not None:
+                log.write(json.dumps(ev.record()) + "\n")
+
+    gc.freeze()  # modules and kernels loaded so far live as long as the process: no full collection stalls
+    try:
+        pacer = Pacer(period, clock=time.perf_counter)
+        start = pacer.due
+        last_time: float | None = None
+        stream = itertools.chain([first], frames)
+        i = -1
+        while True:
+            t_read = time.perf_counter()
+            frame = next(stream, None)
+            if frame is None:
+                break
+            i += 1
+            # A source slower than its own rate (a simulator on a busy machine) is played as it
+            # comes rather than dropped frame after frame (the viewer's rule).
+            pacer.note_read(time.perf_counter() - t_read)
+            if args.seconds is not None and time.perf_counter() - start >= args.seconds:
+                break
+            if fps:
+                t_frame = frame.time_s if frame.time_s is not None else i * period
+                if last_time is not None:
+                    pacer.advance(t_frame - last_time)
+                last_time = t_frame
+                if pacer.late():
+                    dropped += 1
+                    continue
+                wait = pacer.wait_s()
+                if wait > 0:
+                    time.sleep(wait)
+            arrival = time.perf_counter()  # a recording's frame "arrives" when it is due
+            result = pipe.process(frame)
+            audio.update(
+                result.tree,
+                result.segmentation.objects,
+                frame=frame.index,
+                arrival_s=arrival,
+                intrinsics=frame.intrinsics,
+            )
+            played += 1
+            write_events()
+        time.sleep(period)  # the last frame is heard for its period, as every other
+    finally:
+        gc.unfreeze()
+        try:
+            stats = audio.stop()
+        finally:
+            write_events()
+            if log is not None:
+                log.close()
+    lat = percentiles(latencies)
+    cb = percentiles([1e3 * s for s in stats["callback_s"]])
+    print(
+        f"played {played} frame(s), dropped {dropped} late, {stats['superseded']} replaced before they were heard; "
+        f"{stats['underflows']} underflow(s) in {stats['blocks']} blocks of {args.block} samples "
+        f"at {args.samplerate} Hz"
+    )
+    print(
+        f"latency frame -> DAC: p50 {lat['p50']:.1f} ms, p95 {lat['p95']:.1f} ms, max {lat['max']:.1f} ms; "
+        f"callback p50 {cb['p50']:.3f} ms, max {cb['max']:.3f} ms; {audio.chooser.distinct} distinct voice(s)"
+    )
+    if args.wav:
+        print(f"wrote {args.wav}: what was played")
+    sys.stdout.flush()
+    return 0

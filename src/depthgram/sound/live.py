@@ -1,0 +1,474 @@
+"""Live sound: the scene played on an audio device as frames arrive.
+
+The synthesis runs in the audio device's callback, one block at a time. A new frame only
+swaps the voices' targets (a reference assignment, atomic under the interpreter lock); the
+callback ramps every voice toward whatever targets it finds. A slow frame therefore freezes
+the scene for a moment but never delays the sound, and nothing queues behind a stall.
+
+:class:`LiveSonifier` is the device-free part (feed trees, pull blocks); :class:`LivePlayer`
+drives it from a PortAudio stream through ``sounddevice`` (extra ``[listen]``).
+"""
+
+from __future__ import annotations
+
+import math
+import queue
+import threading
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from multiprocessing.connection import Connection
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from depthgram.errors import InputError
+from depthgram.scene.tree import SceneTree
+from depthgram.segmentation.objects import SceneObject
+from depthgram.sound.choose import Chooser
+from depthgram.sound.mapping import SoundMapping
+from depthgram.sound.synth import Voice, _Bank
+
+#: Seconds the audio process has to fade out, stop its device and report.
+STOP_TIMEOUT_S = 15.0
+
+__all__ = ["STOP_TIMEOUT_S", "AudioProcess", "BlockEvent", "LivePlayer", "LiveSonifier", "percentiles"]
+
+
+@dataclass(frozen=True)
+class _Update:
+    targets: dict[tuple[str, int], Voice]
+    frame: int
+    arrival_s: float | None
+
+
+class LiveSonifier:
+    """A scene's sound rendered block by block while new scenes replace the targets.
+
+    Parameters
+    ----------
+    mapping : SoundMapping, optional
+        The cue mapping (default preset when None).
+    samplerate : int
+        Samples per second (Hz).
+    frame_size : tuple of int, optional
+        (width, height) of the frames (px); each tree's own when omitted.
+
+    Notes
+    -----
+    :meth:`update` may be called from any thread, :meth:`render` from one other (the audio
+    callback). Voices are chosen by a :class:`~depthgram.sound.choose.Chooser`, so a voice
+    belongs to a tracked object and keeps its place while the object stays.
+
+    Examples
+    --------
+    >>> live = LiveSonifier(SoundMapping(), 48000, (640, 480))
+    >>> live.update(tree, objects)  # doctest: +SKIP
+    >>> block = live.render(256)  # (256, 2) float32, from the audio callback
+    """
+
+    def __init__(
+        self, mapping: SoundMapping | None = None, samplerate: int = 48000, frame_size: tuple[int, int] | None = None
+    ) -> None:
+        if not isinstance(samplerate, (int, np.integer)) or not 4000 <= samplerate <= 192000:
+            raise InputError(f"samplerate must be an integer in 4000..192000 Hz, got {samplerate!r}")
+        self.mapping = mapping or SoundMapping()
+        self.samplerate = int(samplerate)
+        self.frame_size = frame_size
+        self._bank = _Bank(self.mapping, self.samplerate)
+        self._chooser = Chooser(self.mapping)
+        self._next: _Update | None = None  # written by update(), taken by render()
+        self._targets: dict[tuple[str, int], Voice] = {}
+        self.superseded = 0  # frames replaced by a newer one before any block carried them
+
+    def update(
+        self,
+        tree: SceneTree,
+        objects: Sequence[SceneObject] = (),
+        *,
+        frame: int = -1,
+        arrival_s: float | None = None,
+        intrinsics: Any = None,
+    ) -> None:
+        """Make a new scene the voices' targets; the next block starts ramping toward it.
+
+        Parameters
+        ----------
+        tree : SceneTree
+        objects : sequence of SceneObject, optional
+            The segmentation's objects, for the real extent of surfaces.
+        frame : int
+            The frame's index, reported back by :meth:`render_block` when a block first carries it.
+        arrival_s : float, optional
+            When the frame was captured or arrived (s, ``time.perf_counter`` clock), for latency.
+        intrinsics : Intrinsics, optional
+            The camera's, for the direction (azimuth) of each voice; image columns without them.
+        """
+        size = self.frame_size or tree.frame_size
+        if size is None:
+            raise InputError("LiveSonifier: the tree does not carry the frame size; give frame_size=(width, height)")
+        self.set_targets(self._chooser.voices(tree, size, objects, intrinsics), frame=frame, arrival_s=arrival_s)
+
+    def set_targets(
+        self, targets: dict[tuple[str, int], Voice], *, frame: int = -1, arrival_s: float | None = None
+    ) -> None:
+        """Make ``targets`` (voice key -> Voice, as :meth:`Chooser.voices` makes) the voices' targets."""
+        pending = self._next
+        if pending is not None:
+            self.superseded += 1
+        self._next = _Update(dict(targets), frame, arrival_s)
+
+    def clear(self) -> None:
+        """Silence every voice (they fade out over the ramp)."""
+        self._next = _Update({}, -1, None)
+
+    def render_block(self, n: int) -> tuple[NDArray[np.float32], _Update | None]:
+        """Return ``n`` stereo samples and the update this block is the first to carry (or None)."""
+        taken = self._next
+        if taken is not None:
+            self._next = None
+            self._targets = taken.targets
+        return self._bank.render(self._targets, n).astype(np.float32), taken
+
+    def render(self, n: int) -> NDArray[np.float32]:
+        """Return the next ``n`` stereo samples (float32, shape (n, 2), in -1..1)."""
+        return self.render_block(n)[0]
+
+    @property
+    def voices(self) -> dict[tuple[str, int], Voice]:
+        """The targets of the voices sounding now (key -> parameters)."""
+        return dict(self._targets)
+
+
+@dataclass(frozen=True)
+class BlockEvent:
+    """The audio block that first carried a frame.
+
+    Attributes
+    ----------
+    frame : int
+        The frame's index.
+    latency_ms : float or None
+        From the frame's arrival to the DAC time of the block (ms); None without an arrival time.
+    underflows : int
+        Output underflows reported by the device so far.
+    callback_ms : float
+        Time spent in that block's callback (ms).
+    sample : int
+        Position of the block's first sample in the stream (samples since it started): where
+        the frame starts in a copy of what was played.
+    """
+
+    frame: int
+    latency_ms: float | None
+    underflows: int
+    callback_ms: float
+    sample: int = 0
+
+    def record(self) -> dict[str, Any]:
+        """Return the JSON line of ``depthgram listen --log``."""
+        lat = None if self.latency_ms is None else round(self.latency_ms, 3)
+        return {
+            "frame": self.frame,
+            "latency_ms": lat,
+            "underflows": self.underflows,
+            "callback_ms": round(self.callback_ms, 4),
+            "sample": self.sample,
+        }
+
+
+class LivePlayer:
+    """Plays a :class:`LiveSonifier` on a PortAudio output device.
+
+    Parameters
+    ----------
+    live : LiveSonifier
+    device : int or str, optional
+        PortAudio device index or (part of) its name; the default output when None.
+    block : int
+        Samples per callback (the audio block).
+    copy : callable, optional
+        Called from a writer thread with each block played (float32, (n, 2)), in order: a copy
+        of exactly what went to the device (``depthgram listen --wav``).
+
+    Notes
+    -----
+    The DAC time of a block is read from the stream's clock and mapped onto
+    ``time.perf_counter`` once per callback, so latencies compare with arrival times taken
+    with that clock.
+    """
+
+    def __init__(
+        self,
+        live: LiveSonifier,
+        device: int | str | None = None,
+        block: int = 256,
+        copy: Callable[[NDArray[np.float32]], None] | None = None,
+    ) -> None:
+        from depthgram._optional import needs_extra
+
+        if not isinstance(block, int) or not 16 <= block <= 16384:
+            raise InputError(f"block must be an integer number of samples in 16..16384, got {block!r}")
+        with needs_extra("listen", "playing sound live"):
+            import sounddevice as sd
+
+        self.live = live
+        self.block = block
+        self.underflows = 0
+        self.blocks = 0
+        self.samples = 0  # samples played so far
+        self.callback_s: list[float] = []  # time spent in each callback (s)
+        self.events: queue.SimpleQueue[BlockEvent] = queue.SimpleQueue()
+        self._copy = copy
+        self._copies: queue.SimpleQueue[NDArray[np.float32] | None] = queue.SimpleQueue()
+        self._writer: threading.Thread | None = None
+        self._error: BaseException | None = None
+        try:
+            self.stream = sd.OutputStream(
+                samplerate=live.samplerate,
+                blocksize=block,
+                device=device,
+                channels=2,
+                dtype="float32",
+                latency="low",
+                callback=self._callback,
+            )
+        except (sd.PortAudioError, ValueError) as exc:
+            raise InputError(
+                f"cannot open audio output device {device if device is not None else '(default)'} at "
+                f"{live.samplerate} Hz, {block}-sample blocks: {exc}; list devices with "
+                "'python -m sounddevice'"
+            ) from exc
+
+    def _callback(self, outdata: Any, frames: int, time_info: Any, status: Any) -> None:
+        t0 = time.perf_counter()
+        if status.output_underflow:
+            self.underflows += 1
+        audio, taken = self.live.render_block(frames)
+        outdata[:] = audio
+        t1 = time.perf_counter()
+        self.callback_s.append(t1 - t0)
+        self.blocks += 1
+        at = self.samples
+        self.samples += frames
+        if self._copy is not None:
+            self._copies.put(audio)
+        if taken is not None and taken.frame >= 0:
+            now_dev = time_info.currentTime
+            ahead = time_info.outputBufferDacTime - now_dev if now_dev > 0 else self.stream.latency
+            lat = None if taken.arrival_s is None else (t0 + ahead - taken.arrival_s) * 1e3
+            self.events.put(BlockEvent(taken.frame, lat, self.underflows, (t1 - t0) * 1e3, at))
+
+    def _write_copies(self) -> None:
+        assert self._copy is not None
+        while (block := self._copies.get()) is not None:
+            try:
+                self._copy(block)
+            except BaseException as exc:  # reported by stop(); the stream must not die with it
+                self._error = exc
+                return
+
+    def start(self) -> None:
+        """Render one block first (compiling the kernels), then start the device."""
+        self.live._bank.warm_up()
+        if self._copy is not None:
+            self._writer = threading.Thread(target=self._write_copies, name="depthgram-listen-wav", daemon=True)
+            self._writer.start()
+        self.stream.start()
+
+    def stop(self, fade_s: float = 0.05) -> None:
+        """Fade out, stop the device and finish the copy."""
+        if self.stream.active:
+            self.live.clear()
+            time.sleep(max(fade_s, self.live.mapping.ramp_s) + 2 * self.block / self.live.samplerate)
+            self.stream.stop()
+        self.stream.close()
+        if self._writer is not None:
+            self._copies.put(None)
+            self._writer.join()
+        if self._error is not None:
+            raise self._error
+
+    def drain(self) -> list[BlockEvent]:
+        """Return the events posted by the callback since the last call."""
+        out = []
+        while True:
+            try:
+                out.append(self.events.get_nowait())
+            except queue.Empty:
+                return out
+
+    def __enter__(self) -> LivePlayer:
+        self.start()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.stop()
+
+
+def _serve(
+    conn: Connection, mapping: SoundMapping, samplerate: int, device: int | str | None, block: int, wav: str | None
+) -> None:
+    """Play the targets sent on ``conn``; send back block events and, at the end, statistics."""
+    try:
+        out: Any = None
+        if wav is not None:
+            import soundfile as sf
+
+            out = sf.SoundFile(wav, "w", samplerate=samplerate, channels=2, subtype="FLOAT")
+        live = LiveSonifier(mapping, samplerate, (2, 2))
+        player = LivePlayer(live, device, block, copy=out.write if out is not None else None)
+        player.start()
+    except BaseException as exc:
+        conn.send(("error", f"{type(exc).__name__}: {exc}"))
+        return
+    conn.send(("ready", float(player.stream.latency)))
+    try:
+        while True:
+            if conn.poll(0.005):
+                msg = conn.recv()
+                if msg[0] == "stop":
+                    break
+                live.set_targets(msg[1], frame=msg[2], arrival_s=msg[3])
+            events = player.drain()
+            if events:
+                conn.send(("events", events))
+    finally:
+        player.stop()
+        if out is not None:
+            out.close()
+        stats = {
+            "underflows": player.underflows,
+            "blocks": player.blocks,
+            "callback_s": player.callback_s,
+            "superseded": live.superseded,
+        }
+        conn.send(("events", player.drain()))
+        conn.send(("done", stats))
+
+
+class AudioProcess:
+    """A :class:`LivePlayer` in a process of its own, fed the targets a :class:`Chooser` makes here.
+
+    The audio callback needs Python's interpreter lock every block (5.3 ms at 256 samples and
+    48 kHz); in the pipeline's process a busy thread holds it for milliseconds and the device
+    underflows. In its own process the callback competes with nothing but a loop that mostly
+    waits on a pipe. Scenes are chosen here and only their voices (a few hundred bytes) cross.
+
+    Parameters
+    ----------
+    mapping : SoundMapping, optional
+    samplerate : int
+        Samples per second (Hz).
+    frame_size : tuple of int, optional
+        (width, height) of the frames (px); each tree's own when omitted.
+    device : int or str, optional
+        PortAudio output device; the default one when None.
+    block : int
+        Samples per audio block.
+    wav : str, optional
+        File to write a copy of exactly what was played to (32-bit float WAV).
+    """
+
+    def __init__(
+        self,
+        mapping: SoundMapping | None = None,
+        samplerate: int = 48000,
+        frame_size: tuple[int, int] | None = None,
+        device: int | str | None = None,
+        block: int = 256,
+        wav: str | None = None,
+    ) -> None:
+        import multiprocessing
+
+        from depthgram._optional import needs_extra
+
+        with needs_extra("listen", "playing sound live"):
+            import sounddevice  # noqa: F401 - the audio process uses it; a missing one is named here
+
+        self.mapping = mapping or SoundMapping()
+        self.samplerate = samplerate
+        self.frame_size = frame_size
+        self.chooser = Chooser(self.mapping)
+        self._inbox: list[BlockEvent] = []  # received by stop(), not yet returned by drain()
+        self.stats: dict[str, Any] = {}
+        ctx = multiprocessing.get_context("spawn")  # no fork of a process with threads
+        self._conn, child = ctx.Pipe()
+        self._proc = ctx.Process(
+            target=_serve, args=(child, self.mapping, samplerate, device, block, wav), name="depthgram-audio"
+        )
+        self._proc.start()
+        child.close()
+        kind, value = self._recv()
+        if kind == "error":
+            self._proc.join()
+            raise InputError(f"audio output: {value}")
+        self.latency_s = float(value)
+
+    def _recv(self) -> tuple[str, Any]:
+        try:
+            msg = self._conn.recv()
+        except EOFError:
+            raise InputError(f"the audio process ended unexpectedly (exit status {self._proc.exitcode})") from None
+        return msg[0], msg[1]
+
+    def update(
+        self,
+        tree: SceneTree,
+        objects: Sequence[SceneObject] = (),
+        *,
+        frame: int = -1,
+        arrival_s: float | None = None,
+        intrinsics: Any = None,
+    ) -> None:
+        """Send a new scene's voices to the audio process (see :meth:`LiveSonifier.update`)."""
+        size = self.frame_size or tree.frame_size
+        if size is None:
+            raise InputError("AudioProcess: the tree does not carry the frame size; give frame_size=(width, height)")
+        self._conn.send(("t", self.chooser.voices(tree, size, objects, intrinsics), frame, arrival_s))
+
+    def drain(self) -> list[BlockEvent]:
+        """Return the block events received since the last call."""
+        out, self._inbox = self._inbox, []
+        while not self._conn.closed and not self.stats and self._conn.poll():
+            kind, value = self._recv()
+            if kind == "events":
+                out += value
+            elif kind == "done":
+                self.stats = value
+        return out
+
+    def stop(self) -> dict[str, Any]:
+        """Fade out, stop the device, wait for the process; return its statistics.
+
+        Returns
+        -------
+        dict
+            ``underflows``, ``blocks``, ``callback_s`` (time in each callback, s), ``superseded``.
+        """
+        if self._proc.is_alive() and not self.stats:
+            self._conn.send(("stop",))
+            deadline = time.monotonic() + STOP_TIMEOUT_S
+            while not self.stats:
+                if not self._conn.poll(max(0.0, deadline - time.monotonic())):
+                    self._proc.kill()
+                    self._proc.join()
+                    raise InputError(
+                        f"the audio process did not stop within {STOP_TIMEOUT_S:g} s (is the audio device stuck?)"
+                    )
+                kind, value = self._recv()
+                if kind == "events":
+                    self._inbox += value
+                elif kind == "done":
+                    self.stats = value
+        self._proc.join()
+        return self.stats
+
+
+def percentiles(values: Sequence[float]) -> dict[str, float]:
+    """p50, p95 and max of ``values`` (NaN for none)."""
+    if not values:
+        return {"p50": math.nan, "p95": math.nan, "max": math.nan}
+    a = np.asarray(values, dtype=np.float64)
+    return {"p50": float(np.median(a)), "p95": float(np.percentile(a, 95)), "max": float(a.max())}
