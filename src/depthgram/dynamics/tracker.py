@@ -80,6 +80,14 @@ class Track:
     queue : tuple of (float, float or None)
         The last N queue entries, oldest first: (time in s, from the frame rate when the
         frames have no timestamps; depth in mm, or None for an invalid entry).
+    center_xy : tuple of float or None
+        Where the object's centre is now (px): as detected, or while occluded, predicted along
+        its image velocity since its last detection.
+    depth_mm : float or None
+        The filter's depth now (mm; estimator ``kalman``): predicted along its radial velocity
+        while occluded. None before the filter has a reading.
+    depth_sigma_mm : float or None
+        That depth's standard deviation (mm); it grows with every frame the track coasts.
     """
 
     id: int
@@ -90,6 +98,9 @@ class Track:
     last: SceneObject
     motion: Motion
     queue: tuple[tuple[float, float | None], ...]
+    center_xy: tuple[float, float] | None = None
+    depth_mm: float | None = None
+    depth_sigma_mm: float | None = None
 
 
 @dataclass(frozen=True)
@@ -307,6 +318,9 @@ class Tracker:
         # One list per field: reading a record's fields one by one costs several times more.
         live = self._tracks[: self._n]
         ids, hits, missed, status = (live[name].tolist() for name in ("id", "hits", "missed", "status"))
+        el = (self._t_last if self._t_last is not None else 0.0) - live["t_seen"]
+        cx, cy = (live["cx"] + live["vx"] * el).tolist(), (live["cy"] + live["vy"] * el).tolist()
+        kf_z, kf_pzz = live["kf_z"].tolist(), live["kf_pzz"].tolist()
         min_hits = self.config.min_hits
         return tuple(
             Track(
@@ -321,6 +335,9 @@ class Tracker:
                     (float(t), None if not math.isfinite(z) else float(z))
                     for t, z in zip(self._qt[i].tolist(), self._qz[i].tolist(), strict=True)
                 ),
+                center_xy=(cx[i], cy[i]),
+                depth_mm=kf_z[i] if math.isfinite(kf_z[i]) else None,
+                depth_sigma_mm=math.sqrt(kf_pzz[i]) if math.isfinite(kf_z[i]) and kf_pzz[i] >= 0 else None,
             )
             for i in rows
         )
