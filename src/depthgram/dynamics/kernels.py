@@ -434,7 +434,7 @@ def step(
     scaled by it, so the tracker behaves alike at any frame rate.
 
     ``dcore`` is each object's depth change over its core since the previous frame (mm, NaN
-    where unknown; :func:`depthgram.dynamics.core.core_depth_change`). Where it is known, the
+    where unknown; :func:`depthgram.dynamics.core_depth.core_depth_change`). Where it is known, the
     queue's new entry is the previous depth plus that change, and the whole queue is then
     moved by a constant so that its newest entry is this frame's depth: the slope follows the
     core, the depth stays the object's. A whole object in plain view is read by its mean depth

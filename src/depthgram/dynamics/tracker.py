@@ -19,17 +19,9 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.optimize import linear_sum_assignment
 
+from depthgram.dynamics.camera_motion import CameraMotion, EgoMotion, FramePixels, shift_structure, structure_shift
 from depthgram.dynamics.config import NOMINAL_FPS, TrackerConfig
-from depthgram.dynamics.core import (
-    CameraMotion,
-    EgoMotion,
-    FramePixels,
-    core_depth_change,
-    inner_edge_shift,
-    shift_structure,
-    still_depth_change,
-    structure_shift,
-)
+from depthgram.dynamics.core_depth import core_depth_change, inner_edge_shift, still_depth_change
 from depthgram.dynamics.kernels import (
     FORBIDDEN,
     OBJECT_DTYPE,
@@ -437,7 +429,7 @@ class Tracker:
 
         Given the frame's ``pixels`` (depth and label map) on this and the previous update, and
         ``config.depth_from == "core"``, an object's depth change is read from its core, the
-        pixels that stay in it (:mod:`depthgram.dynamics.core`); otherwise, and for objects
+        pixels that stay in it (:mod:`depthgram.dynamics.core_depth`); otherwise, and for objects
         without a core, from its mean depth alone.
 
         Parameters
@@ -455,7 +447,7 @@ class Tracker:
             (height, width). Ignored (not even checked) when ``config.depth_from == "mean"``.
         helper : Executor, optional
             A thread that reads about half of the objects' cores beside the caller's
-            (:func:`depthgram.dynamics.core.core_depth_change`): for a caller whose second
+            (:func:`depthgram.dynamics.core_depth.core_depth_change`): for a caller whose second
             core idles meanwhile. The update is the same with or without it.
 
         Returns
