@@ -121,6 +121,39 @@ def test_open3d_json_is_column_major(tmp_path: Path) -> None:
     assert_allclose(k_tuple(load_camera_file(p).intrinsics), (500, 501, 320, 240))
 
 
+def azure_calibration(params: list[float]) -> dict[str, object]:
+    colour = {"Location": "CALIBRATION_CameraLocationPV0", "Intrinsics": {"ModelParameters": [0.5] * 14}}
+    depth = {
+        "Location": "CALIBRATION_CameraLocationD0",
+        "Intrinsics": {"ModelType": "CALIBRATION_LensDistortionModelBrownConrady", "ModelParameters": params},
+        "SensorWidth": 1024,
+        "SensorHeight": 1024,
+    }
+    return {"CalibrationInformation": {"Cameras": [colour, depth], "Metadata": {}}}
+
+
+def test_azure_kinect_calibration_json_gives_every_depth_mode(tmp_path: Path) -> None:
+    p = tmp_path / "calibration.json"
+    p.write_text(json.dumps(azure_calibration([0.5, 0.5, 0.5, 0.5, *([0.0] * 10)])))
+    cam = load_camera_file(p)
+    assert cam.source == "file" and cam.sensor == "azure-kinect"
+    # NFOV unbinned: 1024 grid, centre 512 - (192, 180) - 0.5; WFOV binned: 512 grid, no crop
+    assert_allclose(k_tuple(cam.for_size((640, 576))), (512.0, 512.0, 319.5, 331.5))
+    assert_allclose(k_tuple(cam.for_size((512, 512))), (256.0, 256.0, 255.5, 255.5))
+    p.write_text(json.dumps({"CalibrationInformation": {"Cameras": []}}))
+    with pytest.raises(InputError, match="CALIBRATION_CameraLocationD0"):
+        load_camera_file(p)
+
+
+def test_the_real_azure_kinect_calibration(shared_data: Path) -> None:
+    folder = shared_data / "azure_kinect_tof_mug_single"
+    frame = next(iter(read(folder / "depth.png", camera=folder / "calibration.json")))
+    assert frame.intrinsics_source == "file" and frame.meta["sensor_profile"] == "azure-kinect"
+    # PROVENANCE.md: fx 504.61, fy 504.73, cx 525.28, cy 529.33 on the 1024 grid; NFOV crop (192, 180)
+    assert frame.intrinsics is not None
+    assert_allclose(k_tuple(frame.intrinsics), (504.61, 504.73, 525.28 - 192.5, 529.33 - 180.5), atol=0.01)
+
+
 def test_text_matrix_round_trip_and_errors(tmp_path: Path) -> None:
     p = tmp_path / "K.txt"
     np.savetxt(p, np.array(matrix(K)))
@@ -148,7 +181,10 @@ def test_profiles_at_native_size_and_scaled_by_hand() -> None:
     assert_allclose(k_tuple(d435.for_size((424, 240))), (213.5, 213.5, 211.5, 119.5))
     nfov = resolve_camera(camera="azure-kinect-nfov")
     assert nfov is not None and nfov.sensor == "azure-kinect"
-    assert_allclose(k_tuple(nfov.for_size((320, 288))), (252.3, 252.35, 166.4, 174.4))
+    # the binned NFOV mode from the normalised calibration by hand: 512 px grid, crop (96, 90), half a pixel
+    cx, cy, fx, fy = 0.5129697918891907, 0.5169235467910767, 0.4927808940410614, 0.49290284514427185
+    assert_allclose(k_tuple(nfov.for_size((320, 288))), (fx * 512, fy * 512, cx * 512 - 96.5, cy * 512 - 90.5))
+    assert_allclose(k_tuple(nfov.for_size((320, 288))), (252.304, 252.366, 166.140, 174.165), atol=1e-3)
     for name, prof in PROFILES.items():
         for (w, h), k in prof.modes:
             assert 0 < k.cx < w and 0 < k.cy < h, name
@@ -159,7 +195,8 @@ def test_profile_of_another_aspect_warns_and_names_the_option() -> None:
     assert cam is not None
     with pytest.warns(IntrinsicsWarning, match="--intrinsics"):
         k = cam.for_size((640, 360))
-    assert_allclose(k_tuple(k), (525.0, 525.0 * 0.75, 319.5, (239.5 + 0.5) * 0.75 - 0.5))
+    # square pixels kept: the width's scale (1) for both axes, the 360 rows a centred crop of the 480
+    assert_allclose(k_tuple(k), (525.0, 525.0, 319.5, 239.5 - 60.0))
 
 
 def test_calibration_file_scaled_to_the_frames(tmp_path: Path) -> None:
@@ -244,7 +281,7 @@ def test_gravity_from_vector_and_tilt() -> None:
         as_gravity((0, 1, 0), 10.0)
     with pytest.raises(InputError, match="non-zero"):
         as_gravity((0, 0, 0))
-    with pytest.raises(InputError, match="between -90"):
+    with pytest.raises(InputError, match=r"--tilt DEG.*-90 \(up\) to 90"):
         as_gravity(None, 120.0)
 
 
@@ -268,6 +305,7 @@ def test_cli_describe_and_info_say_the_camera(tmp_path: Path, capsys: pytest.Cap
     assert f"fx 50.00  fy 50.00  cx 31.50  cy 23.50 px (file from {calib})" in out
     assert main(["info", str(folder)]) == 0
     captured = capsys.readouterr()
-    assert "(guessed: a 64-degree field of view; give --intrinsics FX FY CX CY or --camera" in captured.out
+    assert "(guessed: a 64-degree field of view" in captured.out
+    assert "give --intrinsics FX FY CX CY or --camera" in captured.out
     assert main(["info", str(folder), "--camera", "nope"]) == 2
     assert "profiles:" in capsys.readouterr().err

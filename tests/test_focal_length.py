@@ -116,6 +116,20 @@ def test_the_pipeline_uses_the_estimate_and_says_so() -> None:
     assert given[0].to_record()["camera"]["intrinsics"]["fx"] == 700.0
 
 
+def test_info_says_the_focal_length_the_pipeline_will_use(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    from depthgram.cli import main
+
+    folder = tmp_path / "frames"
+    folder.mkdir()
+    for i in range(2):
+        cv2.imwrite(str(folder / f"{i:03d}.png"), render_tabletop(580.0, 45.0, seed=i).astype(np.uint16))
+    assert main(["info", str(folder)]) == 0
+    line = next(x for x in capsys.readouterr().out.splitlines() if x.startswith("intrinsics"))
+    fx = float(line.split()[2])
+    assert_allclose(fx, 580.0, rtol=0.05)
+    assert "estimated from the scene of frame 0" in line and "--intrinsics FX FY CX CY" in line
+
+
 def test_real_tabletops_without_their_intrinsics(shared_data: Path) -> None:
     # PROVENANCE.md's focal lengths: YCB-Video's Xtion 1066.8 px (registered to colour), the
     # NVlabs RealSense 612.9 px, 7-Scenes' Kinect 585 px; within 15 %, where the guess is 512

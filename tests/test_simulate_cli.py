@@ -91,3 +91,18 @@ def test_unwritable_output_folder_exits_2(tmp_path: Path, capsys: pytest.Capture
     assert main(["simulate", "table", "--out", str(blocker / "sim")]) == 2
     err = capsys.readouterr().err
     assert "cannot create the output folders" in err and str(blocker) in err
+
+
+def test_the_help_names_every_scene_of_the_simulator() -> None:
+    import argparse
+
+    from depthgram.commands import simulate as simulate_command
+    from depthgram.commands._common import add_source_arguments
+    from depthgram.sensor import SCENES
+
+    for add in (simulate_command.add_arguments, add_source_arguments):
+        parser = argparse.ArgumentParser()
+        add(parser)
+        text = parser.format_help().replace("\n", " ")
+        missing = [s for s in SCENES if s not in text]
+        assert not missing, f"{add.__module__}: help does not name {missing}"

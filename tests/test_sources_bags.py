@@ -44,7 +44,7 @@ def image_msg(ts: Typestore, arr: np.ndarray, i: int, encoding: str, pad: int = 
     )
 
 
-def camera_info(ts: Typestore) -> object:
+def camera_info(ts: Typestore, size: tuple[int, int] = (10, 6)) -> object:
     info = ts.types["sensor_msgs/msg/CameraInfo"]
     Header = ts.types["std_msgs/msg/Header"]
     Time = ts.types["builtin_interfaces/msg/Time"]
@@ -52,8 +52,8 @@ def camera_info(ts: Typestore) -> object:
     k = np.array([300.0, 0, 4.5, 0, 310.0, 2.5, 0, 0, 1])
     return info(
         header=Header(stamp=Time(sec=T0, nanosec=0), frame_id="depth"),
-        height=6,
-        width=10,
+        height=size[1],
+        width=size[0],
         distortion_model="plumb_bob",
         d=np.zeros(5),
         k=k,
@@ -66,7 +66,11 @@ def camera_info(ts: Typestore) -> object:
 
 
 def write_ros2(
-    path: Path, topics: dict[str, tuple[str, list[np.ndarray]]], storage: StoragePlugin, with_info: bool = False
+    path: Path,
+    topics: dict[str, tuple[str, list[np.ndarray]]],
+    storage: StoragePlugin,
+    with_info: bool = False,
+    info_size: tuple[int, int] = (10, 6),
 ) -> Path:
     ts = get_typestore(Stores.ROS2_HUMBLE)
     with Writer2(path, version=9, storage_plugin=storage) as w:
@@ -78,7 +82,9 @@ def write_ros2(
         if with_info:
             ns = next(iter(topics)).rsplit("/", 1)[0]
             conn = w.add_connection(f"{ns}/camera_info", "sensor_msgs/msg/CameraInfo", typestore=ts)
-            w.write(conn, T0 * 1_000_000_000, ts.serialize_cdr(camera_info(ts), "sensor_msgs/msg/CameraInfo"))
+            w.write(
+                conn, T0 * 1_000_000_000, ts.serialize_cdr(camera_info(ts, info_size), "sensor_msgs/msg/CameraInfo")
+            )
     return path
 
 
@@ -305,3 +311,14 @@ def test_an_imu_without_a_transform_warns_and_gives_no_gravity(tmp_path: Path) -
     with pytest.warns(UserWarning, match=r"imu_link.*--gravity X Y Z or --tilt DEG"):
         frames = list(read(bag))
     assert all(f.gravity is None for f in frames) and len(frames) == 5
+
+
+def test_camera_info_of_another_size_is_scaled_to_the_images(tmp_path: Path) -> None:
+    # calibrated at 20 x 12, the images are 10 x 6 (binned 2 x 2): f halves, c = (c + 0.5) / 2 - 0.5
+    arrays = frames_u16(2)
+    bag = write_ros2(
+        tmp_path / "binned", {"/cam/depth/image_raw": ("16UC1", arrays)}, StoragePlugin.SQLITE3, True, (20, 12)
+    )
+    frames = list(read(bag))
+    assert frames[0].intrinsics == Intrinsics(150.0, 155.0, 2.0, 1.0)
+    assert frames[0].intrinsics_source == "bag"

@@ -98,10 +98,10 @@ class Gravity:
         try:
             v = np.asarray(self.vector, dtype=np.float64).reshape(3)
         except (TypeError, ValueError):
-            raise InputError(f"gravity: expected three numbers X Y Z, got {self.vector!r}") from None
+            raise InputError(f"gravity (--gravity X Y Z): expected three numbers, got {self.vector!r}") from None
         norm = float(np.linalg.norm(v))
         if not (np.all(np.isfinite(v)) and norm > 1e-9):
-            raise InputError(f"gravity: expected a finite, non-zero vector X Y Z, got {tuple(v.tolist())}")
+            raise InputError(f"gravity (--gravity X Y Z): expected a finite, non-zero vector, got {tuple(v.tolist())}")
         object.__setattr__(self, "vector", tuple(float(x) + 0.0 for x in v / norm))  # no -0.0
 
     @classmethod
@@ -113,7 +113,7 @@ class Gravity:
         about z.
         """
         if not (math.isfinite(tilt_deg) and -90.0 <= tilt_deg <= 90.0):
-            raise InputError(f"tilt: expected degrees between -90 (up) and 90 (straight down), got {tilt_deg}")
+            raise InputError(f"tilt (--tilt DEG): expected -90 (up) to 90 (straight down) degrees, got {tilt_deg}")
         if not math.isfinite(roll_deg):
             raise InputError(f"roll: expected degrees, got {roll_deg}")
         t, r = math.radians(tilt_deg), math.radians(roll_deg)
@@ -148,9 +148,9 @@ def as_gravity(gravity: Gravity | Sequence[float] | None = None, tilt_deg: float
     try:
         xyz = tuple(float(v) for v in gravity)
     except (TypeError, ValueError):
-        raise InputError(f"gravity: expected three numbers X Y Z, got {gravity!r}") from None
+        raise InputError(f"gravity (--gravity X Y Z): expected three numbers, got {gravity!r}") from None
     if len(xyz) != 3:
-        raise InputError(f"gravity: expected three numbers X Y Z, got {len(xyz)}")
+        raise InputError(f"gravity (--gravity X Y Z): expected three numbers, got {len(xyz)}")
     return Gravity((xyz[0], xyz[1], xyz[2]))
 
 

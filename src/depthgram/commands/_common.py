@@ -73,7 +73,8 @@ def add_source_arguments(p: argparse.ArgumentParser, *, input_optional: bool = F
         metavar="INPUT",
         nargs="?" if input_optional else None,
         help="file, folder or glob of depth frames, .npy/.npz stack, ROS bag / MCAP, realsense:[SERIAL], "
-        "or sim:SCENE (table, corridor, approach, crossing, ball_wall, touching, arm_down, arm_45, chest_walk; "
+        "or sim:SCENE (table, corridor, approach, crossing, ball_wall, touching, arm_down, arm_45, chest_walk, "
+        "ball_approach, ball_rush, pass_behind, cross_front; "
         "?sensor=sl: structured light)",
     )
     add_reading_arguments(p)

@@ -5,6 +5,10 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from depthgram.sources import SourceInfo
 
 NAME = "info"
 HELP = "Show what a depth source holds: kind, frames, size, depth range (mm), invalid share, rate, intrinsics."
@@ -53,10 +57,15 @@ def format_info(info: object) -> str:
         from depthgram.segmentation.orientation import default_intrinsics
 
         k = default_intrinsics((h, w))
-        said = "guessed: a 64-degree field of view; give --intrinsics FX FY CX CY or --camera FILE|PROFILE"
+        said = (
+            "guessed: a 64-degree field of view, the scene does not show its focal length; "
+            "give --intrinsics FX FY CX CY or --camera FILE|PROFILE"
+        )
     else:
         origin = getattr(info, "intrinsics_from", "")
         said = (getattr(info, "intrinsics_source", "") or "given") + (f" from {origin}" if origin else "")
+        if said.startswith("estimated"):
+            said += "; give --intrinsics FX FY CX CY or --camera FILE|PROFILE to be sure"
     lines.append(f"intrinsics  fx {k.fx:.2f}  fy {k.fy:.2f}  cx {k.cx:.2f}  cy {k.cy:.2f} px ({said})")
     gravity = getattr(info, "gravity", None)
     if gravity:
@@ -71,6 +80,36 @@ def format_info(info: object) -> str:
     elif sensor:
         lines.append(f"sensor      {sensor}")
     return "\n".join(lines)
+
+
+def _with_scene_focal(info: SourceInfo, args: argparse.Namespace) -> SourceInfo:
+    """Return ``info`` with the focal length read from the first frame's scene, when it shows it.
+
+    What ``describe`` and the other pipeline commands will use for a source without intrinsics
+    (:func:`depthgram.focal_length.estimate_focal_length`), so that ``info`` says the same.
+    """
+    import dataclasses
+
+    from depthgram.commands._common import open_input
+    from depthgram.focal_length import estimate_focal_length
+
+    src = open_input(args)
+    frames = iter(src)
+    try:
+        first = next(frames, None)
+    finally:
+        close = getattr(frames, "close", None)
+        if close is not None:
+            close()
+    found = None if first is None else estimate_focal_length(first.depth, first.valid)
+    if found is None:
+        return info
+    return dataclasses.replace(
+        info,
+        intrinsics=found.intrinsics,
+        intrinsics_source="estimated",
+        intrinsics_from=f"the scene of frame 0 (support seen {found.tilt_deg:.0f} degrees from face-on)",
+    )
 
 
 def run(args: argparse.Namespace) -> int:
@@ -91,6 +130,8 @@ def run(args: argparse.Namespace) -> int:
         src = open_input(args)
     # Same rule as the other commands: no bar in logs or pipes.
     info = src.info(progress=(n or 0) > _PROGRESS_FROM and sys.stderr.isatty())
+    if info.intrinsics is None and not src.live and info.frames:
+        info = _with_scene_focal(info, args)
     if json_to is not None:
         with Output(json_to, "--json") as out:
             out.write(json.dumps(info.to_dict()) + "\n")

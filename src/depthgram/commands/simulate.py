@@ -25,7 +25,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Declare the sub-command's arguments."""
     parser.add_argument(
         "scene",
-        help="scene name: table, corridor, approach, crossing, ball_wall, touching, arm_down, arm_45, chest_walk",
+        help="scene name: table, corridor, approach, crossing, ball_wall, touching, arm_down, arm_45, chest_walk, "
+        "ball_approach, ball_rush, pass_behind, cross_front",
     )
     parser.add_argument("--frames", type=int, default=1, help="number of frames (default 1)")
     parser.add_argument("--size", default="176x132", help="image size WxH in pixels (default 176x132)")

@@ -21,6 +21,7 @@ from depthgram._optional import needs_extra
 from depthgram.errors import DepthgramError, InputError
 from depthgram.frame import Frame, Gravity, Intrinsics
 from depthgram.sources.base import Source
+from depthgram.sources.camera import Camera
 from depthgram.sources.config import SourceConfig
 from depthgram.sources.decode import to_frame
 from depthgram.sources.images import check_size
@@ -117,6 +118,7 @@ class BagSource(Source):
         self.cfg = cfg
         self.name = name
         self.fps = fps
+        self._info: Camera | None = None  # the CameraInfo with the image size it is for
         if cfg.timestamps is not None:
             raise InputError(f"{path}: a bag's frame times come from its message headers; drop timestamps=")
         try:
@@ -166,7 +168,12 @@ class BagSource(Source):
             k = getattr(msg, "k", None)
             if k is None:  # ROS 1 spells it K
                 k = msg.K
-            return Intrinsics(float(k[0]), float(k[4]), float(k[2]), float(k[5]))
+            intr = Intrinsics(float(k[0]), float(k[4]), float(k[2]), float(k[5]))
+            w, h = int(getattr(msg, "width", 0)), int(getattr(msg, "height", 0))
+            if w > 0 and h > 0:
+                # images of another size than the calibration's (binned, resized) get it scaled
+                self._info = Camera(intr, "bag", f"{self.path} {conn.topic}", (w, h))
+            return intr
         return None
 
     def _choose_imu(self, imus: list[str]) -> str | None:
@@ -246,13 +253,17 @@ class BagSource(Source):
                     continue
                 stamp = msg.header.stamp
                 t = stamp.sec + stamp.nanosec * 1e-9
+                samples = image_array(msg, where)
+                intrinsics = self.intrinsics
+                if self._info is not None and intrinsics is not None:
+                    intrinsics = self.intrinsics = self._info.for_size((samples.shape[1], samples.shape[0]))
                 frame = to_frame(
-                    image_array(msg, where),
+                    samples,
                     self.cfg,
                     where=where,
                     index=i,
                     time_s=t if t > 0 else log_ns * 1e-9,
-                    intrinsics=self.intrinsics,
+                    intrinsics=intrinsics,
                     name=f"bag:{self.topic}#{i}",
                 )
                 if imu is not None:

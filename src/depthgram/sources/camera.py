@@ -78,8 +78,9 @@ class CameraProfile:
         """Return the intrinsics (px) for frames of ``size`` = (width, height) px.
 
         The mode of that size when there is one; else the mode of the nearest aspect ratio,
-        scaled (:meth:`~depthgram.frame.Intrinsics.scaled`), with an :class:`IntrinsicsWarning`
-        when the aspect ratios differ (the frames are a crop, whose principal point no profile knows).
+        scaled (:meth:`~depthgram.frame.Intrinsics.scaled`); when the aspect ratios differ (a
+        crop, whose principal point no profile knows) scaled by the width and centred, with an
+        :class:`IntrinsicsWarning`.
         """
         return _fit(self.modes, size, f"camera profile {self.name!r}")
 
@@ -91,14 +92,19 @@ def _fit(modes: Sequence[tuple[tuple[int, int], Intrinsics]], size: tuple[int, i
             return k
     aspect = w / h
     (mw, mh), k = min(modes, key=lambda m: (abs(math.log(m[0][0] / m[0][1] / aspect)), -m[0][0]))
-    if abs(mw / mh / aspect - 1.0) > _ASPECT_TOL:
-        warnings.warn(
-            f"{what} is for {mw}x{mh} px frames, these are {w}x{h} px (another aspect ratio: a crop?); "
-            "its intrinsics were stretched to fit, give the true ones with --intrinsics FX FY CX CY",
-            IntrinsicsWarning,
-            stacklevel=3,
-        )
-    return k.scaled(w / mw, h / mh)
+    if abs(mw / mh / aspect - 1.0) <= _ASPECT_TOL:
+        return k.scaled(w / mw, h / mh)
+    # Another aspect ratio is a crop (or another sensor): pixels stay square, so the width sets the
+    # scale, and the crop is taken as centred vertically.
+    warnings.warn(
+        f"{what} is for {mw}x{mh} px frames, these are {w}x{h} px (another aspect ratio: a crop?); its "
+        "intrinsics were scaled by the width and centred, give the true ones with --intrinsics FX FY CX CY",
+        IntrinsicsWarning,
+        stacklevel=3,
+    )
+    s = w / mw
+    scaled = k.scaled(s, s)
+    return Intrinsics(scaled.fx, scaled.fy, scaled.cx, scaled.cy + (h - mh * s) / 2.0)
 
 
 def _k(fx: float, fy: float, cx: float, cy: float) -> Intrinsics:
@@ -112,6 +118,32 @@ _XTION = CameraProfile(
     "OpenNI's default depth calibration of the PrimeSense family (Asus Xtion, Carmine)",
 )
 _AZURE = "one unit's factory calibration (lens f 504.6 px on the 1024 px grid), cropped as the Azure Kinect SDK crops"
+
+#: Azure Kinect depth modes: (width, height) px, the grid the normalised calibration is scaled to
+#: (px) and the crop offset (px) on it, as the Azure Kinect SDK's mode-specific calibration does.
+AZURE_MODES = (
+    ((640, 576), 1024, (192, 180)),  # NFOV unbinned
+    ((320, 288), 512, (96, 90)),  # NFOV 2x2 binned
+    ((1024, 1024), 1024, (0, 0)),  # WFOV unbinned
+    ((512, 512), 512, (0, 0)),  # WFOV 2x2 binned
+)
+
+
+def azure_modes(cx: float, cy: float, fx: float, fy: float) -> tuple[tuple[tuple[int, int], Intrinsics], ...]:
+    """Return the intrinsics (px) of every Azure Kinect depth mode from its normalised calibration.
+
+    ``cx, cy, fx, fy`` as the device stores them (fractions of the sensor's width and height,
+    origin at the top-left corner); the SDK scales them to each mode's grid, subtracts the crop and
+    half a pixel (to the centre of the top-left pixel, this project's convention too).
+    """
+    out = []
+    for size, grid, (ox, oy) in AZURE_MODES:
+        out.append((size, Intrinsics(fx * grid, fy * grid, cx * grid - ox - 0.5, cy * grid - oy - 0.5)))
+    return tuple(out)
+
+
+#: The shared Azure Kinect recording's depth calibration (normalised cx, cy, fx, fy).
+_AZURE_UNIT = azure_modes(0.5129697918891907, 0.5169235467910767, 0.4927808940410614, 0.49290284514427185)
 
 #: Named cameras. Published or typical factory values; a unit's own calibration differs by a few
 #: per cent, which the segmentation tolerates (focal x0.8 to x1.25 keeps YCB-Video's 30 objects).
@@ -137,13 +169,13 @@ PROFILES: dict[str, CameraProfile] = {
     "azure-kinect-nfov": CameraProfile(
         "azure-kinect-nfov",
         "azure-kinect",
-        (((640, 576), _k(504.6, 504.7, 333.3, 349.3)), ((320, 288), _k(252.3, 252.35, 166.4, 174.4))),
+        _AZURE_UNIT[:2],
         _AZURE + " (NFOV: offset 192, 180)",
     ),
     "azure-kinect-wfov": CameraProfile(
         "azure-kinect-wfov",
         "azure-kinect",
-        (((1024, 1024), _k(504.6, 504.7, 525.3, 529.3)), ((512, 512), _k(252.3, 252.35, 262.4, 264.4))),
+        _AZURE_UNIT[2:],
         _AZURE,
     ),
     # a ToF camera with a 1 mm output unit, as the Azure Kinect: its sensor model is the nearest
@@ -175,6 +207,9 @@ class Camera:
         Sensor model profile of the segmentation (a camera profile names one), else None.
     profile : CameraProfile or None
         The named camera, when one was given.
+    modes : tuple of ((int, int), Intrinsics)
+        Intrinsics per frame size, when the source knows several (a profile, an Azure Kinect
+        calibration): frames take the mode of their size, else the nearest one scaled.
     """
 
     intrinsics: Intrinsics
@@ -183,14 +218,15 @@ class Camera:
     size: tuple[int, int] | None = None
     sensor: str | None = None
     profile: CameraProfile | None = None
+    modes: tuple[tuple[tuple[int, int], Intrinsics], ...] = ()
     _cache: dict[tuple[int, int], Intrinsics] = field(default_factory=dict, compare=False, repr=False)
 
     def for_size(self, size: tuple[int, int]) -> Intrinsics:
         """Return the intrinsics (px) for frames of ``size`` = (width, height) px."""
         found = self._cache.get(size)
         if found is None:
-            if self.profile is not None and self.source == "profile":
-                found = self.profile.intrinsics_for(size)
+            if self.modes and self.source != "given":
+                found = _fit(self.modes, size, f"the camera {self.origin}")
             elif self.size is None or self.size == size:
                 found = self.intrinsics
             else:
@@ -200,7 +236,7 @@ class Camera:
 
     def with_intrinsics(self, intrinsics: Intrinsics) -> Camera:
         """Return the same camera (sensor model) with intrinsics given for the frames as read."""
-        return Camera(intrinsics, "given", "", None, self.sensor, self.profile)
+        return Camera(intrinsics, "given", "", None, self.sensor, self.profile)  # no modes: for the frames as read
 
 
 def as_intrinsics(value: object, where: str = "intrinsics") -> Intrinsics:
@@ -246,11 +282,27 @@ def _size(w: object, h: object) -> tuple[int, int] | None:
     return None
 
 
-def _from_json(path: Path) -> tuple[Intrinsics, tuple[int, int] | None]:
+def _azure_json(d: dict[str, Any], path: Path) -> Camera:
+    # the Azure Kinect's factory calibration (k4a's calibration.json): the depth camera D0
+    cams = d["CalibrationInformation"].get("Cameras", [])
+    depth = [c for c in cams if isinstance(c, dict) and c.get("Location") == "CALIBRATION_CameraLocationD0"]
+    if not depth:
+        raise InputError(f"{path}: no depth camera (CALIBRATION_CameraLocationD0) in this Azure Kinect calibration")
+    try:
+        cx, cy, fx, fy = (float(v) for v in depth[0]["Intrinsics"]["ModelParameters"][:4])
+    except (KeyError, TypeError, ValueError):
+        raise InputError(f"{path}: the depth camera's Intrinsics.ModelParameters are not cx, cy, fx, fy") from None
+    modes = azure_modes(cx, cy, fx, fy)
+    return Camera(modes[0][1], "file", str(path), modes[0][0], "azure-kinect", None, modes)
+
+
+def _from_json(path: Path) -> tuple[Intrinsics, tuple[int, int] | None] | Camera:
     try:
         d = json.loads(path.read_text())
     except (OSError, ValueError) as exc:
         raise InputError(f"{path}: cannot read the JSON ({exc})") from None
+    if isinstance(d, dict) and isinstance(d.get("CalibrationInformation"), dict):
+        return _azure_json(d, path)
     if isinstance(d, dict) and "intrinsic_matrix" in d:
         # Open3D's PinholeCameraIntrinsic: the matrix column by column (Eigen's order)
         m = np.asarray(d["intrinsic_matrix"], dtype=float).reshape(-1)
@@ -263,7 +315,7 @@ def _from_json(path: Path) -> tuple[Intrinsics, tuple[int, int] | None]:
                 return as_intrinsics([d[k] for k in keys], str(path)), _size(d.get("width"), d.get("height"))
     raise InputError(
         f"{path}: not a camera file this reads: expected an Open3D PinholeCameraIntrinsic JSON "
-        "(width, height, intrinsic_matrix) or fx, fy, cx, cy"
+        "(width, height, intrinsic_matrix), an Azure Kinect calibration.json or fx, fy, cx, cy"
     )
 
 
@@ -338,7 +390,8 @@ def load_camera_file(path: str | Path) -> Camera:
         A ROS ``camera_info`` YAML (``camera_matrix`` of camera_calibration_parsers, or a dumped
         CameraInfo with ``K``/``k``); an OpenCV FileStorage YAML or XML (``camera_matrix``,
         ``image_width``); a Kalibr camchain YAML (``cam0``); an Open3D ``PinholeCameraIntrinsic``
-        JSON; a JSON with ``fx, fy, cx, cy``; or a 3x3 matrix in text (``.txt``).
+        JSON; an Azure Kinect ``calibration.json`` (every depth mode, and its sensor model); a
+        JSON with ``fx, fy, cx, cy``; or a 3x3 matrix in text (``.txt``).
 
     Returns
     -------
@@ -355,7 +408,10 @@ def load_camera_file(path: str | Path) -> Camera:
         raise InputError(f"{p}: no such calibration file")
     suffix = p.suffix.lower()
     if suffix == ".json":
-        k, size = _from_json(p)
+        found = _from_json(p)
+        if isinstance(found, Camera):
+            return found
+        k, size = found
     elif suffix == ".xml":
         k, size = _opencv_yaml(p)
     elif suffix in (".yaml", ".yml"):
@@ -394,7 +450,9 @@ def resolve_camera(intrinsics: object = None, camera: object = None) -> Camera |
     if isinstance(camera, Camera):
         cam = camera
     elif isinstance(camera, CameraProfile):
-        cam = Camera(camera.modes[0][1], "profile", camera.name, camera.modes[0][0], camera.sensor, camera)
+        cam = Camera(
+            camera.modes[0][1], "profile", camera.name, camera.modes[0][0], camera.sensor, camera, camera.modes
+        )
     elif camera is not None:
         text = str(camera)
         prof = PROFILES.get(text.lower())

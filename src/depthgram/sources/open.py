@@ -236,8 +236,11 @@ def read(
     depth_range_mm: tuple[float, float] | None = None,
     encoding: str = "auto",
     topic: str | None = None,
-    intrinsics: Intrinsics | None = None,
+    intrinsics: Intrinsics | Sequence[float] | None = None,
     key: str | None = None,
+    camera: str | os.PathLike[str] | Camera | None = None,
+    gravity: Gravity | Sequence[float] | None = None,
+    tilt_deg: float | None = None,
 ) -> Source:
     """Return the frames of any source, one at a time.
 
@@ -271,10 +274,21 @@ def read(
         ``auto``, ``raw``, ``8bit``, ``sun`` (SUN RGB-D) or ``kinect-disparity`` (raw NYU).
     topic : str, optional
         Bag topic, when a bag has several depth-like image topics.
-    intrinsics : Intrinsics, optional
-        Camera intrinsics (px), overriding any sidecar or calibration in the source.
+    intrinsics : Intrinsics or (fx, fy, cx, cy), optional
+        Camera intrinsics (px, for the frames as read), overriding any sidecar or calibration in
+        the source (``--intrinsics``).
     key : str, optional
         Array name in an ``.npz``.
+    camera : str or path, optional
+        A calibration file (ROS ``camera_info`` or OpenCV/Kalibr YAML, Open3D JSON, a 3x3 matrix
+        in text) or a camera profile (``kinect-v1``, ``xtion``, ``realsense-d435``, ...), scaled
+        to the frames' size (``--camera``); instead of ``intrinsics``.
+    gravity : Gravity or (x, y, z), optional
+        Which way is down in camera coordinates (x right, y down, z forward; ``--gravity``).
+        Overrides a recording's IMU.
+    tilt_deg : float, optional
+        The camera looks down by this many degrees, without roll (``--tilt``); instead of
+        ``gravity``.
 
     Returns
     -------
@@ -297,4 +311,7 @@ def read(
         topic=topic,
         intrinsics=intrinsics,
         key=key,
+        camera=camera,
+        gravity=gravity,
+        tilt_deg=tilt_deg,
     )

@@ -1,8 +1,8 @@
 """The simulator as a source: ``sim:SCENE?frames=30&size=176x132&seed=0&fps=30&sensor=tof``.
 
 Defaults follow the paper's camera: 176 x 132 pixels; 30 frames at 30 frames/s (one still of a
-scene where nothing moves: ``table``, ``corridor``, ``ball_wall``, ``touching``), seed 0, a ToF
-sensor (``sensor=sl`` or ``sensor=structured-light``: a Kinect v1 / Xtion-like camera).
+scene where nothing moves: ``table``, ``corridor``, ``ball_wall``, ``touching``, ``arm_down``,
+``arm_45``), seed 0, a ToF sensor (``sensor=sl`` or ``sensor=structured-light``: a Kinect v1 / Xtion-like camera).
 """
 
 from __future__ import annotations
@@ -61,7 +61,7 @@ class SimSpec:
 
 #: The simulator's scenes where nothing moves: without ``frames=`` their spec gives one still
 #: (a test holds the set to the simulator's scenes).
-STILL_SCENES = frozenset({"table", "corridor", "ball_wall", "touching"})
+STILL_SCENES = frozenset({"table", "corridor", "ball_wall", "touching", "arm_down", "arm_45"})
 
 
 def parse_sim_spec(spec: str, fps: float | None = None) -> SimSpec:
