@@ -491,7 +491,7 @@ class Tracker:
         params = self._step_params
         obj_row, v_out, ttc, dead, restarted, k, offset = step(
             tracks, self._qt, self._qz, n, f, rows, cols, cost, t_now, self._dt,
-            float(width), float(height), self._frame == 0, self._next_id, params, dcore,
+            float(width), float(height), self._frame == 0, self._next_id, params, dcore, dstill,
         )  # fmt: skip
         self._n = n + k
         self._next_id += k
