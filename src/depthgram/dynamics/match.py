@@ -78,9 +78,8 @@ def match_cost(
     ``1 - IoU`` of the boxes, and ``w_label`` when the depth labels differ. A pair is
     allowed only when each of the first three is <= 1 and IoU >= ``min_iou``. The gates are
     rates: the center gate is ``max_center_rate * dt_s`` of the diagonal, widened by
-    ``gate_growth`` per second missed, the depth gate ``max_depth_rate`` times the frame step,
-    or the time since the track's last detection up to 1/30 s where that is longer, so that the
-    same physical motion passes at any frame rate.
+    ``gate_growth`` per second missed, the depth gate ``max_depth_rate`` times the time since
+    the track's last detection, so that the same physical motion passes at any frame rate.
 
     Parameters
     ----------
