@@ -73,6 +73,14 @@ def test_occluded_track_past_the_frame_budget_keeps_its_velocity() -> None:
     assert hidden.missed == 15 and hidden.status == "occluded"
     assert hidden.motion.v_radial is not None
     assert_allclose(hidden.motion.v_radial, 300.0, rtol=0.05)
+    # its predicted depth: where it would be at 300 mm/s, within the uncertainty it reports,
+    # which has grown over the 15 frames it coasted
+    truth = 2000.0 + 300.0 * 26 / 30.0
+    assert hidden.depth_mm is not None and hidden.depth_sigma_mm is not None
+    assert abs(hidden.depth_mm - truth) <= 2 * hidden.depth_sigma_mm
+    assert_allclose(hidden.depth_mm, truth, rtol=0.01)
+    assert hidden.center_xy is not None
+    assert_allclose(hidden.center_xy, (99.5, 119.5), atol=0.5)  # it stood still in the image
 
 
 @pytest.mark.parametrize("sensor", ["tof", "structured-light"])

@@ -19,17 +19,9 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.optimize import linear_sum_assignment
 
+from depthgram.dynamics.camera_motion import CameraMotion, EgoMotion, FramePixels, shift_structure, structure_shift
 from depthgram.dynamics.config import NOMINAL_FPS, TrackerConfig
-from depthgram.dynamics.core import (
-    CameraMotion,
-    EgoMotion,
-    FramePixels,
-    core_depth_change,
-    inner_edge_shift,
-    shift_structure,
-    still_depth_change,
-    structure_shift,
-)
+from depthgram.dynamics.core_depth import core_depth_change, inner_edge_shift, still_depth_change
 from depthgram.dynamics.kernels import (
     FORBIDDEN,
     OBJECT_DTYPE,
@@ -80,6 +72,14 @@ class Track:
     queue : tuple of (float, float or None)
         The last N queue entries, oldest first: (time in s, from the frame rate when the
         frames have no timestamps; depth in mm, or None for an invalid entry).
+    center_xy : tuple of float or None
+        Where the object's centre is now (px): as detected, or while occluded, predicted along
+        its image velocity since its last detection.
+    depth_mm : float or None
+        The filter's depth now (mm; estimator ``kalman``): predicted along its radial velocity
+        while occluded. None before the filter has a reading.
+    depth_sigma_mm : float or None
+        That depth's standard deviation (mm); it grows with every frame the track coasts.
     """
 
     id: int
@@ -90,6 +90,9 @@ class Track:
     last: SceneObject
     motion: Motion
     queue: tuple[tuple[float, float | None], ...]
+    center_xy: tuple[float, float] | None = None
+    depth_mm: float | None = None
+    depth_sigma_mm: float | None = None
 
 
 @dataclass(frozen=True)
@@ -307,6 +310,9 @@ class Tracker:
         # One list per field: reading a record's fields one by one costs several times more.
         live = self._tracks[: self._n]
         ids, hits, missed, status = (live[name].tolist() for name in ("id", "hits", "missed", "status"))
+        el = (self._t_last if self._t_last is not None else 0.0) - live["t_seen"]
+        cx, cy = (live["cx"] + live["vx"] * el).tolist(), (live["cy"] + live["vy"] * el).tolist()
+        kf_z, kf_pzz = live["kf_z"].tolist(), live["kf_pzz"].tolist()
         min_hits = self.config.min_hits
         return tuple(
             Track(
@@ -321,6 +327,9 @@ class Tracker:
                     (float(t), None if not math.isfinite(z) else float(z))
                     for t, z in zip(self._qt[i].tolist(), self._qz[i].tolist(), strict=True)
                 ),
+                center_xy=(cx[i], cy[i]),
+                depth_mm=kf_z[i] if math.isfinite(kf_z[i]) else None,
+                depth_sigma_mm=math.sqrt(kf_pzz[i]) if math.isfinite(kf_z[i]) and kf_pzz[i] >= 0 else None,
             )
             for i in rows
         )
@@ -420,7 +429,7 @@ class Tracker:
 
         Given the frame's ``pixels`` (depth and label map) on this and the previous update, and
         ``config.depth_from == "core"``, an object's depth change is read from its core, the
-        pixels that stay in it (:mod:`depthgram.dynamics.core`); otherwise, and for objects
+        pixels that stay in it (:mod:`depthgram.dynamics.core_depth`); otherwise, and for objects
         without a core, from its mean depth alone.
 
         Parameters
@@ -438,7 +447,7 @@ class Tracker:
             (height, width). Ignored (not even checked) when ``config.depth_from == "mean"``.
         helper : Executor, optional
             A thread that reads about half of the objects' cores beside the caller's
-            (:func:`depthgram.dynamics.core.core_depth_change`): for a caller whose second
+            (:func:`depthgram.dynamics.core_depth.core_depth_change`): for a caller whose second
             core idles meanwhile. The update is the same with or without it.
 
         Returns
@@ -482,7 +491,7 @@ class Tracker:
         params = self._step_params
         obj_row, v_out, ttc, dead, restarted, k, offset = step(
             tracks, self._qt, self._qz, n, f, rows, cols, cost, t_now, self._dt,
-            float(width), float(height), self._frame == 0, self._next_id, params, dcore,
+            float(width), float(height), self._frame == 0, self._next_id, params, dcore, dstill,
         )  # fmt: skip
         self._n = n + k
         self._next_id += k
