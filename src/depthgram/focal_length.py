@@ -31,7 +31,7 @@ from numpy.typing import NDArray
 from depthgram.frame import Intrinsics
 from depthgram.segmentation.ransac import find_planes
 
-__all__ = ["FocalEstimate", "estimate_focal_length"]
+__all__ = ["FocalEstimate", "RecordingFocal", "estimate_focal_length"]
 
 #: side of the windows of the local plane fits, at a working width of 320 px or less
 _PATCH_PX = 5
@@ -138,6 +138,39 @@ def estimate_focal_length(
         return None
     k_px = Intrinsics(f, f, (w - 1) / 2.0, (h - 1) / 2.0)
     return FocalEstimate(k_px, int(f_rel.size), share, tilt)
+
+
+class RecordingFocal:
+    """The focal length of one recording without intrinsics, read once from the first frames that show it.
+
+    A camera's focal length does not change within a recording: the first of up to ``tries``
+    frames whose scene shows it (:func:`estimate_focal_length`) sets it for the rest, scaled to
+    each frame's size (a resized stream keeps its field of view).
+    """
+
+    def __init__(self, tries: int = 5) -> None:
+        self.intrinsics: Intrinsics | None = None
+        self._tries_left = tries
+
+    def read(
+        self, depth_mm: NDArray[np.floating], valid: NDArray[np.bool_]
+    ) -> tuple[Intrinsics | None, FocalEstimate | None]:
+        """Return the recording's intrinsics for this frame (None while unknown), and this frame's estimate.
+
+        The estimate is not None only for the frame that found the focal length.
+        """
+        found = None
+        if self.intrinsics is None and self._tries_left > 0:
+            self._tries_left -= 1
+            found = estimate_focal_length(depth_mm, valid)
+            if found is not None:
+                self.intrinsics = found.intrinsics
+        k = self.intrinsics
+        h, w = depth_mm.shape
+        if k is None or (k.cx, k.cy) == ((w - 1) / 2.0, (h - 1) / 2.0):
+            return k, found
+        scale = w / (2.0 * k.cx + 1.0)
+        return Intrinsics(k.fx * scale, k.fy * scale, (w - 1) / 2.0, (h - 1) / 2.0), found
 
 
 def _refine(

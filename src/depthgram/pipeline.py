@@ -27,7 +27,7 @@ from depthgram.act import plan as plan_scene
 from depthgram.dynamics import FramePixels, Tracker, TrackerConfig
 from depthgram.dynamics import warm_up as warm_up_dynamics
 from depthgram.errors import InputError
-from depthgram.focal_length import estimate_focal_length
+from depthgram.focal_length import RecordingFocal
 from depthgram.frame import Frame, Gravity, Intrinsics, as_gravity
 from depthgram.scene import TreeConfig, build_tree, to_sentence, tree_to_dict
 from depthgram.scene.tree import Motion, SceneTree
@@ -292,8 +292,6 @@ def _object_record(o: SceneObject, node: Mapping[str, Any], m: Motion | None) ->
 
 #: Frames between two estimates of the sensor model in a stream.
 _SENSOR_EVERY = 30
-#: frames without intrinsics that try to read the focal length from their scene
-_FOCAL_TRIES = 5
 #: Unrelated successive pairs that, once they are at least half of the pairs seen, make a source
 #: without timestamps a folder of stills (:meth:`Pipeline._still_reason`).
 _STILLS_EVIDENCE = 2
@@ -353,8 +351,7 @@ class Pipeline:
         self._said_camera: dict[str, Any] | None = None  # the camera record last given in a result
         self._warned_guess = False
         self._warned_estimate = False
-        self._focal: Intrinsics | None = None  # the focal length read from the scene, once found
-        self._focal_tries = 0
+        self._focal = RecordingFocal()  # the focal length read from the scene, once found
         self._tracker = Tracker(self.config.tracker)
         self._where = ""
         self._sensor: SensorModel | None = None
@@ -372,7 +369,7 @@ class Pipeline:
         self._untimed_stills = ""
         self._untimed_pairs = [0, 0]
         self._said_camera = None
-        self._focal, self._focal_tries = None, 0
+        self._focal = RecordingFocal()
 
     def _calibrated(self, frame: Frame) -> Frame:
         """Return ``frame`` with this pipeline's camera and gravity; warn once when its intrinsics are a guess."""
@@ -404,35 +401,20 @@ class Pipeline:
         return frame
 
     def _scene_focal(self, frame: Frame) -> Intrinsics | None:
-        """Return the intrinsics read from the scene for a frame without any (the first few frames try).
-
-        A camera's focal length does not change within a recording: the first frame that shows it
-        (:func:`depthgram.focal_length.estimate_focal_length`) sets it for the rest, scaled to
-        each frame's size, and the user is told once.
-        """
-        if self._focal is None and self._focal_tries < _FOCAL_TRIES:
-            self._focal_tries += 1
-            found = estimate_focal_length(frame.depth, frame.valid)
-            if found is not None:
-                self._focal = found.intrinsics
-                if not self._warned_estimate:
-                    self._warned_estimate = True
-                    warnings.warn(
-                        f"{frame.name or f'frame {frame.index}'}: no camera intrinsics: estimated fx = fy = "
-                        f"{found.intrinsics.fx:.0f} px from the scene (the right angles between a support seen "
-                        f"{found.tilt_deg:.0f} degrees from face-on and what rises from it; principal point at "
-                        "the centre); tell the camera with --intrinsics FX FY CX CY or --camera FILE|PROFILE "
-                        "(in Python: intrinsics= or camera=) to be sure",
-                        IntrinsicsWarning,
-                        stacklevel=3,
-                    )
-        k = self._focal
-        if k is None or (k.cx, k.cy) == ((frame.shape[1] - 1) / 2.0, (frame.shape[0] - 1) / 2.0):
-            return k
-        # a frame of another size (a resized stream): the same field of view
-        h, w = frame.shape
-        scale = w / (2.0 * k.cx + 1.0)
-        return Intrinsics(k.fx * scale, k.fy * scale, (w - 1) / 2.0, (h - 1) / 2.0)
+        """Return the intrinsics read from the scene for a frame without any; tell the user once."""
+        k, found = self._focal.read(frame.depth, frame.valid)
+        if found is not None and not self._warned_estimate:
+            self._warned_estimate = True
+            warnings.warn(
+                f"{frame.name or f'frame {frame.index}'}: no camera intrinsics: estimated fx = fy = "
+                f"{found.intrinsics.fx:.0f} px from the scene (the right angles between a support seen "
+                f"{found.tilt_deg:.0f} degrees from face-on and what rises from it; principal point at "
+                "the centre); tell the camera with --intrinsics FX FY CX CY or --camera FILE|PROFILE "
+                "(in Python: intrinsics= or camera=) to be sure",
+                IntrinsicsWarning,
+                stacklevel=3,
+            )
+        return k
 
     def camera_record(self, frame: Frame) -> dict[str, Any]:
         """Return what the JSON says of the camera of ``frame``: intrinsics (px), where from, sensor model.
