@@ -1,9 +1,10 @@
 """The default segmentation on the simulator's scenes for new mountings (issue 28, item 6), scored against exact truth.
 
 For each scene and sensor model: objects found (IoU >= 0.5) and their mean IoU (the table itself
-left out: it is the support), and what kinds the segments covering the table were given (a table
-seen from above must never be a ``ceiling``). With and without the exact gravity handed to the
-pipeline (the segmentation does not read it yet: the two rows agree until it does).
+left out: it is the support), and what kinds the segments covering the table, the floor and the
+walls were given (a table seen from above must never be a ``ceiling``; the kinds follow gravity,
+:mod:`depthgram.scene.kinds`). With and without the exact gravity handed to the pipeline
+(without it, gravity is estimated from the supports seen from above).
 
     .venv/bin/python benchmarks/mountings.py [--size 640x480] [--frames 3]
 """
@@ -30,6 +31,7 @@ def score(scene: str, sensor: str, size: tuple[int, int], frames: int, with_grav
     pipe = Pipeline(track=False, gravity=gravity)
     ious: list[float] = []
     table_kinds: set[str] = set()
+    room_kinds: dict[str, set[str]] = {}
     for sim in sims:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # the simulator's frames carry their intrinsics; nothing to say
@@ -41,11 +43,15 @@ def score(scene: str, sensor: str, size: tuple[int, int], frames: int, with_grav
         ious += [o.iou for o in ev.objects]
         for o in result.segmentation.objects:
             ids, counts = np.unique(sim.instances[labels == o.id], return_counts=True)
-            if names.get(int(ids[counts.argmax()])) == "table":
+            name = names.get(int(ids[counts.argmax()]), "")
+            if name == "table":
                 table_kinds.add(o.kind)
+            elif (name == "floor" or name.endswith("wall")) and o.area >= 0.02 * labels.size:
+                room_kinds.setdefault(name.split("_")[-1], set()).add(o.kind)
     iou = np.asarray(ious)
     found = int(np.count_nonzero(iou >= 0.5))
-    return f"{found:>2d}/{iou.size:<3d} {iou.mean():.2f}   {', '.join(sorted(table_kinds)) or '-'}"
+    room = " ".join(f"{k}:{'/'.join(sorted(v))}" for k, v in sorted(room_kinds.items())) or "-"
+    return f"{found:>2d}/{iou.size:<3d} {iou.mean():.2f}   {', '.join(sorted(table_kinds)) or '-':16s} {room}"
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -55,7 +61,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--frames", type=int, default=3, help="frames per scene")
     args = p.parse_args(argv)
     w, h = (int(v) for v in args.size.lower().split("x"))
-    print(f"{'scene':11s} {'sensor':6s} {'gravity':8s} found  IoU    table segments' kinds")
+    print(f"{'scene':11s} {'sensor':6s} {'gravity':8s} found  IoU    table's kinds    floor's and walls' kinds")
     for scene in SCENES:
         for sensor in ("tof", "sl"):
             for with_gravity in (False, True):

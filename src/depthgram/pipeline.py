@@ -30,6 +30,7 @@ from depthgram.errors import InputError
 from depthgram.focal_length import RecordingFocal
 from depthgram.frame import Frame, Gravity, Intrinsics, as_gravity
 from depthgram.scene import TreeConfig, build_tree, to_sentence, tree_to_dict
+from depthgram.scene.kinds import GravityKinds
 from depthgram.scene.tree import Motion, SceneTree
 from depthgram.segmentation import SegmentConfig, SensorModel, estimate_sensor, segment, sensor_model
 from depthgram.segmentation import warm_up as warm_up_segmentation
@@ -360,6 +361,7 @@ class Pipeline:
         self._untimed_stills = ""  # the reason, once an untimed source is taken for stills
         self._untimed_pairs = [0, 0]  # untimed successive pairs seen, and how many were unrelated
         self._motion_thread: ThreadPoolExecutor | None = None  # made on first use
+        self._kinds = GravityKinds()  # the supports' kinds by gravity, given or estimated
 
     def reset(self) -> None:
         """Forget all tracks and the sensor estimate (start of a new recording)."""
@@ -370,6 +372,7 @@ class Pipeline:
         self._untimed_pairs = [0, 0]
         self._said_camera = None
         self._focal = RecordingFocal()
+        self._kinds = GravityKinds()
 
     def _calibrated(self, frame: Frame) -> Frame:
         """Return ``frame`` with this pipeline's camera and gravity; warn once when its intrinsics are a guess."""
@@ -576,6 +579,10 @@ class Pipeline:
         motions: dict[int, Motion] = {}
         occluded: tuple[tuple[SceneObject, Motion], ...] = ()
         still = self._still_reason(frame)
+        down = frame.gravity.vector if frame.gravity is not None else None
+        seg = self._kinds(
+            seg, frame.depth, frame.intrinsics or default_intrinsics(frame.depth.shape), down, related=not still
+        )
         if still and self.track and self.config.stills is not True:
             self._tracker = Tracker(self.config.tracker)  # nothing carries over to the next frames
         if not still:

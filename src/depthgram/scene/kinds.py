@@ -1,0 +1,337 @@
+"""The kinds of the supports by gravity: floor, table top, wall and ceiling as gravity says.
+
+The segmentation names its supports by the image's axes (:mod:`depthgram.segmentation.orientation`):
+a horizontal support is a surface whose depth changes from row to row, a wall one whose depth
+changes from column to column. That holds for a level camera only. A camera on an arm looking
+down at 45 degrees sees a table top as facing it; one looking straight down sees it as a flat
+object; a hand-held camera rolled by 20 degrees sees a table's edge run across the image as a
+wall's would. The pixel classes stay as they are (they choose which pixels are fitted as
+planes, which is right whatever the mounting); only the kinds are named here, after the
+segmentation, from each support's fitted plane and the direction of gravity:
+
+- a plane facing up (its normal within :data:`LEVEL_DEG` of up) is a support: the ``floor`` when
+  it is the lowest one with nothing seen beneath it, a table top (``compound``) otherwise;
+- a plane facing down above the camera is the ``ceiling``;
+- a plane whose normal is within :data:`LEVEL_DEG` of horizontal is a ``wall`` when it is large;
+- a support whose plane is oblique to gravity keeps no guessed kind: it is a ``compound``.
+
+A facing segment (kind ``object``) becomes a support only when it is large and planar: a table
+top seen from straight above, the back wall of a room, the carpet beyond a desk. A box's top is
+small beside the table it stands on and stays an object.
+
+Gravity comes from the frame (``--gravity``, ``--tilt``, an IMU, the simulator's truth). Without
+it, it is estimated from the largest support seen from above (what the image's axes call a
+horizontal support with its normal toward the image's top), kept over the recent frames of a
+stream. Without either, no ``floor`` or ``ceiling`` is guessed: a horizontal support is a
+``compound``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+
+import numpy as np
+from numpy.typing import NDArray
+
+from depthgram.frame import Intrinsics
+from depthgram.segmentation.objects import SceneObject, Segmentation
+
+__all__ = ["GravityKinds", "name_kinds"]
+
+#: The most a support's normal leans off vertical (degrees) to be horizontal, or off horizontal
+#: to be a wall.
+LEVEL_DEG = 30.0
+#: Support kinds the segmentation names from the image's axes: renamed here.
+_SUPPORT_KINDS = ("floor", "wall", "ceiling", "compound")
+#: Least share of the frame a facing segment covers to be taken for a support (a table top seen
+#: from above, a wall facing the camera), or, lying lower than every other support by
+#: :data:`_LOWER_MM`, to be taken for one (the carpet beyond a desk).
+BIG_SHARE = 0.08
+LOW_SHARE = 0.02
+_LOWER_MM = 150.0
+#: Least seen area (m²) of a facing segment taken for a wall, and of a vertical support of the
+#: segmentation kept one (a box's side is smaller: a 20 x 20 cm face is 0.04 m²)
+WALL_M2 = 0.25
+WALL_SUPPORT_M2 = 0.05
+#: Least share of a segment's samples within :data:`_TOL_REL` of its plane: a facing segment
+#: taken for a support, and a support the segmentation found (what lies on a table merged with
+#: it by a noisy camera is off its plane).
+_PLANAR_SHARE = 0.8
+_SUPPORT_PLANAR_SHARE = 0.5
+_TOL_REL = 0.015
+_TOL_MM = 4.0
+#: Least height (mm) of the floor below the camera: a support nearer below is a table top (an
+#: arm's camera 0.4-0.7 m over a table sees nothing else), not the floor a person or a robot
+#: stands on (a chest-worn camera is 1.1-1.5 m over it, a hand-held one as much).
+FLOOR_MIN_MM = 800.0
+#: Readings more than this (mm) beyond a support's plane, over this share of the frame's,
+#: make it raised (a table top), not the floor.
+_BENEATH_MM = 150.0
+_BENEATH_SHARE = 0.01
+#: Samples of the frame the planes are fitted on.
+_SAMPLES = 12_000
+#: Frames an estimated gravity is remembered in a stream.
+_MEMORY = 30
+
+
+@dataclass(frozen=True)
+class _Planes:
+    """Planes fitted to some segments: unit normals toward the camera, offsets, centroids, fit quality."""
+
+    ids: NDArray[np.int64]
+    normal: NDArray[np.float64]  # (k, 3), toward the camera: n . P = -offset on the plane
+    offset: NDArray[np.float64]  # (k,) distance (mm) of the plane from the camera
+    centroid: NDArray[np.float64]  # (k, 3) mean point (mm) of the inliers
+    planar: NDArray[np.bool_]  # (k,) enough samples lie on the plane
+
+
+def _fit_planes(
+    labels: NDArray[np.int32], depth: NDArray[np.float32], cam: Intrinsics, ids: list[int], supports: set[int]
+) -> tuple[_Planes, NDArray[np.float64], NDArray[np.float64]]:
+    """Fit a plane to each of ``ids`` on a grid of samples; also return the samples' 3-D points and labels.
+
+    ``supports``: the ids the segmentation named supports, held to a looser planarity.
+
+    The plane is linear in inverse depth over the normalised pixel coordinates, ``1000/Z = a u' +
+    b v' + c`` (u' = (x - cx) / fx), with its normal along (a, b, c) and its distance 1000 /
+    |(a, b, c)|: a least-squares fit of all segments at once (sums by label), then again on the
+    samples within the tolerance of the first fit.
+    """
+    h, w = depth.shape
+    s = max(1, int(math.sqrt(h * w / _SAMPLES)))
+    lab = labels[::s, ::s]
+    z = depth[::s, ::s].astype(np.float64)
+    ys, xs = np.mgrid[0:h:s, 0:w:s]
+    ok = z > 0
+    up_ = ((xs - cam.cx) / cam.fx)[ok]
+    vp_ = ((ys - cam.cy) / cam.fy)[ok]
+    zz = z[ok]
+    ll = lab[ok]
+    points = np.stack([up_ * zz, vp_ * zz, zz], axis=1)
+    top = max(ids) + 1
+    lut = np.full(int(max(int(labels.max(initial=0)), top)) + 1, -1, np.int64)
+    lut[np.asarray(ids, np.int64)] = np.arange(len(ids))
+    row = lut[ll]
+    sel = row >= 0
+    row, u, v, q, zs = row[sel], up_[sel], vp_[sel], 1000.0 / zz[sel], zz[sel]
+    pts = points[sel]
+    k = len(ids)
+    keep = np.ones(row.size, bool)
+    coef = np.zeros((k, 3))
+    for _ in range(2):
+        coef = _solve(row[keep], u[keep], v[keep], q[keep], k)
+        pred = coef[row, 0] * u + coef[row, 1] * v + coef[row, 2]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            zp = np.where(pred > 0, 1000.0 / pred, np.inf)
+        keep = np.abs(zp - zs) <= _TOL_REL * zs + _TOL_MM
+    n_in = np.bincount(row[keep], minlength=k)
+    n_all = np.maximum(np.bincount(row, minlength=k), 1)
+    norm = np.maximum(np.linalg.norm(coef, axis=1), 1e-12)
+    normal = -coef / norm[:, None]
+    offset = 1000.0 / norm
+    cen = np.zeros((k, 3))
+    for j in range(3):
+        cen[:, j] = np.bincount(row[keep], weights=pts[keep, j], minlength=k)
+    cen /= np.maximum(n_in, 1)[:, None]
+    least = np.array([_SUPPORT_PLANAR_SHARE if i in supports else _PLANAR_SHARE for i in ids])
+    planar = (n_in >= 10) & (n_in >= least * n_all)
+    planes = _Planes(np.asarray(ids, np.int64), normal, offset, cen, planar)
+    return planes, points, ll.astype(np.float64)
+
+
+def _solve(
+    row: NDArray[np.int64], u: NDArray[np.float64], v: NDArray[np.float64], q: NDArray[np.float64], k: int
+) -> NDArray[np.float64]:
+    """Least squares ``q = a u + b v + c`` per row, all rows at once (normal equations by bincount)."""
+    cols = (u, v, np.ones_like(u))
+    ata = np.zeros((k, 3, 3))
+    atb = np.zeros((k, 3))
+    for i in range(3):
+        atb[:, i] = np.bincount(row, weights=cols[i] * q, minlength=k)
+        for j in range(i, 3):
+            ata[:, i, j] = ata[:, j, i] = np.bincount(row, weights=cols[i] * cols[j], minlength=k)
+    ata += np.eye(3) * 1e-9
+    out = np.asarray(np.linalg.solve(ata, atb[:, :, None])[:, :, 0], np.float64)
+    return out
+
+
+def _beneath_shares(points: NDArray[np.float64], planes: _Planes, rows: NDArray[np.int64]) -> NDArray[np.float64]:
+    """Share of the samples lying beyond each of ``rows``' planes (seen through it) by more than :data:`_BENEATH_MM`."""
+    if not points.shape[0] or not rows.size:
+        return np.zeros(rows.size)
+    signed = points @ planes.normal[rows].T + planes.offset[rows][None, :]  # < 0: beyond the plane
+    return np.asarray(np.count_nonzero(signed < -_BENEATH_MM, axis=0) / points.shape[0], np.float64)
+
+
+def estimate_gravity(seg: Segmentation, planes: _Planes) -> NDArray[np.float64] | None:
+    """Return gravity (unit, down, camera coordinates) from the largest support seen from above, or None.
+
+    The segmentation's horizontal supports (``floor``, ``compound``) whose plane's normal points
+    to the image's top by more than 35 degrees off the optical axis are floors and table tops
+    seen from above; the largest one's normal is up, and those agreeing with it within 15
+    degrees are averaged in, weighted by their area.
+    """
+    area = {o.id: o.area for o in seg.objects}
+    kind = {o.id: o.kind for o in seg.objects}
+    lean = math.sin(math.radians(35.0))
+    pick = [
+        j
+        for j, i in enumerate(planes.ids.tolist())
+        if kind[i] in ("floor", "compound") and planes.planar[j] and -planes.normal[j, 1] >= lean
+    ]
+    if not pick:
+        return None
+    best = max(pick, key=lambda j: area[int(planes.ids[j])])
+    up = planes.normal[best]
+    agree = [j for j in pick if float(planes.normal[j] @ up) >= math.cos(math.radians(15.0))]
+    weights = np.array([area[int(planes.ids[j])] for j in agree], np.float64)
+    mean = (planes.normal[agree] * weights[:, None]).sum(axis=0)
+    return np.asarray(-mean / np.linalg.norm(mean), np.float64)
+
+
+def name_kinds(
+    seg: Segmentation,
+    depth: NDArray[np.float32],
+    cam: Intrinsics,
+    gravity: tuple[float, float, float] | NDArray[np.float64] | None,
+    *,
+    estimate: bool = True,
+) -> tuple[Segmentation, NDArray[np.float64] | None]:
+    """Return ``seg`` with its supports named by gravity, and the gravity used (None: none known).
+
+    ``gravity``: unit vector down in camera coordinates, or None: estimated from this frame
+    (:func:`estimate_gravity`) when ``estimate``. See the module's text for the rules.
+    """
+    size = depth.size
+    ids = [o.id for o in seg.objects if o.kind in _SUPPORT_KINDS or (o.kind == "object" and o.area >= LOW_SHARE * size)]
+    if not ids:
+        return seg, None if gravity is None else np.asarray(gravity, np.float64)
+    supports = {o.id for o in seg.objects if o.kind in _SUPPORT_KINDS}
+    planes, points, _ = _fit_planes(seg.labels, depth, cam, ids, supports)
+    g = None if gravity is None else np.asarray(gravity, np.float64)
+    if g is None and estimate:
+        g = estimate_gravity(seg, planes)
+    by_id = {o.id: o for o in seg.objects}
+    kinds = {i: by_id[i].kind for i in ids}
+    if g is None:
+        # no guessed floor or ceiling: a horizontal support is a support
+        new = {i: ("compound" if k in ("floor", "ceiling") else k) for i, k in kinds.items()}
+        return _renamed(seg, new), None
+    up = -g
+    c = planes.normal @ up
+    height = planes.centroid @ g  # mm below the camera
+    cos_level = math.cos(math.radians(LEVEL_DEG))
+    sin_level = math.sin(math.radians(LEVEL_DEG))
+    new = dict(kinds)
+    ups: list[int] = []
+    for j, i in enumerate(ids):
+        o = by_id[i]
+        facing = o.kind == "object"
+        if not planes.planar[j]:
+            continue
+        big = o.area >= BIG_SHARE * size
+        if c[j] >= cos_level and height[j] > 0:
+            ups.append(j)
+            new[i] = "compound"
+        elif c[j] <= -cos_level and height[j] < 0:
+            if big or not facing:
+                new[i] = "ceiling"
+        elif abs(c[j]) <= sin_level:
+            # a wall is large: a box's side is a compound (a support of the segmentation) or
+            # stays an object
+            least = WALL_SUPPORT_M2 if not facing else WALL_M2
+            large = o.area_mm2 is None or o.area_mm2 >= least * 1e6
+            if not facing:
+                new[i] = "wall" if large and o.kind != "compound" else "compound"
+            elif big and large:
+                new[i] = "wall"
+        elif not facing:
+            new[i] = "compound"  # oblique to gravity: no floor, wall or ceiling
+    if ups:
+        _name_floors(ups, ids, by_id, new, height, planes, points, size)
+    return _renamed(seg, new), g
+
+
+def _name_floors(
+    ups: list[int],
+    ids: list[int],
+    by_id: dict[int, SceneObject],
+    new: dict[int, str],
+    height: NDArray[np.float64],
+    planes: _Planes,
+    points: NDArray[np.float64],
+    size: int,
+) -> None:
+    """Name the supports facing up (``ups``, rows of ``ids``; ``new`` updated): floor, table top or an object on one.
+
+    A facing segment lying on a larger support (a dish, a book) or standing over it (a box's
+    top) is an object on that support; one smaller than :data:`BIG_SHARE` is a support only
+    below all the others (the floor beyond a desk). The floor is the lowest, at least
+    :data:`FLOOR_MIN_MM` below the camera, with nothing seen beyond its plane.
+    """
+    area = np.array([by_id[i].area for i in ids], np.float64)
+    for j in list(ups):
+        i = ids[j]
+        if by_id[i].kind != "object":
+            continue
+        others = [k for k in ups if k != j]
+        on_other = any(area[k] > area[j] and height[k] >= height[j] - max(50.0, 0.03 * height[j]) for k in others)
+        lowest = bool(others) and all(height[j] > height[k] + _LOWER_MM for k in others)
+        if on_other or not (area[j] >= BIG_SHARE * size or lowest):
+            new[i] = "object"
+            ups.remove(j)
+    if not ups:
+        return
+    rows = np.array(ups, np.int64)
+    deepest = float(height[rows].max())
+    near = rows[(height[rows] >= deepest - 100.0) & (height[rows] >= FLOOR_MIN_MM)]
+    shares = _beneath_shares(points, planes, near)
+    for j, share in zip(near.tolist(), shares.tolist(), strict=True):
+        if share < _BENEATH_SHARE:
+            new[int(planes.ids[j])] = "floor"
+
+
+def _renamed(seg: Segmentation, kinds: dict[int, str]) -> Segmentation:
+    """``seg`` with the objects of ``kinds`` given those kinds (the same object where unchanged)."""
+    if all(o.kind == kinds.get(o.id, o.kind) for o in seg.objects):
+        return seg
+    objects = tuple(replace(o, kind=kinds[o.id]) if kinds.get(o.id, o.kind) != o.kind else o for o in seg.objects)
+    return replace(seg, objects=objects)
+
+
+class GravityKinds:
+    """Names each frame's supports by gravity (:func:`name_kinds`), remembering an estimated gravity.
+
+    A frame's own gravity (``--gravity``, ``--tilt``, an IMU) is used as given. Without it,
+    gravity is estimated from the frame's supports seen from above, else the last estimate of
+    the recent frames (:data:`_MEMORY`) of the same stream is used.
+    """
+
+    def __init__(self) -> None:
+        self._last: NDArray[np.float64] | None = None
+        self._age = 0
+
+    def __call__(
+        self,
+        seg: Segmentation,
+        depth: NDArray[np.float32],
+        cam: Intrinsics,
+        gravity: tuple[float, float, float] | None,
+        *,
+        related: bool = True,
+    ) -> Segmentation:
+        """Return ``seg`` named by gravity; ``related``: the frame continues the previous one."""
+        if gravity is not None:
+            out, _ = name_kinds(seg, depth, cam, gravity)
+            return out
+        if not related:
+            self._last = None
+        out, g = name_kinds(seg, depth, cam, None)
+        if g is not None:
+            self._last, self._age = g, 0
+            return out
+        self._age += 1
+        if self._last is not None and self._age <= _MEMORY:
+            out, _ = name_kinds(seg, depth, cam, self._last, estimate=False)
+        return out

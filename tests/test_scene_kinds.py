@@ -1,0 +1,118 @@
+"""The supports' kinds follow gravity (issue 28, item 3), scored against the simulator's truth.
+
+Each segment covering a truth body over more than a share of the frame is looked up by the body
+it covers most; its kind must be what gravity makes of that body: the table seen from above is
+a support (``compound``, a table top), never a ``ceiling`` or an ``object``; the floor under a
+chest camera tilted 30 degrees down is the ``floor``; its walls are ``wall``; what lies on the
+table stays an ``object``.
+"""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+
+from depthgram import Pipeline
+from depthgram.frame import Gravity, Intrinsics
+from depthgram.scene.kinds import GravityKinds, name_kinds
+from depthgram.segmentation import segment
+from depthgram.sensor import simulate
+
+#: segments smaller than this share of the frame are not looked at
+_SHARE = 0.02
+
+
+def _kinds(scene: str, sensor: str, with_gravity: bool, size: tuple[int, int] = (320, 240)) -> dict[str, set[str]]:
+    """Return, per truth body, the kinds of the segments covering it most."""
+    (sim,) = simulate(scene, 1, size=size, sensor=sensor, seed=1)
+    pipe = Pipeline(track=False, gravity=sim.gravity if with_gravity else None)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        result = pipe.process(sim.frame)
+    labels = result.segmentation.labels
+    names = {o.id: o.name for o in sim.truth}
+    out: dict[str, set[str]] = {}
+    for o in result.segmentation.objects:
+        pixels = sim.instances[labels == o.id]
+        if pixels.size < _SHARE * labels.size:
+            continue
+        ids, counts = np.unique(pixels, return_counts=True)
+        out.setdefault(names.get(int(ids[counts.argmax()]), "?"), set()).add(o.kind)
+    return out
+
+
+@pytest.mark.parametrize("sensor", ["tof", "sl"])
+@pytest.mark.parametrize("scene", ["arm_down", "arm_45"])
+def test_a_table_seen_from_an_arm_is_a_table_top_given_gravity(scene: str, sensor: str) -> None:
+    kinds = _kinds(scene, sensor, with_gravity=True)
+    # straight down the table faces the camera (a flat object to the image's axes); at 45
+    # degrees it is a horizontal support: either way gravity makes it a table top, 0.4-0.65 m
+    # below the camera (not the floor: nothing a person stands on is that near)
+    assert kinds["table"] == {"compound"}
+    for name in ("dish", "book", "screwdriver", "banana", "mug"):
+        assert kinds.get(name, {"object"}) == {"object"}, name  # lying on the table: objects
+    assert "ceiling" not in set().union(*kinds.values())
+
+
+@pytest.mark.parametrize("sensor", ["tof", "sl"])
+def test_the_floor_under_a_tilted_chest_camera_is_the_floor(sensor: str) -> None:
+    for with_gravity in (True, False):  # without it, gravity is estimated from the floor itself
+        kinds = _kinds("chest_walk", sensor, with_gravity)
+        assert kinds["floor"] == {"floor"}
+        assert kinds.get("left_wall", {"wall"}) == {"wall"}
+        assert kinds.get("right_wall", {"wall"}) == {"wall"}
+        assert kinds.get("box", {"object"}) == {"object"}
+
+
+@pytest.mark.parametrize("sensor", ["tof", "sl"])
+def test_the_table_scene_names_its_back_wall_a_wall(sensor: str) -> None:
+    # the back wall faces the camera (an object to the image's axes); gravity, given or
+    # estimated from the floor and the table, makes it a wall
+    for with_gravity in (True, False):
+        kinds = _kinds("table", sensor, with_gravity)
+        assert kinds["back_wall"] == {"wall"}
+        assert kinds["floor"] == {"floor"}
+        assert kinds["table"] == {"compound"}
+
+
+def test_a_table_seen_straight_down_without_gravity_is_left_an_object() -> None:
+    # nothing says which way is up: a plane facing the camera may be a wall as well as a table
+    kinds = _kinds("arm_down", "sl", with_gravity=False)
+    assert kinds["table"] == {"object"}
+
+
+def _plane_frame(normal: tuple[float, float, float], offset_mm: float) -> tuple[np.ndarray, Intrinsics]:
+    """Depth (mm) of the plane ``normal . P = -offset`` (normal toward the camera) over a 160 x 120 frame."""
+    cam = Intrinsics(150.0, 150.0, 79.5, 59.5)
+    v, u = np.mgrid[0:120, 0:160]
+    ray = np.stack([(u - cam.cx) / cam.fx, (v - cam.cy) / cam.fy, np.ones(u.shape)], axis=-1)
+    dot = ray @ np.asarray(normal)
+    depth = np.where(dot < -1e-6, offset_mm / np.maximum(-dot, 1e-6), 0.0)
+    return depth.astype(np.float32), cam
+
+
+@pytest.mark.parametrize("tilt", [0.0, 40.0])
+def test_a_horizontal_support_is_named_by_gravity_not_by_the_image(tilt: float) -> None:
+    # one plane 1.3 m below the camera, seen by a camera tilted down: the floor with gravity;
+    # with gravity upside down (a camera mounted on its head, the plane above it) the ceiling
+    g = Gravity.from_tilt(tilt)
+    up = -np.asarray(g.vector)
+    depth, cam = _plane_frame(tuple(up), 1300.0)
+    seg = segment(depth, intrinsics=cam)
+    assert len(seg.objects) >= 1
+    named, used = name_kinds(seg, depth, cam, g.vector)
+    big = max(named.objects, key=lambda o: o.area)
+    assert big.kind == "floor"
+    assert used is not None
+    flipped, _ = name_kinds(seg, depth, cam, tuple(-np.asarray(g.vector)))
+    assert max(flipped.objects, key=lambda o: o.area).kind == "ceiling"
+
+
+def test_without_any_gravity_no_floor_or_ceiling_is_guessed() -> None:
+    # a plane facing down (seen from below) gives no estimate of gravity: a support, not a ceiling
+    depth, cam = _plane_frame((0.0, 0.8, -0.6), 1300.0)
+    seg = segment(depth, intrinsics=cam)
+    named = GravityKinds()(seg, depth, cam, None)
+    assert all(o.kind not in ("floor", "ceiling") for o in named.objects)
