@@ -16,6 +16,8 @@ flat ring, an object lying on the table has one.
 
 from __future__ import annotations
 
+import math
+
 import cv2
 import numpy as np
 from numpy.typing import NDArray
@@ -30,6 +32,9 @@ _MIN_SUPPORT_PX = 500
 _ROUNDS = 4
 #: readings the plane is fitted on, spread over the support
 _FIT_READINGS = 1000
+#: samples (every s-th reading) and blocks of them the plane and the gate read (:func:`_block_plane`)
+_GATE_SAMPLES = 2500
+_GATE_BLOCKS = 300
 
 
 def raised_pieces(
@@ -96,11 +101,20 @@ def raised_pieces(
         bx0, by0 = max(int(box[0]) - pad, 0), max(int(box[1]) - pad, 0)
         bx1, by1 = min(int(box[2]) + pad + 1, w), min(int(box[3]) + pad + 1, h)
         lab, z_box = labels[by0:by1, bx0:bx1], depth_mm[by0:by1, bx0:bx1]
-        on = (lab == sid) & valid[by0:by1, bx0:bx1] & horizontal[by0:by1, bx0:bx1]
-        n_on = int(np.count_nonzero(on))
-        if n_on < max(_MIN_SUPPORT_PX, min_px):
+        val, hor = valid[by0:by1, bx0:bx1], horizontal[by0:by1, bx0:bx1]
+        # the plane and whether anything may stand above it, from blocks of every s-th reading:
+        # a frame whose supports are bare (most) costs a few calls on a few thousand samples
+        s = max(1, round(math.sqrt(lab.size / _GATE_SAMPLES)))
+        ons = (lab[::s, ::s] == sid) & val[::s, ::s] & hor[::s, ::s]
+        if int(np.count_nonzero(ons)) * s * s < max(_MIN_SUPPORT_PX, min_px):
             continue
-        height = _height_over_plane(on, z_box, sensor)
+        coef = _block_plane(ons, z_box[::s, ::s], s, lab.shape, sensor, k_sigma)
+        if coef is None:
+            continue
+        on = (lab == sid) & val & hor
+        if coef.size == 0:
+            coef = _plane_fit(on, z_box, sensor)
+        height = _height_over(on, z_box, coef)
         # each window's mean height and depth over the support's readings in it
         count = cv2.boxFilter(on.astype(np.float32), -1, win, normalize=False)
         n = np.maximum(count, 1.0)
@@ -148,20 +162,80 @@ def raised_pieces(
     return out, of_support
 
 
-def _height_over_plane(on: NDArray[np.bool_], z_box: NDArray[np.float32], sensor: SensorModel) -> NDArray[np.float32]:
-    """Depth (mm) by which each reading lies nearer than the support's plane (positive: above it).
+def _block_plane(
+    ons: NDArray[np.bool_],
+    zs: NDArray[np.float32],
+    s: int,
+    shape: tuple[int, int],
+    sensor: SensorModel,
+    k_sigma: float,
+) -> NDArray[np.float64] | None:
+    """Return the support's plane (``1000/Z = a u + b v + c``, box-centred), or None when nothing stands above it.
+
+    ``ons`` and ``zs``: the support's readings and depths of every ``s``-th pixel of its box of
+    ``shape`` (about :data:`_GATE_SAMPLES`); an empty plane when they make too few blocks. They
+    are averaged over square blocks (about :data:`_GATE_BLOCKS`; OpenCV's area resize), of
+    which those wholly on the support are read: a plane is linear in inverse depth, so such a
+    block's mean inverse depth is the plane's at its centre, and noise averages down by the
+    root of its count. A block standing above the blocks' least-squares plane by ``k_sigma``
+    of its mean's noise plus one quantisation step, and by one of the sensor's resolutions,
+    says something may lie on the support (a piece is kept when it stands three resolutions
+    over its ring, :func:`raised_pieces`, so a block half covered by one stands out). What lies
+    on the support pulls that fit up by its share of it, less than its height: when no block
+    stands out nothing does (None, and no reading is looked at again, as on most frames).
+    Otherwise the plane is fitted again on the blocks within 2.5 MADs of it, then on those
+    within their noise.
+    """
+    h, w = shape
+    gh0, gw0 = ons.shape
+    b = max(2, round(math.sqrt(gh0 * gw0 / _GATE_BLOCKS)))
+    gh, gw = gh0 // b, gw0 // b
+    if gh * gw < 12:
+        return np.zeros(0)  # too few blocks: the caller fits the readings themselves
+    m = ons[: gh * b, : gw * b].astype(np.float32)
+    q = np.float32(1000.0) / np.maximum(zs[: gh * b, : gw * b], np.float32(1.0))
+    means = cv2.resize(cv2.merge([m, np.multiply(m, q, dtype=np.float32)]), (gw, gh), interpolation=cv2.INTER_AREA)
+    full = means[:, :, 0] >= np.float32(0.999)
+    rows, cols = np.nonzero(full)
+    if rows.size < 6:
+        return None
+    mq = means[rows, cols, 1].astype(np.float64)
+    centre = s * (b - 1) / 2.0
+    mu = cols * float(s * b) + (centre - (w - 1) / 2.0)
+    mv = rows * float(s * b) + (centre - (h - 1) / 2.0)
+    z = 1000.0 / mq
+    limit = k_sigma * sensor.sigma(z) / b + sensor.step(z)
+    gate = np.maximum(limit, sensor.resolution(z))
+    design = np.stack([mu, mv, np.ones_like(mu)], axis=1)
+    coef = _solve3(design.T @ design, design.T @ mq)
+    above = 1000.0 / np.maximum(design @ coef, 1e-12) - z
+    if not bool((above > gate).any()):
+        return None
+    mid = _middle(above)
+    spread = 1.4826 * _middle(np.abs(above - mid))
+    keep = np.abs(above - mid) < np.maximum(2.5 * spread, limit)
+    for _ in range(2):
+        if int(keep.sum()) < 3:
+            break
+        d = design[keep]
+        coef = _solve3(d.T @ d, d.T @ mq[keep])
+        above = 1000.0 / np.maximum(design @ coef, 1e-12) - z
+        keep = np.abs(above) < limit
+    return coef
+
+
+def _plane_fit(on: NDArray[np.bool_], z_box: NDArray[np.float32], sensor: SensorModel) -> NDArray[np.float64]:
+    """Return the support's plane fitted on its readings, for a support too small for blocks.
 
     The plane is linear in inverse depth over pixels, ``1000/Z = a u + b v + c``, whatever the
     intrinsics; it is fitted robustly, first against the readings' own spread (what lies on the
     support pulls a least-squares fit up), then against the sensor's noise, on about a thousand
-    readings spread over the support on a grid (the plane has three numbers). Pixels outside
-    ``on`` get 0.
+    readings spread over the support on a grid (the plane has three numbers).
     """
     n_on = int(np.count_nonzero(on))
     every = max(1, int(np.sqrt(n_on / _FIT_READINGS)))
     rows, cols = np.nonzero(on[::every, ::every])
     z = z_box[::every, ::every][rows, cols].astype(np.float64)
-    # coordinates about the box's centre keep the normal equations well conditioned
     cu, cv = (on.shape[1] - 1) / 2.0, (on.shape[0] - 1) / 2.0
     design = np.stack([cols * float(every) - cu, rows * float(every) - cv, np.ones_like(z)], axis=1)
     q = 1000.0 / z
@@ -183,9 +257,34 @@ def _height_over_plane(on: NDArray[np.bool_], z_box: NDArray[np.float32], sensor
         if int(new_keep.sum()) < 3:
             break
         keep = new_keep
+    return coef
+
+
+def _height_over(on: NDArray[np.bool_], z_box: NDArray[np.float32], coef: NDArray[np.float64]) -> NDArray[np.float32]:
+    """Depth (mm) by which each reading of ``on`` lies nearer than the plane ``coef`` (0 elsewhere)."""
+    cu, cv = (on.shape[1] - 1) / 2.0, (on.shape[0] - 1) / 2.0
     u = (np.arange(on.shape[1], dtype=np.float32) - np.float32(cu))[None, :]
     v = (np.arange(on.shape[0], dtype=np.float32) - np.float32(cv))[:, None]
     plane = np.float32(coef[0]) * u + np.float32(coef[1]) * v + np.float32(coef[2])
     with np.errstate(divide="ignore", invalid="ignore"):
         height = np.float32(1000.0) / plane - z_box
     return np.where(on & (plane > 0), height, np.float32(0.0)).astype(np.float32)
+
+
+def _middle(x: NDArray[np.float64]) -> float:
+    """Return the upper median of ``x`` (one partition: numpy's median call costs more than its work here)."""
+    k = x.size // 2
+    return float(np.partition(x, k)[k])
+
+
+def _solve3(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Solve the 3 x 3 system ``a x = b`` by Cramer's rule (numpy's solve costs more than its work here)."""
+    (a0, a1, a2), (b0, b1, b2), (c0, c1, c2) = a.tolist()
+    y0, y1, y2 = b.tolist()
+    det = a0 * (b1 * c2 - b2 * c1) - a1 * (b0 * c2 - b2 * c0) + a2 * (b0 * c1 - b1 * c0)
+    if abs(det) < 1e-300:
+        return np.zeros(3)
+    x0 = y0 * (b1 * c2 - b2 * c1) - a1 * (y1 * c2 - b2 * y2) + a2 * (y1 * c1 - b1 * y2)
+    x1 = a0 * (y1 * c2 - b2 * y2) - y0 * (b0 * c2 - b2 * c0) + a2 * (b0 * y2 - y1 * c0)
+    x2 = a0 * (b1 * y2 - y1 * c1) - a1 * (b0 * y2 - y1 * c0) + y0 * (b0 * c1 - b1 * c0)
+    return np.array([x0 / det, x1 / det, x2 / det])
