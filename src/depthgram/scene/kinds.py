@@ -57,7 +57,7 @@ WALL_SUPPORT_M2 = 0.05
 #: Least share of a segment's samples within :data:`_TOL_REL` of its plane: a facing segment
 #: taken for a support, and a support the segmentation found (what lies on a table merged with
 #: it by a noisy camera is off its plane).
-_PLANAR_SHARE = 0.8
+_PLANAR_SHARE = 0.7
 _SUPPORT_PLANAR_SHARE = 0.5
 _TOL_REL = 0.015
 _TOL_MM = 4.0
@@ -70,7 +70,7 @@ FLOOR_MIN_MM = 800.0
 _BENEATH_MM = 150.0
 _BENEATH_SHARE = 0.01
 #: Samples of the frame the planes are fitted on.
-_SAMPLES = 12_000
+_SAMPLES = 3000
 #: Frames an estimated gravity is remembered in a stream.
 _MEMORY = 30
 
@@ -88,8 +88,8 @@ class _Planes:
 
 def _fit_planes(
     labels: NDArray[np.int32], depth: NDArray[np.float32], cam: Intrinsics, ids: list[int], supports: set[int]
-) -> tuple[_Planes, NDArray[np.float64], NDArray[np.float64]]:
-    """Fit a plane to each of ``ids`` on a grid of samples; also return the samples' 3-D points and labels.
+) -> _Planes:
+    """Fit a plane to each of ``ids`` on a grid of samples (about :data:`_SAMPLES` of the frame).
 
     ``supports``: the ids the segmentation named supports, held to a looser planarity.
 
@@ -99,45 +99,57 @@ def _fit_planes(
     samples within the tolerance of the first fit.
     """
     h, w = depth.shape
-    s = max(1, int(math.sqrt(h * w / _SAMPLES)))
+    s = max(1, round(math.sqrt(h * w / _SAMPLES)))
     lab = labels[::s, ::s]
-    z = depth[::s, ::s].astype(np.float64)
-    ys, xs = np.mgrid[0:h:s, 0:w:s]
-    ok = z > 0
-    up_ = ((xs - cam.cx) / cam.fx)[ok]
-    vp_ = ((ys - cam.cy) / cam.fy)[ok]
-    zz = z[ok]
-    ll = lab[ok]
-    points = np.stack([up_ * zz, vp_ * zz, zz], axis=1)
-    top = max(ids) + 1
-    lut = np.full(int(max(int(labels.max(initial=0)), top)) + 1, -1, np.int64)
+    zf = depth[::s, ::s]
+    lut = np.full(max(int(lab.max(initial=0)), max(ids)) + 1, -1, np.int64)
     lut[np.asarray(ids, np.int64)] = np.arange(len(ids))
-    row = lut[ll]
-    sel = row >= 0
-    row, u, v, q, zs = row[sel], up_[sel], vp_[sel], 1000.0 / zz[sel], zz[sel]
-    pts = points[sel]
+    rows_img = lut[lab]
+    ys, xs = np.nonzero((rows_img >= 0) & (zf > 0))
+    row = rows_img[ys, xs]
+    zs = zf[ys, xs].astype(np.float64)
+    u = np.asarray((xs * float(s) - cam.cx) / cam.fx, np.float64)
+    v = np.asarray((ys * float(s) - cam.cy) / cam.fy, np.float64)
+    q = 1000.0 / zs
     k = len(ids)
     keep = np.ones(row.size, bool)
     coef = np.zeros((k, 3))
     for _ in range(2):
         coef = _solve(row[keep], u[keep], v[keep], q[keep], k)
         pred = coef[row, 0] * u + coef[row, 1] * v + coef[row, 2]
-        with np.errstate(divide="ignore", invalid="ignore"):
-            zp = np.where(pred > 0, 1000.0 / pred, np.inf)
+        zp = 1000.0 / np.maximum(pred, 1e-9)
         keep = np.abs(zp - zs) <= _TOL_REL * zs + _TOL_MM
-    n_in = np.bincount(row[keep], minlength=k)
+    rk = row[keep]
+    n_in = np.bincount(rk, minlength=k)
     n_all = np.maximum(np.bincount(row, minlength=k), 1)
     norm = np.maximum(np.linalg.norm(coef, axis=1), 1e-12)
     normal = -coef / norm[:, None]
     offset = 1000.0 / norm
-    cen = np.zeros((k, 3))
-    for j in range(3):
-        cen[:, j] = np.bincount(row[keep], weights=pts[keep, j], minlength=k)
-    cen /= np.maximum(n_in, 1)[:, None]
+    zk = zs[keep]
+    cen = (
+        np.stack(
+            [
+                np.bincount(rk, weights=u[keep] * zk, minlength=k),
+                np.bincount(rk, weights=v[keep] * zk, minlength=k),
+                np.bincount(rk, weights=zk, minlength=k),
+            ],
+            axis=1,
+        )
+        / np.maximum(n_in, 1)[:, None]
+    )
     least = np.array([_SUPPORT_PLANAR_SHARE if i in supports else _PLANAR_SHARE for i in ids])
     planar = (n_in >= 10) & (n_in >= least * n_all)
-    planes = _Planes(np.asarray(ids, np.int64), normal, offset, cen, planar)
-    return planes, points, ll.astype(np.float64)
+    return _Planes(np.asarray(ids, np.int64), normal, offset, cen, planar)
+
+
+def _frame_points(depth: NDArray[np.float32], cam: Intrinsics) -> NDArray[np.float64]:
+    """Return the 3-D points (mm) of a grid of the frame's readings (about :data:`_SAMPLES`)."""
+    h, w = depth.shape
+    s = max(1, round(math.sqrt(h * w / _SAMPLES)))
+    zf = depth[::s, ::s]
+    ys, xs = np.nonzero(zf > 0)
+    z = zf[ys, xs].astype(np.float64)
+    return np.stack([(xs * float(s) - cam.cx) / cam.fx * z, (ys * float(s) - cam.cy) / cam.fy * z, z], axis=1)
 
 
 def _solve(
@@ -208,7 +220,7 @@ def name_kinds(
     if not ids:
         return seg, None if gravity is None else np.asarray(gravity, np.float64)
     supports = {o.id for o in seg.objects if o.kind in _SUPPORT_KINDS}
-    planes, points, _ = _fit_planes(seg.labels, depth, cam, ids, supports)
+    planes = _fit_planes(seg.labels, depth, cam, ids, supports)
     g = None if gravity is None else np.asarray(gravity, np.float64)
     if g is None and estimate:
         g = estimate_gravity(seg, planes)
@@ -249,7 +261,7 @@ def name_kinds(
         elif not facing:
             new[i] = "compound"  # oblique to gravity: no floor, wall or ceiling
     if ups:
-        _name_floors(ups, ids, by_id, new, height, planes, points, size)
+        _name_floors(ups, ids, by_id, new, height, planes, depth, cam, size)
     return _renamed(seg, new), g
 
 
@@ -260,7 +272,8 @@ def _name_floors(
     new: dict[int, str],
     height: NDArray[np.float64],
     planes: _Planes,
-    points: NDArray[np.float64],
+    depth: NDArray[np.float32],
+    cam: Intrinsics,
     size: int,
 ) -> None:
     """Name the supports facing up (``ups``, rows of ``ids``; ``new`` updated): floor, table top or an object on one.
@@ -286,7 +299,7 @@ def _name_floors(
     rows = np.array(ups, np.int64)
     deepest = float(height[rows].max())
     near = rows[(height[rows] >= deepest - 100.0) & (height[rows] >= FLOOR_MIN_MM)]
-    shares = _beneath_shares(points, planes, near)
+    shares = _beneath_shares(_frame_points(depth, cam), planes, near) if near.size else np.zeros(0)
     for j, share in zip(near.tolist(), shares.tolist(), strict=True):
         if share < _BENEATH_SHARE:
             new[int(planes.ids[j])] = "floor"
