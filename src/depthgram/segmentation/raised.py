@@ -105,7 +105,8 @@ def raised_pieces(
         # the plane and whether anything may stand above it, from blocks of every s-th reading:
         # a frame whose supports are bare (most) costs a few calls on a few thousand samples
         s = max(1, round(math.sqrt(lab.size / _GATE_SAMPLES)))
-        ons = (lab[::s, ::s] == sid) & val[::s, ::s] & hor[::s, ::s]
+        # a horizontal pixel has a reading (the orientation classes are facing without one)
+        ons = (lab[::s, ::s] == sid) & hor[::s, ::s]
         if int(np.count_nonzero(ons)) * s * s < max(_MIN_SUPPORT_PX, min_px):
             continue
         coef = _block_plane(ons, z_box[::s, ::s], s, lab.shape, sensor, k_sigma)
@@ -204,8 +205,12 @@ def _block_plane(
     mu = cols * float(s * b) + (centre - (w - 1) / 2.0)
     mv = rows * float(s * b) + (centre - (h - 1) / 2.0)
     z = 1000.0 / mq
-    limit = k_sigma * sensor.sigma(z) / b + sensor.step(z)
-    gate = np.maximum(limit, sensor.resolution(z))
+    # the sensor's sigma and step at each block's depth (SensorModel.sigma, .step and
+    # .resolution written out: their calls cost more than the arithmetic on a few hundred blocks)
+    z2 = z * z
+    sigma = sensor.sigma_0 + sensor.sigma_2 * z2
+    limit = (k_sigma / b) * sigma + (sensor.step_0 + sensor.step_2 * z2)
+    gate = np.maximum(limit, 2.0 * sigma)  # the resolution: the larger of a step and two sigmas
     design = np.stack([mu, mv, np.ones_like(mu)], axis=1)
     coef = _solve3(design.T @ design, design.T @ mq)
     above = 1000.0 / np.maximum(design @ coef, 1e-12) - z
