@@ -116,3 +116,22 @@ def test_without_any_gravity_no_floor_or_ceiling_is_guessed() -> None:
     seg = segment(depth, intrinsics=cam)
     named = GravityKinds()(seg, depth, cam, None)
     assert all(o.kind not in ("floor", "ceiling") for o in named.objects)
+
+
+def test_gravity_estimated_from_a_floor_is_kept_for_the_next_frames_of_a_stream() -> None:
+    # frame 1: a floor 1.3 m below a camera tilted 40 degrees down (gravity estimated from it);
+    # frame 2: only a wall 2 m ahead, whose depth grows toward the image's top: a ceiling to the
+    # image's axes, a wall by the remembered gravity, and no guessed ceiling when the frame does
+    # not continue the stream (nothing says which way is up)
+    g = np.asarray(Gravity.from_tilt(40.0).vector)
+    floor, cam = _plane_frame(tuple(-g), 1300.0)
+    t = np.radians(40.0)
+    wall_normal = (0.0, float(np.sin(t)), float(-np.cos(t)))  # the horizontal ahead, turned to the camera
+    wall, _ = _plane_frame(wall_normal, 2000.0)
+    kinds = GravityKinds()
+    first = kinds(segment(floor, intrinsics=cam), floor, cam, None)
+    assert max(first.objects, key=lambda o: o.area).kind == "floor"
+    seg = segment(wall, intrinsics=cam)
+    assert max(seg.objects, key=lambda o: o.area).kind == "ceiling"  # the image's axes
+    assert max(kinds(seg, wall, cam, None).objects, key=lambda o: o.area).kind == "wall"
+    assert max(kinds(seg, wall, cam, None, related=False).objects, key=lambda o: o.area).kind == "compound"
