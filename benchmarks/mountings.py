@@ -6,7 +6,10 @@ walls were given (a table seen from above must never be a ``ceiling``; the kinds
 :mod:`depthgram.scene.kinds`). With and without the exact gravity handed to the pipeline
 (without it, gravity is estimated from the supports seen from above).
 
-    .venv/bin/python benchmarks/mountings.py [--size 640x480] [--frames 3]
+    .venv/bin/python benchmarks/mountings.py [--size 640x480] [--frames 3] [--raised 4]
+
+``--raised K`` sets ``[segment] raised_sigmas`` (flat objects cut out of the supports, off by
+default).
 """
 
 from __future__ import annotations
@@ -18,17 +21,19 @@ import warnings
 import numpy as np
 
 from depthgram import Pipeline
-from depthgram.segmentation import evaluate
+from depthgram.pipeline import Config
+from depthgram.segmentation import SegmentConfig, evaluate
 from depthgram.sensor import simulate
 
 SCENES = ("arm_down", "arm_45", "chest_walk", "table")
 
 
-def score(scene: str, sensor: str, size: tuple[int, int], frames: int, with_gravity: bool) -> str:
-    """Return one table row: found / total, mean IoU, the table's kinds."""
+def score(scene: str, sensor: str, size: tuple[int, int], frames: int, with_gravity: bool, raised: float = 0.0) -> str:
+    """Return one table row: found / total, mean IoU, the table's kinds, the floor's and walls'."""
     sims = list(simulate(scene, frames, size=size, sensor=sensor, seed=1))
     gravity = sims[0].gravity if with_gravity else None
-    pipe = Pipeline(track=False, gravity=gravity)
+    config = Config(segment=SegmentConfig(raised_sigmas=raised))
+    pipe = Pipeline(config, track=False, gravity=gravity)
     ious: list[float] = []
     table_kinds: set[str] = set()
     room_kinds: dict[str, set[str]] = {}
@@ -59,13 +64,14 @@ def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--size", default="640x480", help="frame size WxH (px)")
     p.add_argument("--frames", type=int, default=3, help="frames per scene")
+    p.add_argument("--raised", type=float, default=0.0, help="[segment] raised_sigmas (0: off, the default)")
     args = p.parse_args(argv)
     w, h = (int(v) for v in args.size.lower().split("x"))
     print(f"{'scene':11s} {'sensor':6s} {'gravity':8s} found  IoU    table's kinds    floor's and walls' kinds")
     for scene in SCENES:
         for sensor in ("tof", "sl"):
             for with_gravity in (False, True):
-                row = score(scene, sensor, (w, h), args.frames, with_gravity)
+                row = score(scene, sensor, (w, h), args.frames, with_gravity, args.raised)
                 print(f"{scene:11s} {sensor:6s} {'given' if with_gravity else '-':8s} {row}", flush=True)
     return 0
 
