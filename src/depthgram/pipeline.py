@@ -579,10 +579,6 @@ class Pipeline:
         motions: dict[int, Motion] = {}
         occluded: tuple[tuple[SceneObject, Motion], ...] = ()
         still = self._still_reason(frame)
-        down = frame.gravity.vector if frame.gravity is not None else None
-        seg = self._kinds(
-            seg, frame.depth, frame.intrinsics or default_intrinsics(frame.depth.shape), down, related=not still
-        )
         if still and self.track and self.config.stills is not True:
             self._tracker = Tracker(self.config.tracker)  # nothing carries over to the next frames
         if not still:
@@ -599,6 +595,11 @@ class Pipeline:
             seg = _relabel(seg, {oid: m.track_id for oid, m in update.motions.items()})
             motions = {m.track_id: m for m in update.motions.values()}
             occluded = tuple((dataclasses.replace(t.last, id=t.id), _occluded_motion(t)) for t in update.occluded)
+        # the supports' kinds by gravity, after the tracker (which reads the segmentation's own
+        # kinds: a compound's depth is its nearest part's), before the tree and the plan
+        down = frame.gravity.vector if frame.gravity is not None else None
+        cam = frame.intrinsics or default_intrinsics(frame.depth.shape)
+        seg = self._kinds(seg, frame.depth, cam, down, related=not still)
         tree = build_tree(seg.objects, frame.size, motion=motions or None, config=cfg.tree, labels=seg.labels)
         action_plan = plan_scene(tree, frame, config=cfg.act)
         camera: dict[str, Any] | None = self.camera_record(frame)
