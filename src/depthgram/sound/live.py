@@ -150,6 +150,10 @@ class LiveSonifier:
         sent = time.perf_counter() if sent_s is None else sent_s
         self._next = _Update(dict(targets), frame, arrival_s, sent)
 
+    def warm_up(self) -> None:
+        """Compile the synthesis kernels now, not in the first block of a live stream."""
+        self._bank.warm_up()
+
     def clear(self) -> None:
         """Silence every voice (they fade out over the ramp)."""
         self._next = _Update({}, -1, None)
@@ -493,7 +497,7 @@ class LivePlayer:
 
     def start(self) -> None:
         """Render one block first (compiling the kernels), then start the device."""
-        self.live._bank.warm_up()
+        self.live.warm_up()
         if self._copy is not None:
             self._writer = threading.Thread(target=self._write_copies, name="depthgram-listen-wav", daemon=True)
             self._writer.start()
