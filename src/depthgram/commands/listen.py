@@ -39,6 +39,16 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--wav", default=None, metavar="FILE", help="also write exactly what was played to this WAV")
     p.add_argument("--seconds", type=float, default=None, metavar="S", help="stop after S seconds (a camera)")
     p.add_argument(
+        "--binaural",
+        nargs="?",
+        const="kemar",
+        default=None,
+        metavar="SOFA",
+        help="for headphones: every voice through measured head-related impulse responses, from its "
+        "direction (the KEMAR set the 'slab' package ships, or this SOFA file); needs "
+        "pip install 'depthgram[binaural]'",
+    )
+    p.add_argument(
         "--no-realtime",
         dest="realtime",
         action="store_false",
@@ -88,7 +98,14 @@ def run(args: argparse.Namespace) -> int:
         with needs_extra("sound", "writing the played sound (--wav)"):
             import soundfile  # noqa: F401 - the audio process writes it; fail here, before the device opens
     audio = AudioProcess(
-        mapping, args.samplerate, first.size, _device(args.device), args.block, args.wav, realtime=args.realtime
+        mapping,
+        args.samplerate,
+        first.size,
+        _device(args.device),
+        args.block,
+        args.wav,
+        realtime=args.realtime,
+        binaural=args.binaural,
     )
     print(f"audio callback: {audio.priority}; device latency {1e3 * audio.latency_s:.1f} ms", file=sys.stderr)
     parts: dict[str, list[float]] = {"latency_ms": [], "pipeline_ms": [], "wait_ms": [], "dac_ms": []}

@@ -27,6 +27,7 @@ from numpy.typing import NDArray
 from depthgram.errors import InputError
 from depthgram.scene.tree import SceneTree
 from depthgram.segmentation.objects import SceneObject
+from depthgram.sound.binaural import HRIRSet
 from depthgram.sound.choose import Chooser
 from depthgram.sound.mapping import SoundMapping
 from depthgram.sound.synth import Voice, VoiceBank
@@ -34,7 +35,7 @@ from depthgram.sound.synth import Voice, VoiceBank
 #: Voice key kinds, by their index in a :class:`TargetSlot`.
 _KINDS = ("o", "g")
 #: Numbers per voice in a :class:`TargetSlot`: kind, id, then the Voice's fields in order.
-_PER_VOICE = 14
+_PER_VOICE = 16
 #: Numbers before the voices: sequence, frame, arrival (s), sent (s), voice count, checksum.
 _HEAD = 6
 
@@ -75,6 +76,9 @@ class LiveSonifier:
         Samples per second (Hz).
     frame_size : tuple of int, optional
         (width, height) of the frames (px); each tree's own when omitted.
+    hrirs : HRIRSet, optional
+        Head-related impulse responses at ``samplerate``: each voice is then rendered binaurally
+        from its direction (:mod:`depthgram.sound.binaural`) instead of panned.
 
     Notes
     -----
@@ -90,14 +94,18 @@ class LiveSonifier:
     """
 
     def __init__(
-        self, mapping: SoundMapping | None = None, samplerate: int = 48000, frame_size: tuple[int, int] | None = None
+        self,
+        mapping: SoundMapping | None = None,
+        samplerate: int = 48000,
+        frame_size: tuple[int, int] | None = None,
+        hrirs: HRIRSet | None = None,
     ) -> None:
         if not isinstance(samplerate, (int, np.integer)) or not 4000 <= samplerate <= 192000:
             raise InputError(f"samplerate must be an integer in 4000..192000 Hz, got {samplerate!r}")
         self.mapping = mapping or SoundMapping()
         self.samplerate = int(samplerate)
         self.frame_size = frame_size
-        self._bank = VoiceBank(self.mapping, self.samplerate)
+        self._bank = VoiceBank(self.mapping, self.samplerate, hrirs)
         self._chooser = Chooser(self.mapping)
         self._next: _Update | None = None  # written by update(), taken by render()
         self._targets: dict[tuple[str, int], Voice] = {}
@@ -288,6 +296,8 @@ class TargetSlot:
                 v.beep_s,
                 v.harmonics,
                 v.order,
+                math.nan if v.azimuth is None else v.azimuth,
+                math.nan if v.elevation is None else v.elevation,
             )
         a = self._a
         seq = a[0] + 1.0  # odd: a write is under way
@@ -320,8 +330,9 @@ class TargetSlot:
         targets = {}
         for r in body.reshape(n, _PER_VOICE).tolist():
             key = (_KINDS[int(r[0])], int(r[1]))
+            az, el = (None if math.isnan(x) else x for x in (r[14], r[15]))
             targets[key] = Voice(
-                key, r[2], r[3], r[4], r[5], (r[6], r[7]), (r[8], r[9]), r[10], r[11], int(r[12]), r[13]
+                key, r[2], r[3], r[4], r[5], (r[6], r[7]), (r[8], r[9]), r[10], r[11], int(r[12]), r[13], az, el
             )
         arrival = None if math.isnan(snap[2]) else float(snap[2])
         return _Update(targets, int(snap[1]), arrival, float(snap[3]))
@@ -542,6 +553,7 @@ def _serve(
     block: int,
     wav: str | None,
     realtime: bool,
+    binaural: str | None = None,
 ) -> None:
     """Play the targets found in the shared slot; send back block events and, at the end, statistics."""
     import gc
@@ -565,7 +577,12 @@ def _serve(
             import soundfile as sf
 
             out = sf.SoundFile(wav, "w", samplerate=samplerate, channels=2, subtype="FLOAT")
-        live = LiveSonifier(mapping, samplerate, (2, 2))
+        hrirs = None
+        if binaural is not None:
+            from depthgram.sound.binaural import load_hrirs
+
+            hrirs = load_hrirs(binaural, samplerate)
+        live = LiveSonifier(mapping, samplerate, (2, 2), hrirs)
         player = LivePlayer(
             live, device, block, copy=out.write if out is not None else None, poll=poll, realtime=realtime
         )
@@ -632,6 +649,9 @@ class AudioProcess:
     realtime : bool
         Ask for realtime scheduling of the audio callback (falls back to normal priority where
         it is not permitted; :attr:`priority` says which).
+    binaural : str, optional
+        ``"kemar"`` or a SOFA file's path: render every voice through those head-related
+        impulse responses (:func:`depthgram.sound.binaural.load_hrirs`), loaded in the audio process.
 
     Attributes
     ----------
@@ -650,6 +670,7 @@ class AudioProcess:
         block: int = 256,
         wav: str | None = None,
         realtime: bool = True,
+        binaural: str | None = None,
     ) -> None:
         import importlib.util
         import multiprocessing
@@ -664,6 +685,8 @@ class AudioProcess:
                 "playing sound live needs the optional package 'sounddevice': pip install 'depthgram[listen]'"
             )
 
+        if binaural is not None:
+            _check_binaural(binaural)
         self.mapping = mapping or SoundMapping()
         self.samplerate = samplerate
         self.frame_size = frame_size
@@ -676,7 +699,7 @@ class AudioProcess:
         self._slot = TargetSlot.create(ctx, 2 * (self.mapping.max_voices + self.mapping.max_glides) + 8)
         self._proc = ctx.Process(
             target=_serve,
-            args=(child, self._slot.shared, self.mapping, samplerate, device, block, wav, realtime),
+            args=(child, self._slot.shared, self.mapping, samplerate, device, block, wav, realtime, binaural),
             name="depthgram-audio",
         )
         self._proc.start()
@@ -754,6 +777,32 @@ class AudioProcess:
                     self.stats = value
         self._proc.join()
         return self.stats
+
+
+def _check_binaural(spec: str) -> None:
+    """Fail here, before any process or device starts, when the HRIRs named cannot be read."""
+    import importlib.util
+    import sys
+    from pathlib import Path
+
+    from depthgram.errors import MissingExtraError
+
+    def missing(name: str) -> bool:
+        return sys.modules.get(name, ...) is None or importlib.util.find_spec(name) is None
+
+    if spec.lower() == "kemar":
+        if missing("slab"):
+            raise MissingExtraError(
+                "binaural sound with the KEMAR responses needs the optional package 'slab': "
+                "pip install 'depthgram[binaural]'"
+            )
+        return
+    if not Path(spec).is_file():
+        raise InputError(f"--binaural {spec}: expected 'kemar' or the path of a SOFA file; there is no such file")
+    if missing("sofar"):
+        raise MissingExtraError(
+            "reading a SOFA file needs the optional package 'sofar': pip install 'depthgram[binaural]'"
+        )
 
 
 def percentiles(values: Sequence[float]) -> dict[str, float]:

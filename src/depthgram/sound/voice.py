@@ -17,7 +17,7 @@ from depthgram.scene.tree import Node
 from depthgram.segmentation.objects import SceneObject
 from depthgram.sound.mapping import SoundMapping
 
-__all__ = ["BEEP_KINDS", "OBLIQUE_KINDS", "Voice", "beep_voice", "glide_voice"]
+__all__ = ["BEEP_KINDS", "OBLIQUE_KINDS", "Voice", "beep_voice", "direction", "glide_voice"]
 
 #: Node kinds heard as a gliding tone rather than beeps.
 OBLIQUE_KINDS = ("floor", "wall", "ceiling", "compound")
@@ -42,6 +42,11 @@ class Voice:
     beep_s: float
     harmonics: int
     order: float  # scan position in 0..1 (when the voice first sounds)
+    # Direction of the voice from the camera (degrees): azimuth positive to the right, elevation
+    # positive up. None without the intrinsics (binaural rendering then reads the pan). Used by
+    # the binaural mode only; a glide's is its surface's centre.
+    azimuth: float | None = None
+    elevation: float | None = None
 
 
 #: Node kinds heard as beeps.
@@ -59,6 +64,21 @@ def _extent(n: Node, objects: Mapping[int, SceneObject]) -> tuple[float, float, 
     # Without its parts (a tree read back from text) the extent is unknown: assume the
     # surface runs from half to one and a half times its mean depth, at its center column.
     return 0.5 * n.depth, 1.5 * n.depth, n.center_xy[0], n.center_xy[0]
+
+
+def direction(x: float, y: float, intrinsics: Any) -> tuple[float | None, float | None]:
+    """(azimuth, elevation) in degrees of pixel (x, y): right and up positive; (None, None) without intrinsics.
+
+    The elevation is the ray's angle above the plane of the camera's optical axis and its
+    rows; a tilted camera tilts it too.
+    """
+    if intrinsics is None:
+        return None, None
+    az = math.degrees(math.atan2(x - intrinsics.cx, intrinsics.fx))
+    el = math.degrees(
+        math.atan2(intrinsics.cy - y, math.hypot(intrinsics.fy, (x - intrinsics.cx) * intrinsics.fy / intrinsics.fx))
+    )
+    return az, el
 
 
 def _pan(x: float, frame_size: tuple[int, int], mapping: SoundMapping, intrinsics: Any) -> tuple[float, float]:
@@ -101,7 +121,8 @@ def beep_voice(
     g = mapping.gain(n.depth)
     pan = _pan(n.center_xy[0], frame_size, mapping, intrinsics)
     harm, beep = mapping.weight(n.area / float(w * h))
-    return Voice(key or ("o", n.id), f, f, g, g, pan, pan, mapping.rate(n.depth, n.ttc), beep, harm, order)
+    az, el = direction(n.center_xy[0], n.center_xy[1], intrinsics)
+    return Voice(key or ("o", n.id), f, f, g, g, pan, pan, mapping.rate(n.depth, n.ttc), beep, harm, order, az, el)
 
 
 def glide_voice(
@@ -153,4 +174,5 @@ def glide_voice(
         0.0,
         1,
         0.0,
+        *direction(n.center_xy[0], n.center_xy[1], intrinsics),
     )
