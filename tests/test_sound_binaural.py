@@ -128,3 +128,27 @@ def test_a_missing_sofa_file_is_named() -> None:
 
     with pytest.raises(InputError, match="expected 'kemar' or the path of a SOFA file"):
         _check_binaural("/nonexistent/head.sofa")
+
+
+def test_a_tilted_camera_leaves_the_pitch_of_what_stays_put() -> None:
+    from depthgram.frame import Gravity
+
+    m = SoundMapping()
+    k = Intrinsics(fx=500.0, fy=500.0, cx=320.0, cy=240.0)
+    # A point on the horizon straight ahead: at the middle row of a level camera, 20 degrees
+    # above the optical axis (row cy - fy tan 20) of a camera tilted 20 degrees down.
+    row = 240.0 - 500.0 * np.tan(np.radians(20.0))
+    level = beep_voice(
+        Node(1, "object", 1, 1500.0, 300, (320.0, 240.0)), (640, 480), m, k, gravity=Gravity.from_tilt(0)
+    )
+    tilted = Node(1, "object", 1, 1500.0, 300, (320.0, row))
+    with_g = beep_voice(tilted, (640, 480), m, k, gravity=Gravity.from_tilt(20.0))
+    without = beep_voice(tilted, (640, 480), m, k)
+    assert with_g.freq_a == pytest.approx(level.freq_a) and with_g.elevation == pytest.approx(0.0, abs=1e-6)
+    assert without.freq_a > 1.5 * level.freq_a  # the image row alone would say "high up"
+    # Rolled 30 degrees: a point level with the camera, to the right, stays at elevation 0.
+    g = Gravity.from_tilt(0.0, roll_deg=30.0)
+    ray = np.array([np.cos(np.radians(30.0)), np.sin(np.radians(30.0)), 0.0]) * 0.5 + np.array([0, 0, 1.0])
+    x, y = 320.0 + 500.0 * ray[0] / ray[2], 240.0 + 500.0 * ray[1] / ray[2]
+    az, el = direction(x, y, k, g)
+    assert el == pytest.approx(0.0, abs=1e-6) and az is not None and az > 20

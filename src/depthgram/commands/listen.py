@@ -151,6 +151,7 @@ def run(args: argparse.Namespace) -> int:
                 frame=frame.index,
                 arrival_s=arrival,
                 intrinsics=frame.intrinsics,
+                gravity=frame.gravity,
             )
             played += 1
             write_events()

@@ -119,6 +119,7 @@ class LiveSonifier:
         frame: int = -1,
         arrival_s: float | None = None,
         intrinsics: Any = None,
+        gravity: Any = None,
     ) -> None:
         """Make a new scene the voices' targets; the next block starts ramping toward it.
 
@@ -133,11 +134,14 @@ class LiveSonifier:
             When the frame was captured or arrived (s, ``time.perf_counter`` clock), for latency.
         intrinsics : Intrinsics, optional
             The camera's, for the direction (azimuth) of each voice; image columns without them.
+        gravity : Gravity, optional
+            The frame's: pitch then follows elevation above the horizon (with the intrinsics).
         """
         size = self.frame_size or tree.frame_size
         if size is None:
             raise InputError("LiveSonifier: the tree does not carry the frame size; give frame_size=(width, height)")
-        self.set_targets(self._chooser.voices(tree, size, objects, intrinsics), frame=frame, arrival_s=arrival_s)
+        targets = self._chooser.voices(tree, size, objects, intrinsics, gravity)
+        self.set_targets(targets, frame=frame, arrival_s=arrival_s)
 
     def set_targets(
         self,
@@ -726,12 +730,13 @@ class AudioProcess:
         frame: int = -1,
         arrival_s: float | None = None,
         intrinsics: Any = None,
+        gravity: Any = None,
     ) -> None:
         """Send a new scene's voices to the audio process (see :meth:`LiveSonifier.update`)."""
         size = self.frame_size or tree.frame_size
         if size is None:
             raise InputError("AudioProcess: the tree does not carry the frame size; give frame_size=(width, height)")
-        targets = self.chooser.voices(tree, size, objects, intrinsics)
+        targets = self.chooser.voices(tree, size, objects, intrinsics, gravity)
         self.set_targets(targets, frame=frame, arrival_s=arrival_s)
 
     def set_targets(

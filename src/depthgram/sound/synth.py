@@ -480,13 +480,19 @@ class Sonifier:
         return self._seconds
 
     def push(
-        self, tree: SceneTree, duration_s: float, objects: Sequence[SceneObject] = (), intrinsics: Any = None
+        self,
+        tree: SceneTree,
+        duration_s: float,
+        objects: Sequence[SceneObject] = (),
+        intrinsics: Any = None,
+        gravity: Any = None,
     ) -> NDArray[np.float32]:
         """Audio for one frame of ``duration_s`` seconds.
 
         ``objects`` are the frame's segmented objects (``SceneResult.segmentation.objects``):
         with them a surface's glide spans its real near and far ends. ``intrinsics`` (the
-        frame's) make the pan follow each object's azimuth. The voices are chosen frame after
+        frame's) make the pan follow each object's azimuth; with ``gravity`` (the frame's) too,
+        pitch follows elevation above the horizon instead of the image row. The voices are chosen frame after
         frame by :attr:`chooser` (:class:`depthgram.sound.choose.Chooser`): a voice belongs to a
         tracked object, and concurrent voices are kept apart.
 
@@ -500,7 +506,7 @@ class Sonifier:
         """
         if not isinstance(duration_s, (int, float)) or not math.isfinite(duration_s) or duration_s < 0:
             raise InputError(f"frame duration must be a finite number of seconds >= 0, got {duration_s!r}")
-        self.voices_now = self.chooser.voices(tree, self._size_of(tree), objects, intrinsics)
+        self.voices_now = self.chooser.voices(tree, self._size_of(tree), objects, intrinsics, gravity)
         return self._push_targets(self.voices_now, duration_s)
 
     def _push_targets(self, targets: dict[tuple[str, int], Voice], duration_s: float) -> NDArray[np.float32]:

@@ -786,7 +786,7 @@ class Player:
         # With the objects' extents and the camera's intrinsics, as sonify and listen hear them.
         frame = result.frame
         voices: dict[Any, Any] = self._chooser.voices(
-            result.tree, frame.size, result.segmentation.objects, frame.intrinsics
+            result.tree, frame.size, result.segmentation.objects, frame.intrinsics, frame.gravity
         )
         return voices
 
