@@ -68,13 +68,21 @@ def _frames(seconds: float) -> tuple[str, Iterator[Any]]:
     return spec, itertools.islice(loop(), n)
 
 
-def synthesis_share(reps: int = 2000) -> dict[str, float]:
-    """CPU share of one core (thread time / audio time) to render 6 beeps and 3 glides in 256-sample blocks."""
+def synthesis_share(reps: int = 2000, binaural: bool = False) -> dict[str, float]:
+    """CPU share of one core (thread time / audio time) to render 6 beeps and 3 glides in 256-sample blocks.
+
+    ``binaural``: through slab's KEMAR responses, each voice from its own direction.
+    """
     from depthgram.sound import SoundMapping
     from depthgram.sound.synth import Voice, VoiceBank
 
     m = SoundMapping(max_voices=6)
-    bank = VoiceBank(m, SR)
+    hrirs = None
+    if binaural:
+        from depthgram.sound.binaural import load_hrirs
+
+        hrirs = load_hrirs("kemar", SR)
+    bank = VoiceBank(m, SR, hrirs)
     bank.warm_up()
     targets = {}
     for i in range(6):
@@ -90,10 +98,12 @@ def synthesis_share(reps: int = 2000) -> dict[str, float]:
             0.08,
             3,
             0.0,
+            -60.0 + 24.0 * i,
+            10.0 * (i % 3) - 10.0,
         )
         targets[v.key] = v
     for j in range(3):
-        g = Voice(("g", j), 500.0, 300.0, 0.2, 0.1, (0.9, 0.3), (0.3, 0.9), 0.0, 0.0, 1, 0.0)
+        g = Voice(("g", j), 500.0, 300.0, 0.2, 0.1, (0.9, 0.3), (0.3, 0.9), 0.0, 0.0, 1, 0.0, 30.0 * j - 30.0, -20.0)
         targets[g.key] = g
     for _ in range(50):
         bank.render(targets, BLOCK)
@@ -110,7 +120,9 @@ def _nudge(v: Any, k: int) -> Any:
     from dataclasses import replace
 
     f = 1.0 + 0.001 * (k % 7)
-    return replace(v, freq_a=v.freq_a * f, freq_b=v.freq_b * f, gain_a=v.gain_a * 0.999)
+    # The direction moves too: a binaural voice changes filters (a cross-fade) on most frames.
+    az = None if v.azimuth is None else v.azimuth + (5.0 if k % 2 else -5.0)
+    return replace(v, freq_a=v.freq_a * f, freq_b=v.freq_b * f, gain_a=v.gain_a * 0.999, azimuth=az)
 
 
 def live(seconds: float, device: int | str | None, realtime: bool = True) -> dict[str, Any]:
@@ -218,6 +230,14 @@ def main(argv: Sequence[str] | None = None) -> int:
         f"synthesis, 6 beeps + 3 glides, {BLOCK}-sample blocks at {SR} Hz: {syn['block_us']:.0f} us a block, "
         f"{100 * syn['share']:.1f} % of one core (target <= 5 %)"
     )
+    import importlib.util
+
+    if importlib.util.find_spec("slab") is not None:
+        b = synthesis_share(binaural=True)
+        print(
+            f"  binaural (KEMAR, 256 taps), the same voices: {b['block_us']:.0f} us a block, "
+            f"{100 * b['share']:.1f} % of one core"
+        )
     jack = None
     if args.device is None:
         jack = _jack(args.server == "realtime")

@@ -68,7 +68,11 @@ class HRIRSet:
 
     def nearest(self, azimuth_deg: float, elevation_deg: float) -> int:
         """Return the index of the measured direction nearest (by angle) to the one given (degrees)."""
-        return int(np.argmax(_unit(self.azimuth_deg, self.elevation_deg) @ _unit(azimuth_deg, elevation_deg)))
+        units = self.__dict__.get("_units")
+        if units is None:  # computed once: this is called for every voice of every audio block
+            units = _unit(self.azimuth_deg, self.elevation_deg)
+            object.__setattr__(self, "_units", units)
+        return int(np.argmax(units @ _unit(azimuth_deg, elevation_deg)))
 
     def at_rate(self, samplerate: int, taps: int = TAPS) -> HRIRSet:
         """Return the set resampled to ``samplerate`` (Hz), cut to ``taps`` after the common onset.

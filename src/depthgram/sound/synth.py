@@ -186,7 +186,6 @@ class _State:
     pulse: float = 0.0  # pulse or glide phase (cycles); negative: waiting for its first beep
     fading: bool = False
     hrir: int = -1  # binaural: the direction (index in the HRIR set) the voice is heard from; -1 none yet
-    tail: NDArray[np.float64] | None = None  # binaural: the convolution's overlap into the next call (2, taps - 1)
 
 
 def _lerp_voice(a: Voice, b: Voice, t: float) -> Voice:
@@ -260,6 +259,7 @@ class VoiceBank:
         self.samplerate = samplerate
         self.hrirs = hrirs
         self._spectra: dict[tuple[int, int], NDArray[np.complex128]] = {}  # (direction, fft size) -> (2, bins)
+        self._tail: NDArray[np.float64] | None = None  # binaural: the filters' overlap into the next call
         self.states: dict[tuple[str, int], _State] = {}
         self._tables = _wavetables(mapping.harmonics_max)
         self._hann = _hann_table()
@@ -287,6 +287,7 @@ class VoiceBank:
         out_l = np.zeros(n)
         out_r = np.zeros(n)
         scratch = np.zeros(n)  # the unused second channel of a mono voice (binaural)
+        spatial: list[tuple[NDArray[np.float64], int]] = []  # binaural: (mono input, direction) to filter
         goal = dict(targets)
         for key, st in self.states.items():
             if key not in goal:  # gone from the scene: fade out over the ramp, then drop
@@ -371,10 +372,14 @@ class VoiceBank:
                 st.osc = float(cyc[-1] % 1.0)
                 st.pulse = float(gp[-1] % 1.0)
             if self.hrirs is not None:
-                self._spatialise(st, new, dest_l, out_l, out_r)
+                self._place(st, new, dest_l, spatial)
             st.done = min(done + n, r)
         for key in [k for k, s in self.states.items() if s.fading and s.done >= r]:
             del self.states[key]
+        if spatial:
+            self._convolve(spatial, out_l, out_r)
+        elif self._tail is not None:  # the last voices' filters still ringing
+            self._convolve([(np.zeros(n), 0)], out_l, out_r)
         return _soft_limit(np.column_stack((out_l, out_r)))
 
     def _spectrum(self, index: int, nfft: int) -> NDArray[np.complex128]:
@@ -386,39 +391,42 @@ class VoiceBank:
             self._spectra[(index, nfft)] = got
         return got
 
-    def _spatialise(
-        self, st: _State, v: Voice, mono: NDArray[np.float64], out_l: NDArray[np.float64], out_r: NDArray[np.float64]
-    ) -> None:
-        """Add ``mono`` filtered by the HRIRs of the voice's direction to both ears (overlap-add across calls).
+    def _place(self, st: _State, v: Voice, mono: NDArray[np.float64], spatial: list[Any]) -> None:
+        """Queue ``mono`` for the filters of the voice's direction (a new direction: cross-faded over the call)."""
+        h = self.hrirs
+        assert h is not None
+        az, el = _direction_of(v, self.mapping)
+        index = h.nearest(az, el)
+        if st.hrir < 0 or index == st.hrir:
+            spatial.append((mono, index))
+        else:
+            # The input moves from the old pair of filters to the new one; the old filters'
+            # response to what they already had rings on in the shared tail: no click.
+            w = np.arange(1, len(mono) + 1) / len(mono)
+            spatial += [(mono * (1.0 - w), st.hrir), (mono * w, index)]
+        st.hrir = index
 
-        A new direction cross-fades the input from the old pair of filters to the new one over
-        the call, so the filters' own tails ring on and nothing clicks.
+    def _convolve(
+        self, spatial: list[tuple[NDArray[np.float64], int]], out_l: NDArray[np.float64], out_r: NDArray[np.float64]
+    ) -> None:
+        """Add every queued input filtered by its direction's pair to both ears (one overlap-add for all).
+
+        Filtering is linear, so the voices are summed in the frequency domain and transformed
+        back once: two inverse FFTs a call whatever the number of voices.
         """
         h = self.hrirs
         assert h is not None
-        n, taps = len(mono), h.taps
-        az, el = _direction_of(v, self.mapping)
-        index = h.nearest(az, el)
+        n, taps = len(out_l), h.taps
         nfft = 1 << (n + taps - 2).bit_length()
-        if st.hrir < 0:
-            st.hrir = index
-        if index == st.hrir:
-            y = np.fft.irfft(np.fft.rfft(mono, nfft) * self._spectrum(index, nfft), nfft, axis=1)
-        else:
-            w = np.arange(1, n + 1) / n
-            y = np.fft.irfft(
-                np.fft.rfft(mono * (1.0 - w), nfft) * self._spectrum(st.hrir, nfft)
-                + np.fft.rfft(mono * w, nfft) * self._spectrum(index, nfft),
-                nfft,
-                axis=1,
-            )
-            st.hrir = index
-        y = y[:, : n + taps - 1]
-        if st.tail is not None:
-            y[:, : taps - 1] += st.tail
+        x = np.fft.rfft(np.stack([m for m, _ in spatial]), nfft, axis=1)  # (inputs, bins)
+        spectra = np.stack([self._spectrum(i, nfft) for _, i in spatial])  # (inputs, 2, bins)
+        y = np.fft.irfft(np.einsum("kb,keb->eb", x, spectra), nfft, axis=1)[:, : n + taps - 1]
+        if self._tail is not None:
+            y[:, : taps - 1] += self._tail
         out_l += y[0, :n]
         out_r += y[1, :n]
-        st.tail = y[:, n:].copy()
+        tail = y[:, n:]
+        self._tail = tail.copy() if np.abs(tail).max(initial=0.0) > 1e-9 else None
 
 
 #: Pan gains that put a voice in the left buffer alone (a mono voice, for binaural rendering).
