@@ -199,15 +199,17 @@ def _schedule_callback(realtime: bool) -> str:
     if not hasattr(os, "sched_getscheduler"):
         return "normal priority (no POSIX thread scheduling here)"
     # On Linux, pid 0 names the calling thread, not the whole process.
-    if os.sched_getscheduler(0) in (os.SCHED_FIFO, os.SCHED_RR):
-        return f"realtime, set by the audio server (priority {os.sched_getparam(0).sched_priority})"
-    if not realtime:
-        return "normal priority"
+    given = os.sched_getparam(0).sched_priority if os.sched_getscheduler(0) in (os.SCHED_FIFO, os.SCHED_RR) else 0
+    if not realtime or given >= RT_PRIORITY:
+        return f"realtime, set by the audio server (priority {given})" if given else "normal priority"
     try:
+        # Above the audio process's helpers (they take the interpreter lock too); a server's
+        # client priority (JACK's default is 5) is raised for the same reason.
         os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(RT_PRIORITY))
-    except OSError as exc:  # no CAP_SYS_NICE and no rtprio limit: play on at normal priority
-        return f"normal priority (realtime scheduling not permitted: {exc.strerror})"
-    return f"realtime (SCHED_FIFO {RT_PRIORITY}, asked by depthgram)"
+    except OSError as exc:  # no CAP_SYS_NICE and no rtprio limit: play on as the server set it
+        why = f"realtime scheduling not permitted: {exc.strerror}"
+        return f"realtime, set by the audio server (priority {given}; {why})" if given else f"normal priority ({why})"
+    return f"realtime (SCHED_FIFO {RT_PRIORITY}, asked by depthgram" + (f"; the server gave {given})" if given else ")")
 
 
 def _schedule_helpers() -> None:
@@ -227,6 +229,17 @@ def _schedule_helpers() -> None:
         try:
             os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(max(1, RT_PRIORITY - 10)))
         except OSError:  # not permitted: the callback's note says so
+            pass
+    if sys.platform.startswith("linux"):
+        # Keep the audio process's memory resident (mlockall(MCL_CURRENT | MCL_FUTURE)), as
+        # audio servers do: a page fault in the callback waits for the disk, whatever the priority.
+        import ctypes
+        import ctypes.util
+
+        try:
+            libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6", use_errno=True)
+            libc.mlockall(1 | 2)  # not permitted (RLIMIT_MEMLOCK): play on unlocked
+        except (OSError, AttributeError):
             pass
 
 
