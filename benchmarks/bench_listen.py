@@ -147,8 +147,11 @@ def live(seconds: float, device: int | str | None, realtime: bool = True) -> dic
     parts: dict[str, list[float]] = {"latency_ms": [], "pipeline_ms": [], "wait_ms": [], "dac_ms": []}
     pipeline_ms: list[float] = []  # pipeline.process alone, every frame
 
+    under_at: list[tuple[float, int]] = []  # (seconds into the stream, underflows so far) at each frame heard
+
     def collect() -> None:
         for e in audio.drain():
+            under_at.append((e.sample / SR, e.underflows))
             rec = e.record()
             for k, vals in parts.items():
                 if rec[k] is not None:
@@ -198,11 +201,27 @@ def live(seconds: float, device: int | str | None, realtime: bool = True) -> dic
         "underflows": stats["underflows"],
         "blocks": stats["blocks"],
         "callback": {"p50": float(np.median(cb)), "p95": float(np.percentile(cb, 95)), "max": float(cb.max())},
+        # When it went wrong: the blocks whose callback outran a block, and the underflows by minute.
+        "slow_callbacks_s": [round(i * BLOCK / SR, 1) for i in np.flatnonzero(cb > 1e3 * BLOCK / SR)],
+        "underflows_by_minute": _by_minute(under_at),
         "callback_share": float(cb.sum() / 1e3 / max(wall, 1e-9)),
         "audio_process_share": (c1.user + c1.system - c0.user - c0.system) / wall,
         "loop_share": (m1.user + m1.system - m0.user - m0.system) / wall,
         "distinct_voices": audio.chooser.distinct,
     }
+
+
+def _by_minute(marks: list[tuple[float, int]]) -> list[int]:
+    """Underflows in each minute of the stream, from (seconds, count so far) marks."""
+    out: list[int] = []
+    last = 0
+    for t, n in sorted(marks):
+        minute = int(t // 60)
+        while len(out) <= minute:
+            out.append(0)
+        out[minute] += n - last
+        last = n
+    return out
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -276,7 +295,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         )
         + f" (Pipeline.process alone {proc['p50']:.1f} / {proc['p95']:.1f} / {proc['max']:.1f})"
     )
-    print(f"  underflows {r['underflows']} in {r['blocks']} blocks (target 0)")
+    print(f"  underflows {r['underflows']} in {r['blocks']} blocks (target 0); by minute {r['underflows_by_minute']}")
+    slow = r["slow_callbacks_s"]
+    print(f"  callbacks longer than a block: {len(slow)}" + (f", at {slow[:12]} s into the stream" if slow else ""))
     print(
         f"  callback p50 {cb['p50']:.3f} ms, p95 {cb['p95']:.3f} ms, max {cb['max']:.3f} ms; "
         f"callbacks {100 * r['callback_share']:.1f} % of a core, audio process {100 * r['audio_process_share']:.1f} %, "

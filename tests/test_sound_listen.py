@@ -317,9 +317,43 @@ def test_listen_names_a_missing_folder_before_opening_any_device(tmp_path: Path,
 
 
 def _voices() -> dict[tuple[str, int], Voice]:
-    beep = Voice(("o", 7), 440.0, 440.0, 0.5, 0.5, (0.8, 0.6), (0.8, 0.6), 5.0, 0.06, 3, 0.25)
-    glide = Voice(("g", 2), 600.0, 400.0, 0.2, 0.1, (0.9, 0.3), (0.4, 0.9), 0.0, 0.0, 1, 0.0)
+    beep = Voice(("o", 7), 440.0, 440.0, 0.5, 0.5, (0.8, 0.6), (0.8, 0.6), 5.0, 0.06, 3, 0.25, -12.5, 4.0)
+    glide = Voice(("g", 2), 600.0, 400.0, 0.2, 0.1, (0.9, 0.3), (0.4, 0.9), 0.0, 0.0, 1, 0.0)  # no direction
     return {beep.key: beep, glide.key: glide}
+
+
+def test_binaural_listen_plays_a_voice_on_the_left_then_on_the_right(jack: dict[str, str], tmp_path: Path) -> None:
+    pytest.importorskip("slab", reason="the KEMAR set ships with slab: pip install 'depthgram[binaural]'")
+    copy = tmp_path / "played.wav"
+    code = f"""
+import sys, time
+from depthgram.sound.live import AudioProcess
+from depthgram.sound.synth import Voice
+
+def main():
+    audio = AudioProcess(None, {SR}, (640, 480), None, 256, {str(copy)!r}, binaural="kemar")
+    for i, az in enumerate((-60.0, 60.0)):
+        v = Voice(("o", 1), 220.0, 220.0, 0.5, 0.5, (0.7, 0.7), (0.7, 0.7), 6.0, 0.06, 4, 0.0, az, 0.0)
+        audio.set_targets({{v.key: v}}, frame=i)
+        time.sleep(1.5)
+    print(sorted(e.frame for e in audio.drain()), audio.stop()["blocks"])
+
+if __name__ == "__main__":
+    main()
+"""
+    script = tmp_path / "play.py"
+    script.write_text(code)
+    run = subprocess.run([sys.executable, str(script)], env=jack, capture_output=True, text=True, timeout=180)
+    assert run.returncode == 0, run.stderr
+    played, sr = sf.read(copy, dtype="float64")
+    # Each half of what the device played: the louder and earlier ear is the voice's side.
+    half = len(played) // 2
+    for part, side in ((played[int(0.3 * sr) : half - int(0.2 * sr)], -1), (played[half + int(0.3 * sr) :], 1)):
+        left, right = part[:, 0], part[:, 1]
+        ild = 10 * np.log10((right**2).mean() / (left**2).mean())
+        lags = np.arange(-48, 49)
+        lag = lags[int(np.argmax([np.dot(left[48:-48], np.roll(right, -k)[48:-48]) for k in lags]))]
+        assert side * ild > 2.0 and -side * lag / SR * 1e3 > 0.4, (side, ild, lag)
 
 
 def test_target_slot_carries_the_newest_voices_across_processes_memory() -> None:
