@@ -99,19 +99,30 @@ def test_direction_comes_from_the_intrinsics() -> None:
     assert v.azimuth is not None and v.azimuth < -20 and v.elevation == pytest.approx(0.0)
 
 
+def _write_sofa(path: Path, ir: np.ndarray, positions: list[list[float]], samplerate: int) -> None:
+    """A minimal SimpleFreeFieldHRIR file, as SOFA writers lay it out (netCDF-4)."""
+    netCDF4 = pytest.importorskip(
+        "netCDF4", reason="SOFA files are read with netCDF4: pip install 'depthgram[binaural]'"
+    )
+    with netCDF4.Dataset(str(path), "w", format="NETCDF4") as ds:
+        ds.Conventions, ds.SOFAConventions = "SOFA", "SimpleFreeFieldHRIR"
+        for name, size in (("M", ir.shape[0]), ("R", 2), ("N", ir.shape[2]), ("C", 3), ("I", 1)):
+            ds.createDimension(name, size)
+        ds.createVariable("Data.IR", "f8", ("M", "R", "N"))[:] = ir
+        pos = ds.createVariable("SourcePosition", "f8", ("M", "C"))
+        pos.Type, pos.Units = "spherical", "degree, degree, metre"
+        pos[:] = positions
+        ds.createVariable("Data.SamplingRate", "f8", ("I",))[:] = samplerate
+
+
 def test_a_sofa_file_is_read_with_the_azimuth_turned_to_the_right(tmp_path: Path) -> None:
-    sofar = pytest.importorskip("sofar", reason="SOFA files are read with sofar: pip install 'depthgram[binaural]'")
     from depthgram.sound.binaural import read_sofa
 
-    s = sofar.Sofa("SimpleFreeFieldHRIR")
     ir = np.zeros((2, 2, 64))
     ir[0, 0, 5], ir[0, 1, 20] = 1.0, 0.5  # SOFA azimuth 90: to the left, the left ear first and louder
     ir[1, 0, 20], ir[1, 1, 5] = 0.5, 1.0  # SOFA azimuth 270: to the right
-    s.Data_IR = ir
-    s.Data_SamplingRate = 44100
-    s.SourcePosition = [[90, 0, 1.2], [270, 0, 1.2]]
     path = tmp_path / "two.sofa"
-    sofar.write_sofa(str(path), s)
+    _write_sofa(path, ir, [[90, 0, 1.2], [270, 0, 1.2]], 44100)
     got = read_sofa(path)
     assert got.samplerate == 44100 and got.irs.shape == (2, 2, 64)
     assert got.azimuth_deg.tolist() == pytest.approx([-90.0, 90.0])
@@ -120,6 +131,13 @@ def test_a_sofa_file_is_read_with_the_azimuth_turned_to_the_right(tmp_path: Path
     assert at48.samplerate == SR and at48.irs.shape == (2, 2, 64)
     left = at48.irs[0]
     assert np.abs(left[0]).argmax() < np.abs(left[1]).argmax()  # the left ear first
+    # What is not a SOFA HRIR file is named as such.
+    bad = tmp_path / "bad.sofa"
+    bad.write_bytes(b"not netCDF")
+    from depthgram.errors import InputError
+
+    with pytest.raises(InputError, match="not a readable SOFA"):
+        read_sofa(bad)
 
 
 def test_a_missing_sofa_file_is_named() -> None:

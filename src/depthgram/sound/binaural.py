@@ -5,7 +5,7 @@ its direction is heard from that direction: left/right from the interaural time 
 differences, up/down and front from the pinna's spectral notches. This module holds a set of
 HRIRs (:class:`HRIRSet`), read from the KEMAR measurements the ``slab`` package ships (MIT,
 Gardner and Martin 1994, 710 directions, elevation -40..90 degrees) or from any SOFA file
-through ``sofar``; :class:`depthgram.sound.synth.VoiceBank` convolves each voice with the
+(read with ``netCDF4``); :class:`depthgram.sound.synth.VoiceBank` convolves each voice with the
 nearest direction's pair (extra ``[binaural]``).
 """
 
@@ -139,34 +139,50 @@ def kemar() -> HRIRSet:
 
 
 def read_sofa(path: str | Path) -> HRIRSet:
-    """Return the responses of a SOFA file (convention SimpleFreeFieldHRIR) read with ``sofar``."""
+    """Return the responses of a SOFA file (convention SimpleFreeFieldHRIR), read with ``netCDF4``.
+
+    A SOFA file is a netCDF-4 file: ``Data.IR`` (directions, 2 ears, taps), ``SourcePosition``
+    (azimuth and elevation in degrees, or x, y, z with ``Type = "cartesian"``) and
+    ``Data.SamplingRate``. (``sofar`` reads it too, but its wheel installs a top-level ``tests``
+    package that shadows a project's own.)
+    """
     from depthgram._optional import needs_extra
 
     with needs_extra("binaural", "reading a SOFA file"):
-        import sofar
+        import netCDF4
 
     p = Path(path)
     if not p.is_file():
         raise InputError(f"SOFA file {p} does not exist")
     try:
-        s = sofar.read_sofa(str(p), verify=False)
-    except Exception as exc:  # sofar raises several kinds for a file that is not SOFA
-        raise InputError(f"{p}: not a readable SOFA file: {exc}") from exc
-    ir = np.asarray(getattr(s, "Data_IR", None))
-    pos = np.asarray(getattr(s, "SourcePosition", None), dtype=np.float64)
-    if ir.ndim != 3 or ir.shape[1] != 2 or pos.ndim != 2 or len(pos) != len(ir):
+        with netCDF4.Dataset(str(p), "r") as ds:
+            ds.set_auto_mask(False)
+            var = ds.variables
+            missing = [k for k in ("Data.IR", "SourcePosition", "Data.SamplingRate") if k not in var]
+            if missing:
+                raise InputError(f"{p}: not a SOFA HRIR file: no variable {', '.join(missing)}")
+            ir = np.asarray(var["Data.IR"][:], dtype=np.float64)
+            pos = np.asarray(var["SourcePosition"][:], dtype=np.float64)
+            kind = str(getattr(var["SourcePosition"], "Type", "spherical")).lower()
+            sr = round(float(np.asarray(var["Data.SamplingRate"][:]).ravel()[0]))
+    except OSError as exc:  # netCDF4 says so for a file that is not netCDF
+        raise InputError(f"{p}: not a readable SOFA (netCDF-4) file: {exc}") from exc
+    if pos.ndim == 1:
+        pos = pos[None, :]
+    if pos.shape[0] == 1 and len(ir) > 1:
+        pos = np.repeat(pos, len(ir), axis=0)
+    if ir.ndim != 3 or ir.shape[1] != 2 or pos.ndim != 2 or len(pos) != len(ir) or pos.shape[1] < 2:
         raise InputError(
-            f"{p}: expected Data_IR of shape (directions, 2 ears, taps) and one SourcePosition per direction "
+            f"{p}: expected Data.IR of shape (directions, 2 ears, taps) and one SourcePosition per direction "
             f"(convention SimpleFreeFieldHRIR), got {ir.shape} and {pos.shape}"
         )
-    if "cartesian" in str(getattr(s, "SourcePosition_Type", "spherical")).lower():
+    if "cartesian" in kind:
         x, y, z = pos[:, 0], pos[:, 1], pos[:, 2]
         az_left, el = np.degrees(np.arctan2(y, x)), np.degrees(np.arctan2(z, np.hypot(x, y)))
     else:
         az_left, el = pos[:, 0], pos[:, 1]
-    sr = int(np.asarray(s.Data_SamplingRate).ravel()[0])
     az = (-az_left + 180.0) % 360.0 - 180.0  # SOFA's azimuth turns to the left
-    return HRIRSet(sr, az, el.astype(np.float64), ir.astype(np.float64), str(p))
+    return HRIRSet(sr, az, np.asarray(el, dtype=np.float64), ir, str(p))
 
 
 def load_hrirs(spec: str, samplerate: int) -> HRIRSet:

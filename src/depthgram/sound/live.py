@@ -817,9 +817,9 @@ def _check_binaural(spec: str) -> None:
         return
     if not Path(spec).is_file():
         raise InputError(f"--binaural {spec}: expected 'kemar' or the path of a SOFA file; there is no such file")
-    if missing("sofar"):
+    if missing("netCDF4"):
         raise MissingExtraError(
-            "reading a SOFA file needs the optional package 'sofar': pip install 'depthgram[binaural]'"
+            "reading a SOFA file needs the optional package 'netCDF4': pip install 'depthgram[binaural]'"
         )
 
 
