@@ -202,7 +202,7 @@ def live(seconds: float, device: int | str | None, realtime: bool = True) -> dic
         "blocks": stats["blocks"],
         "callback": {"p50": float(np.median(cb)), "p95": float(np.percentile(cb, 95)), "max": float(cb.max())},
         # When it went wrong: the blocks whose callback outran a block, and the underflows by minute.
-        "slow_callbacks_s": [round(i * BLOCK / SR, 1) for i in np.flatnonzero(cb > 1e3 * BLOCK / SR)],
+        "slow_callbacks_s": [round(float(i) * BLOCK / SR, 1) for i in np.flatnonzero(cb > 1e3 * BLOCK / SR)],
         "underflows_by_minute": _by_minute(under_at),
         "callback_share": float(cb.sum() / 1e3 / max(wall, 1e-9)),
         "audio_process_share": (c1.user + c1.system - c0.user - c0.system) / wall,

@@ -580,8 +580,6 @@ def _serve(
     # sends "stop"), so the sound fades out instead of breaking off mid-block.
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     slot = TargetSlot(shared)
-    if realtime:
-        _schedule_helpers()
 
     def poll() -> None:
         update = slot.take()
@@ -600,6 +598,11 @@ def _serve(
 
             hrirs = load_hrirs(binaural, samplerate)
         live = LiveSonifier(mapping, samplerate, (2, 2), hrirs)
+        live.warm_up()
+        if realtime:
+            # Only now: loading the HRIRs and compiling the kernels take seconds of CPU, which
+            # at a realtime priority would hold off everything else on that core.
+            _schedule_helpers()
         player = LivePlayer(
             live, device, block, copy=out.write if out is not None else None, poll=poll, realtime=realtime
         )
