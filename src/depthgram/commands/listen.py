@@ -107,7 +107,7 @@ def run(args: argparse.Namespace) -> int:
         realtime=args.realtime,
         binaural=args.binaural,
     )
-    print(f"audio callback: {audio.priority}; device latency {1e3 * audio.latency_s:.1f} ms", file=sys.stderr)
+    print(f"audio callback: {audio.priority}; PortAudio output latency {1e3 * audio.latency_s:.1f} ms", file=sys.stderr)
     parts: dict[str, list[float]] = {"latency_ms": [], "pipeline_ms": [], "wait_ms": [], "dac_ms": []}
     played = dropped = 0
 
