@@ -31,14 +31,18 @@ SEVEN_SCENES = ROOT.parent / "shared" / "data" / "7scenes_redkitchen_seq"
 SR, BLOCK = 48000, 256
 
 
-def _jack() -> subprocess.Popen[bytes] | None:
-    """Start a JACK dummy server for this process and its children; None when jackd is missing."""
+def _jack(realtime: bool) -> subprocess.Popen[bytes] | None:
+    """Start a JACK dummy server for this process and its children; None when jackd is missing.
+
+    ``realtime``: ``jackd -R`` (its driver and clients' process threads SCHED_FIFO), as an audio
+    system runs; else ``--no-realtime``, where even an idle client underflows on a loaded machine.
+    """
     if shutil.which("jackd") is None or shutil.which("jack_lsp") is None:
         return None
     os.environ["JACK_DEFAULT_SERVER"] = f"depthgram-bench-{os.getpid()}"
     os.environ["JACK_NO_AUDIO_RESERVATION"] = "1"
     proc = subprocess.Popen(
-        ["jackd", "--no-realtime", "-d", "dummy", "-r", str(SR), "-p", str(BLOCK)],
+        ["jackd", "-R" if realtime else "--no-realtime", "-d", "dummy", "-r", str(SR), "-p", str(BLOCK)],
         stdout=subprocess.DEVNULL,
         stderr=subprocess.DEVNULL,
     )
@@ -64,13 +68,21 @@ def _frames(seconds: float) -> tuple[str, Iterator[Any]]:
     return spec, itertools.islice(loop(), n)
 
 
-def synthesis_share(reps: int = 2000) -> dict[str, float]:
-    """CPU share of one core (thread time / audio time) to render 6 beeps and 3 glides in 256-sample blocks."""
+def synthesis_share(reps: int = 2000, binaural: bool = False) -> dict[str, float]:
+    """CPU share of one core (thread time / audio time) to render 6 beeps and 3 glides in 256-sample blocks.
+
+    ``binaural``: through slab's KEMAR responses, each voice from its own direction.
+    """
     from depthgram.sound import SoundMapping
-    from depthgram.sound.synth import Voice, _Bank
+    from depthgram.sound.synth import Voice, VoiceBank
 
     m = SoundMapping(max_voices=6)
-    bank = _Bank(m, SR)
+    hrirs = None
+    if binaural:
+        from depthgram.sound.binaural import load_hrirs
+
+        hrirs = load_hrirs("kemar", SR)
+    bank = VoiceBank(m, SR, hrirs)
     bank.warm_up()
     targets = {}
     for i in range(6):
@@ -86,10 +98,12 @@ def synthesis_share(reps: int = 2000) -> dict[str, float]:
             0.08,
             3,
             0.0,
+            -60.0 + 24.0 * i,
+            10.0 * (i % 3) - 10.0,
         )
         targets[v.key] = v
     for j in range(3):
-        g = Voice(("g", j), 500.0, 300.0, 0.2, 0.1, (0.9, 0.3), (0.3, 0.9), 0.0, 0.0, 1, 0.0)
+        g = Voice(("g", j), 500.0, 300.0, 0.2, 0.1, (0.9, 0.3), (0.3, 0.9), 0.0, 0.0, 1, 0.0, 30.0 * j - 30.0, -20.0)
         targets[g.key] = g
     for _ in range(50):
         bank.render(targets, BLOCK)
@@ -106,10 +120,12 @@ def _nudge(v: Any, k: int) -> Any:
     from dataclasses import replace
 
     f = 1.0 + 0.001 * (k % 7)
-    return replace(v, freq_a=v.freq_a * f, freq_b=v.freq_b * f, gain_a=v.gain_a * 0.999)
+    # The direction moves too: a binaural voice changes filters (a cross-fade) on most frames.
+    az = None if v.azimuth is None else v.azimuth + (5.0 if k % 2 else -5.0)
+    return replace(v, freq_a=v.freq_a * f, freq_b=v.freq_b * f, gain_a=v.gain_a * 0.999, azimuth=az)
 
 
-def live(seconds: float, device: int | str | None) -> dict[str, Any]:
+def live(seconds: float, device: int | str | None, realtime: bool = True) -> dict[str, Any]:
     """Play ``seconds`` of the loop; return the figures."""
     import gc
 
@@ -125,10 +141,23 @@ def live(seconds: float, device: int | str | None) -> dict[str, Any]:
     first = next(src)
     pipe = Pipeline()
     pipe.warm_up(first)
-    audio = AudioProcess(None, SR, first.size, device, BLOCK)
+    audio = AudioProcess(None, SR, first.size, device, BLOCK, realtime=realtime)
     child = psutil.Process(audio._proc.pid)
     me = psutil.Process()
-    latencies: list[float] = []
+    parts: dict[str, list[float]] = {"latency_ms": [], "pipeline_ms": [], "wait_ms": [], "dac_ms": []}
+    pipeline_ms: list[float] = []  # pipeline.process alone, every frame
+
+    under_at: list[tuple[float, int]] = []  # (seconds into the stream, underflows so far) at each frame heard
+
+    def collect() -> None:
+        for e in audio.drain():
+            under_at.append((e.sample / SR, e.underflows))
+            rec = e.record()
+            for k, vals in parts.items():
+                if rec[k] is not None:
+                    vals.append(rec[k])
+
+    load0 = os.getloadavg()
     dropped = played = 0
     gc.freeze()
     c0, m0, t0 = child.cpu_times(), me.cpu_times(), time.perf_counter()
@@ -143,16 +172,19 @@ def live(seconds: float, device: int | str | None) -> dict[str, Any]:
             wait = pacer.wait_s()
             if wait > 0:
                 time.sleep(wait)
-            arrival = time.perf_counter()
+            arrival = pacer.due  # when a camera would have delivered it, even if the loop comes later
+            t_p = time.perf_counter()
             r = pipe.process(frame)
+            pipeline_ms.append(1e3 * (time.perf_counter() - t_p))
             audio.update(r.tree, r.segmentation.objects, frame=played, arrival_s=arrival, intrinsics=frame.intrinsics)
             played += 1
-            latencies += [e.latency_ms for e in audio.drain() if e.latency_ms is not None]
+            collect()
         c1, m1, t1 = child.cpu_times(), me.cpu_times(), time.perf_counter()
     finally:
         gc.unfreeze()
         stats = audio.stop()
-    latencies += [e.latency_ms for e in audio.drain() if e.latency_ms is not None]
+    collect()
+    load1 = os.getloadavg()
     wall = t1 - t0
     cb = np.asarray(stats["callback_s"]) * 1e3
     return {
@@ -160,15 +192,36 @@ def live(seconds: float, device: int | str | None) -> dict[str, Any]:
         "seconds": wall,
         "frames": played,
         "dropped": dropped,
-        "latency": percentiles(latencies),
+        "latency": percentiles(parts["latency_ms"]),
+        "parts": {k: percentiles(v) for k, v in parts.items() if k != "latency_ms"},
+        "process_ms": percentiles(pipeline_ms),
+        "load": (load0, load1),
+        "priority": stats["priority"],
+        "superseded": stats["superseded"],
         "underflows": stats["underflows"],
         "blocks": stats["blocks"],
         "callback": {"p50": float(np.median(cb)), "p95": float(np.percentile(cb, 95)), "max": float(cb.max())},
+        # When it went wrong: the blocks whose callback outran a block, and the underflows by minute.
+        "slow_callbacks_s": [round(float(i) * BLOCK / SR, 1) for i in np.flatnonzero(cb > 1e3 * BLOCK / SR)],
+        "underflows_by_minute": _by_minute(under_at),
         "callback_share": float(cb.sum() / 1e3 / max(wall, 1e-9)),
         "audio_process_share": (c1.user + c1.system - c0.user - c0.system) / wall,
         "loop_share": (m1.user + m1.system - m0.user - m0.system) / wall,
         "distinct_voices": audio.chooser.distinct,
     }
+
+
+def _by_minute(marks: list[tuple[float, int]]) -> list[int]:
+    """Underflows in each minute of the stream, from (seconds, count so far) marks."""
+    out: list[int] = []
+    last = 0
+    for t, n in sorted(marks):
+        minute = int(t // 60)
+        while len(out) <= minute:
+            out.append(0)
+        out[minute] += n - last
+        last = n
+    return out
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -177,6 +230,18 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument("--quick", action="store_true", help="10 s of play instead of --seconds")
     p.add_argument("--seconds", type=float, default=60.0, help="seconds of play (default 60)")
     p.add_argument("--device", default=None, help="PortAudio output device (default: a JACK dummy server)")
+    p.add_argument(
+        "--server",
+        choices=("realtime", "normal"),
+        default="realtime",
+        help="the JACK dummy server's scheduling: jackd -R (default) or --no-realtime",
+    )
+    p.add_argument(
+        "--no-realtime-callback",
+        dest="realtime",
+        action="store_false",
+        help="leave the audio callback at normal priority (as `listen --no-realtime`)",
+    )
     args = p.parse_args(argv)
     seconds = 10.0 if args.quick else args.seconds
     syn = synthesis_share()
@@ -184,28 +249,55 @@ def main(argv: Sequence[str] | None = None) -> int:
         f"synthesis, 6 beeps + 3 glides, {BLOCK}-sample blocks at {SR} Hz: {syn['block_us']:.0f} us a block, "
         f"{100 * syn['share']:.1f} % of one core (target <= 5 %)"
     )
+    import importlib.util
+
+    if importlib.util.find_spec("slab") is not None:
+        b = synthesis_share(binaural=True)
+        print(
+            f"  binaural (KEMAR, 256 taps), the same voices: {b['block_us']:.0f} us a block, "
+            f"{100 * b['share']:.1f} % of one core"
+        )
     jack = None
     if args.device is None:
-        jack = _jack()
+        jack = _jack(args.server == "realtime")
         if jack is None:
             print("listen: no --device and no jackd (Debian jackd2) to start a dummy device: live part skipped")
             return 0
     device = int(args.device) if args.device and args.device.isdigit() else args.device
     try:
-        r = live(seconds, device)
+        r = live(seconds, device, args.realtime)
     finally:
         if jack is not None:
             jack.terminate()
             jack.wait(timeout=10)
     lat, cb = r["latency"], r["callback"]
-    where = args.device or "JACK dummy (jackd --no-realtime -d dummy -r 48000 -p 256)"
+    mode = "-R" if args.server == "realtime" else "--no-realtime"
+    where = args.device or f"JACK dummy (jackd {mode} -d dummy -r 48000 -p 256)"
     print(f"input {r['input']} (640x480) at 30 frames/s for {r['seconds']:.1f} s to {where}")
-    print(f"  frames played {r['frames']}, dropped late {r['dropped']}; {r['distinct_voices']} distinct voices")
+    print(
+        f"  load average {r['load'][0][0]:.2f} at the start, {r['load'][1][0]:.2f} at the end "
+        f"({os.cpu_count()} cores); audio callback {r['priority']}"
+    )
+    print(
+        f"  frames played {r['frames']}, dropped late {r['dropped']}, replaced before heard {r['superseded']}; "
+        f"{r['distinct_voices']} distinct voices"
+    )
     print(
         f"  latency frame -> DAC: p50 {lat['p50']:.1f} ms, p95 {lat['p95']:.1f} ms, max {lat['max']:.1f} ms "
         "(targets 60 / 100 / 150)"
     )
-    print(f"  underflows {r['underflows']} in {r['blocks']} blocks (target 0)")
+    parts, proc = r["parts"], r["process_ms"]
+    print(
+        "  latency by part, p50 / p95 / max (ms): "
+        + "; ".join(
+            f"{name} {parts[k]['p50']:.1f} / {parts[k]['p95']:.1f} / {parts[k]['max']:.1f}"
+            for name, k in (("pipeline", "pipeline_ms"), ("to the next block", "wait_ms"), ("device", "dac_ms"))
+        )
+        + f" (Pipeline.process alone {proc['p50']:.1f} / {proc['p95']:.1f} / {proc['max']:.1f})"
+    )
+    print(f"  underflows {r['underflows']} in {r['blocks']} blocks (target 0); by minute {r['underflows_by_minute']}")
+    slow = r["slow_callbacks_s"]
+    print(f"  callbacks longer than a block: {len(slow)}" + (f", at {slow[:12]} s into the stream" if slow else ""))
     print(
         f"  callback p50 {cb['p50']:.3f} ms, p95 {cb['p95']:.3f} ms, max {cb['max']:.3f} ms; "
         f"callbacks {100 * r['callback_share']:.1f} % of a core, audio process {100 * r['audio_process_share']:.1f} %, "

@@ -64,9 +64,19 @@ async def _ws_page(url: str, sound: bool) -> dict[str, Any]:
     shown = 0
     last: dict[str, Any] = {}
     async with websockets.connect(url, max_size=None) as ws:
-        await ws.recv()  # hello
+        hello = json.loads(await ws.recv())
+        ask: asyncio.Task[None] | None = None
         if sound:
             await ws.send(json.dumps({"type": "sound", "on": True}))
+            block = hello.get("samplerate", 22050) // 50
+
+            async def pull() -> None:
+                # As the page's AudioWorklet: 20 ms of sound asked for every 20 ms of (wall) audio clock.
+                while True:
+                    await ws.send(json.dumps({"type": "audio", "need": block}))
+                    await asyncio.sleep(0.02)
+
+            ask = asyncio.get_running_loop().create_task(pull())
         while True:
             raw = await ws.recv()
             msg = unpack_frame(raw)[0] if isinstance(raw, bytes) else json.loads(raw)
@@ -77,6 +87,8 @@ async def _ws_page(url: str, sound: bool) -> dict[str, Any]:
             await ws.send(json.dumps({"type": "ack", "index": msg["index"]}))
             shown += 1
             last = msg
+        if ask is not None:
+            ask.cancel()
     return {"shown": shown, "dropped": last.get("dropped", 0)}
 
 

@@ -19,8 +19,8 @@ def test_lesson_writes_each_cue_with_its_line(tmp_path: Path, capsys: pytest.Cap
     m = SoundMapping.preset("calm")
     lines = (tmp_path / "calm" / "lesson.txt").read_text().splitlines()[1:]
     names = [ln.split(":")[0] for ln in lines]
-    assert names == sorted(p.name for p in (tmp_path / "calm").glob("*.wav")) and len(names) == 9
-    assert capsys.readouterr().out.count(".wav:") == 9
+    assert names == sorted(p.name for p in (tmp_path / "calm").glob("*.wav")) and len(names) == 10
+    assert capsys.readouterr().out.count(".wav:") == 10
     sr = 22050
 
     def wav(name: str) -> np.ndarray:
@@ -51,6 +51,18 @@ def test_lesson_writes_each_cue_with_its_line(tmp_path: Path, capsys: pytest.Cap
     assert halves[1].rate_hz == pytest.approx(m.rate(650.0, 0.65), rel=0.15)
     assert halves[1].rate_hz > 1.15 * halves[0].rate_hz
     # The wall ahead hums: one steady tone at the middle row's pitch, no beeps, level all along.
+    # Height against the horizon: the same object with the camera level and tilted 20 degrees
+    # down sounds at one pitch (the middle of the range); one 20 degrees above eye level higher.
+    tilt = wav("10-tilted-camera")
+    part = len(tilt) // 3
+    level, tilted, higher = (tilt[i * part : (i + 1) * part] for i in range(3))
+    hz_eye = float(lines[9].split("level (")[1].split(" Hz")[0])
+    hz_up = float(lines[9].split("eye level (")[1].split(" Hz")[0])
+    assert hz_eye == pytest.approx(m.pitch_elevation(0.0), rel=0.1)  # the middle of the range, on the ladder
+    assert hz_up >= 2 ** (m.min_semitones / 12) * hz_eye - 1
+    for part_audio, hz in ((level, hz_eye), (tilted, hz_eye), (higher, hz_up)):
+        heard = listen(part_audio, sr, hz, window_s=0.1)
+        assert heard.times.size >= 2 and heard.pitch_hz == pytest.approx(hz, rel=0.02)
     ahead = wav("09-wall-ahead")
     assert "steady hum" in lines[8]
     body = ahead[sr // 10 : -sr // 10, 0]

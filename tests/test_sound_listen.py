@@ -10,6 +10,7 @@ from __future__ import annotations
 import io
 import itertools
 import json
+import multiprocessing
 import os
 import re
 import shutil
@@ -28,7 +29,7 @@ from numpy.testing import assert_allclose
 from depthgram.scene.tree import Node, SceneTree
 from depthgram.sound import SoundMapping
 from depthgram.sound.choose import Chooser, distinguishable
-from depthgram.sound.live import LiveSonifier
+from depthgram.sound.live import LiveSonifier, TargetSlot
 from depthgram.sound.synth import Voice, VoiceBank
 from sound_decode import listen
 
@@ -163,6 +164,11 @@ def test_listen_plays_the_approach_through_jack(jack: dict[str, str], tmp_path: 
     played_n, dropped_n, replaced_n = map(int, counts.groups())
     assert played_n + dropped_n == 75 and len(lines) == played_n - replaced_n
     assert all(x["latency_ms"] > 0 for x in lines)  # the DAC plays a frame after it arrived
+    # The latency is split where it goes: the pipeline, the wait for the next block, the device.
+    for x in lines:
+        assert x["pipeline_ms"] > 0 and x["wait_ms"] >= 0 and x["dac_ms"] >= 0, x
+        assert x["pipeline_ms"] + x["wait_ms"] + x["dac_ms"] == pytest.approx(x["latency_ms"], abs=0.01)
+    assert "audio callback:" in err and "latency p50 by part: pipeline" in out
     under = [x["underflows"] for x in lines]
     assert under == sorted(under) and all(isinstance(u, int) for u in under)
     total = re.search(r"(\d+) underflow\(s\) in (\d+) blocks", out)
@@ -308,3 +314,87 @@ def test_listen_names_a_missing_folder_before_opening_any_device(tmp_path: Path,
     assert f"--log {missing}" in err and "does not exist" in err
     assert main(["listen", "sim:table?frames=2", "--block", "8"]) == 2
     assert "--block must be between 16 and 16384" in capsys.readouterr().err
+
+
+def _voices() -> dict[tuple[str, int], Voice]:
+    beep = Voice(("o", 7), 440.0, 440.0, 0.5, 0.5, (0.8, 0.6), (0.8, 0.6), 5.0, 0.06, 3, 0.25, -12.5, 4.0)
+    glide = Voice(("g", 2), 600.0, 400.0, 0.2, 0.1, (0.9, 0.3), (0.4, 0.9), 0.0, 0.0, 1, 0.0)  # no direction
+    return {beep.key: beep, glide.key: glide}
+
+
+def test_binaural_listen_plays_a_voice_on_the_left_then_on_the_right(jack: dict[str, str], tmp_path: Path) -> None:
+    pytest.importorskip("slab", reason="the KEMAR set ships with slab: pip install 'depthgram[binaural]'")
+    copy = tmp_path / "played.wav"
+    code = f"""
+import sys, time
+from depthgram.sound.live import AudioProcess
+from depthgram.sound.synth import Voice
+
+def main():
+    audio = AudioProcess(None, {SR}, (640, 480), None, 256, {str(copy)!r}, binaural="kemar")
+    for i, az in enumerate((-60.0, 60.0)):
+        v = Voice(("o", 1), 220.0, 220.0, 0.5, 0.5, (0.7, 0.7), (0.7, 0.7), 6.0, 0.06, 4, 0.0, az, 0.0)
+        audio.set_targets({{v.key: v}}, frame=i)
+        time.sleep(1.5)
+    print(sorted(e.frame for e in audio.drain()), audio.stop()["blocks"])
+
+if __name__ == "__main__":
+    main()
+"""
+    script = tmp_path / "play.py"
+    script.write_text(code)
+    run = subprocess.run([sys.executable, str(script)], env=jack, capture_output=True, text=True, timeout=180)
+    assert run.returncode == 0, run.stderr
+    played, sr = sf.read(copy, dtype="float64")
+    # Each half of what the device played: the louder and earlier ear is the voice's side.
+    half = len(played) // 2
+    for part, side in ((played[int(0.3 * sr) : half - int(0.2 * sr)], -1), (played[half + int(0.3 * sr) :], 1)):
+        left, right = part[:, 0], part[:, 1]
+        ild = 10 * np.log10((right**2).mean() / (left**2).mean())
+        lags = np.arange(-48, 49)
+        lag = lags[int(np.argmax([np.dot(left[48:-48], np.roll(right, -k)[48:-48]) for k in lags]))]
+        assert side * ild > 2.0 and -side * lag / SR * 1e3 > 0.4, (side, ild, lag)
+
+
+def test_target_slot_carries_the_newest_voices_across_processes_memory() -> None:
+    ctx = multiprocessing.get_context("spawn")
+    writer = TargetSlot.create(ctx, 4)
+    reader = TargetSlot(writer.shared)  # what the audio process makes of the memory it is handed
+    assert reader.take() is None  # nothing written yet
+    writer.put(_voices(), 3, 10.0, 10.02)
+    got = reader.take()
+    assert got is not None and got.targets == _voices() and (got.frame, got.arrival_s, got.sent_s) == (3, 10.0, 10.02)
+    assert reader.take() is None  # taken once
+    # Two writes before the reader looks: the newest is voiced, the older counted as superseded.
+    writer.put({}, 4, None, 11.0)
+    writer.put(_voices(), 5, 11.5, 11.6)
+    got = reader.take()
+    assert got is not None and got.frame == 5 and reader.superseded == 1 and reader.taken == 2
+    writer.put({}, 6, None, 12.0)
+    got = reader.take()
+    assert got is not None and got.targets == {} and got.arrival_s is None
+
+
+def test_target_slot_reader_skips_a_write_caught_half_done() -> None:
+    ctx = multiprocessing.get_context("spawn")
+    writer = TargetSlot.create(ctx, 4)
+    reader = TargetSlot(writer.shared)
+    writer.put(_voices(), 1, 1.0, 1.0)
+    a = np.frombuffer(writer.shared, dtype=np.float64)
+    a[0] += 1  # a writer is under way: odd sequence
+    assert reader.take() is None
+    a[0] += 1  # finished, but the body does not match its checksum (torn)
+    a[-1] = a[0]
+    a[8] += 1.0
+    assert reader.take() is None and reader.retries == 1
+    writer.put(_voices(), 2, 2.0, 2.0)  # the next whole write is taken
+    got = reader.take()
+    assert got is not None and got.frame == 2
+
+
+def test_target_slot_names_what_does_not_fit() -> None:
+    writer = TargetSlot.create(multiprocessing.get_context("spawn"), 1)
+    with pytest.raises(Exception, match="at most 1"):
+        writer.put(_voices(), 0, None, 0.0)
+    with pytest.raises(Exception, match="kind must be one of"):
+        writer.put({("x", 1): next(iter(_voices().values()))}, 0, None, 0.0)

@@ -289,28 +289,87 @@ def test_a_pause_while_behind_ends_on_the_newest_frame_read_and_a_step_shows_the
     assert state["processed"] + state["dropped"] == k + 2  # every frame read is shown or counted
 
 
-def test_sound_is_sent_to_pages_that_turn_it_on_and_lasts_as_long_as_the_frames() -> None:
+def _glide_track(audio: np.ndarray, sr: int, lo: float, hi: float) -> np.ndarray:
+    """The strongest frequency (Hz) between ``lo`` and ``hi`` in successive 64-ms windows."""
+    n, pad = round(0.064 * sr), 1 << 15
+    f = np.fft.rfftfreq(pad, 1 / sr)
+    band = np.flatnonzero((f >= lo) & (f <= hi))
+    out = []
+    for a in range(0, len(audio) - n, n // 2):
+        spec = np.abs(np.fft.rfft(audio[a : a + n].sum(axis=1) * np.hanning(n), pad))
+        j = int(band[np.argmax(spec[band])])
+        p, q, r = np.log(spec[j - 1 : j + 2] + 1e-12)
+        out.append(f[j] + 0.5 * (p - r) / (p - 2 * q + r) * (f[1] - f[0]))
+    return np.asarray(out)
+
+
+def test_sound_is_the_live_renderer_paced_by_the_page_and_glides_over_the_surfaces_extent() -> None:
     pytest.importorskip("depthgram.sound", reason="the sound stage is not installed")
-    with _client(create_app(_sim_player(playing=False, loop=False, samplerate=8000))) as client:
+    from dataclasses import replace
+
+    from depthgram.sound import SoundMapping
+    from depthgram.sound.choose import Chooser
+
+    sr = 16000
+    mapping = SoundMapping(max_voices=0, max_glides=1)  # the nearest surface alone: its glide is read back
+    src = open_source(SPEC)
+    config = replace(Config(), sound=mapping)
+    player = Player(
+        lambda: iter(src),
+        recording_name(SPEC),
+        config,
+        ViewerConfig(playing=False, loop=True, samplerate=sr),
+        frames=len(src),
+        fps=src.fps,
+    )
+    asked = got = 0
+    blocks: list[np.ndarray] = []
+    heard: list[int] = []
+
+    def pull(ws: Any, n: int) -> np.ndarray:
+        # As the page's AudioWorklet does: ask for n samples, take frames (acknowledged) meanwhile.
+        nonlocal asked, got
+        ws.send_text(json.dumps({"type": "audio", "need": n}))
+        asked += n
+        while (msg := _recv(ws))["type"] != "audio":
+            if msg["type"] == "frame":
+                ws.send_text(json.dumps({"type": "ack", "index": msg["index"]}))
+        assert msg["samplerate"] == sr and msg["channels"] == 2
+        pcm = np.frombuffer(base64.b64decode(msg["pcm"]), "<i2").reshape(-1, 2) / 32768.0
+        got += len(pcm)
+        heard.append(msg["frame"])
+        return pcm
+
+    with _client(create_app(player)) as client:
         with client.websocket_connect(WS + "/ws/sim-table") as ws:
-            _recv(ws)
+            hello = _recv(ws)
+            assert hello["samplerate"] == sr
             ws.send_text(json.dumps({"type": "sound", "on": True}))
             assert _recv(ws) == {"type": "sound", "on": True, "available": True}
             client.post("/api/recordings/sim-table/play")
-            msgs = []
-            while (msg := _frame(ws, end=True))["type"] == "frame":
-                msgs.append(msg)
-    assert msgs[-1]["index"] == 3
-    samples = 0
-    for m in msgs:
-        a = m["audio"]
-        assert a["samplerate"] == 8000 and a["channels"] == 2
-        for chunk in a["chunks"]:
-            pcm = np.frombuffer(base64.b64decode(chunk), "<i2")
-            assert pcm.size % 2 == 0 and np.abs(pcm).max() < 32767
-            samples += pcm.size // 2
-    # The 4 frames at 30 frames/s last 4/30 s, skipped frames included: the sound is continuous.
-    assert abs(samples - 4 * 8000 / 30) <= 1
+            while not heard or heard[-1] < 0:  # blocks are silence until the first frame's voices
+                pull(ws, 320)
+            blocks = [pull(ws, 320) for _ in range(150)]  # 3 s, in 20-ms blocks as a page asks
+            client.post("/api/recordings/sim-table/pause")
+            after = np.concatenate([pull(ws, 320) for _ in range(15)])
+    # Exactly what was asked for, never a catch-up: the page's audio clock paces the synthesis.
+    assert got == asked
+    assert set(heard[-165:-15]) <= {0, 1, 2, 3}  # while playing, every block carries a frame's voices
+    # The surface glides between its real near and far ends (the objects' extents reach the
+    # page's sound, as in `sonify`'s WAV), not over the extent assumed without them.
+    first = next(iter(open_source(SPEC)))
+    r = Pipeline(config).process(first)
+    with_extent = Chooser(mapping).voices(r.tree, first.size, r.segmentation.objects, first.intrinsics)
+    assumed = Chooser(mapping).voices(r.tree, first.size, (), first.intrinsics)
+    (v,), (u,) = with_extent.values(), assumed.values()
+    span, span_assumed = v.freq_a / v.freq_b, u.freq_a / u.freq_b
+    assert abs(span_assumed / span - 1) > 0.03  # the test tells them apart
+    audio = np.concatenate(blocks)[int(0.1 * sr) :]
+    track = _glide_track(audio, sr, 0.8 * min(v.freq_a, v.freq_b), 1.25 * max(v.freq_a, v.freq_b))
+    assert track.max() == pytest.approx(v.freq_a, rel=0.01) and track.min() == pytest.approx(v.freq_b, rel=0.01)
+    assert abs(track.max() / track.min() - span) < 0.3 * abs(span_assumed - span), (track.max(), track.min())
+    # Paused: the voices fade out over the ramp and the blocks go on, silent.
+    assert np.abs(after[int(0.1 * sr) :]).max() < 1e-3
 
 
 def test_a_broken_frame_pauses_playback_and_tells_the_page_which_frame() -> None:

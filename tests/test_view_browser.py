@@ -110,10 +110,17 @@ def test_page_shows_frames_and_pause_then_step_advances_one_frame(server: str) -
             nxt = (k + 1) % 12
             page.wait_for_function(f"document.getElementById('view').dataset.frame === '{nxt}'", timeout=10000)
             assert _state(server)["index"] == nxt and _state(server)["playing"] is False
-            # Sound on, play: the page schedules the server's audio in Web Audio.
+            # Sound on, play: the page's AudioWorklet plays the server's live blocks and asks for
+            # more as its audio clock consumes them; the blocks carry the frames' voices.
             page.check("#sound")
             page.click("#play")
-            page.wait_for_function("Number(document.getElementById('view').dataset.audio) > 0.1", timeout=20000)
+            page.wait_for_function("Number(document.getElementById('view').dataset.audioPlayed) > 0.5", timeout=30000)
+            page.wait_for_function("Number(document.getElementById('view').dataset.audioFrame) >= 0", timeout=10000)
+            received = float(page.get_attribute("#view", "data-audio") or 0)
+            played = float(page.get_attribute("#view", "data-audio-played") or 0)
+            # Paced by the audio clock: what was received is what was played plus at most the
+            # little the page keeps buffered (no catch-up queue).
+            assert played <= received <= played + 0.5, (played, received)
             page.click("#pause")
             # The method list comes from the server; choosing one applies from the next frame.
             assert "threshold" in page.locator("#method option").all_inner_texts()

@@ -8,7 +8,10 @@ from depthgram.commands._common import add_config_arguments
 from depthgram.commands.sonify import PRESETS
 
 NAME = "lesson"
-HELP = "write one short WAV per sound cue (left/right, near/far, height, size, glides, approach) with a line each"
+HELP = (
+    "write one short WAV per sound cue (left/right, near/far, height, size, glides, approach, height against "
+    "the horizon) with a line each"
+)
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:

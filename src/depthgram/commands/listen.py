@@ -33,10 +33,28 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "--log",
         default=None,
         metavar="FILE",
-        help="one JSON line per frame heard: frame, latency_ms, underflows, callback_ms",
+        help="one JSON line per frame heard: frame, latency_ms (= pipeline_ms + wait_ms + dac_ms), "
+        "underflows, callback_ms",
     )
     p.add_argument("--wav", default=None, metavar="FILE", help="also write exactly what was played to this WAV")
     p.add_argument("--seconds", type=float, default=None, metavar="S", help="stop after S seconds (a camera)")
+    p.add_argument(
+        "--binaural",
+        nargs="?",
+        const="kemar",
+        default=None,
+        metavar="SOFA",
+        help="for headphones: every voice through measured head-related impulse responses, from its "
+        "direction (the KEMAR set the 'slab' package ships, or this SOFA file); needs "
+        "pip install 'depthgram[binaural]'",
+    )
+    p.add_argument(
+        "--no-realtime",
+        dest="realtime",
+        action="store_false",
+        help="leave the audio callback at normal priority (by default it asks for realtime scheduling "
+        "and falls back to normal priority where that is not permitted)",
+    )
 
 
 def _device(text: str | None) -> int | str | None:
@@ -79,16 +97,28 @@ def run(args: argparse.Namespace) -> int:
     if args.wav:
         with needs_extra("sound", "writing the played sound (--wav)"):
             import soundfile  # noqa: F401 - the audio process writes it; fail here, before the device opens
-    audio = AudioProcess(mapping, args.samplerate, first.size, _device(args.device), args.block, args.wav)
-    latencies: list[float] = []
+    audio = AudioProcess(
+        mapping,
+        args.samplerate,
+        first.size,
+        _device(args.device),
+        args.block,
+        args.wav,
+        realtime=args.realtime,
+        binaural=args.binaural,
+    )
+    print(f"audio callback: {audio.priority}; PortAudio output latency {1e3 * audio.latency_s:.1f} ms", file=sys.stderr)
+    parts: dict[str, list[float]] = {"latency_ms": [], "pipeline_ms": [], "wait_ms": [], "dac_ms": []}
     played = dropped = 0
 
     def write_events() -> None:
         for ev in audio.drain():
-            if ev.latency_ms is not None:
-                latencies.append(ev.latency_ms)
+            rec = ev.record()
+            for name, values in parts.items():
+                if rec[name] is not None:
+                    values.append(rec[name])
             if log is not None:
-                log.write(json.dumps(ev.record()) + "\n")
+                log.write(json.dumps(rec) + "\n")
 
     gc.freeze()  # modules and kernels loaded so far live as long as the process: no full collection stalls
     try:
@@ -111,7 +141,9 @@ def run(args: argparse.Namespace) -> int:
                 if not pacer.admit(frame.time_s if frame.time_s is not None else i * period):
                     dropped += 1
                     continue
-            arrival = time.perf_counter()  # a recording's frame "arrives" when it is due
+            # A recording's frame "arrives" when it is due, as a camera's would, even when the loop
+            # reaches it later; one from a source slower than its rate (or a camera) when it is read.
+            arrival = pacer.due if fps and not pacer.slow_source else time.perf_counter()
             result = pipe.process(frame)
             audio.update(
                 result.tree,
@@ -119,6 +151,7 @@ def run(args: argparse.Namespace) -> int:
                 frame=frame.index,
                 arrival_s=arrival,
                 intrinsics=frame.intrinsics,
+                gravity=frame.gravity,
             )
             played += 1
             write_events()
@@ -131,7 +164,8 @@ def run(args: argparse.Namespace) -> int:
             write_events()
             if log is not None:
                 log.close()
-    lat = percentiles(latencies)
+    lat = percentiles(parts["latency_ms"])
+    split = {k: percentiles(parts[k])["p50"] for k in ("pipeline_ms", "wait_ms", "dac_ms")}
     cb = percentiles([1e3 * s for s in stats["callback_s"]])
     print(
         f"played {played} frame(s), dropped {dropped} late, {stats['superseded']} replaced before they were heard; "
@@ -141,6 +175,10 @@ def run(args: argparse.Namespace) -> int:
     print(
         f"latency frame -> DAC: p50 {lat['p50']:.1f} ms, p95 {lat['p95']:.1f} ms, max {lat['max']:.1f} ms; "
         f"callback p50 {cb['p50']:.3f} ms, max {cb['max']:.3f} ms; {audio.chooser.distinct} distinct voice(s)"
+    )
+    print(
+        f"latency p50 by part: pipeline {split['pipeline_ms']:.1f} ms, to the next block {split['wait_ms']:.1f} ms, "
+        f"device buffer {split['dac_ms']:.1f} ms"
     )
     if args.wav:
         print(f"wrote {args.wav}: what was played")

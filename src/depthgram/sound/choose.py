@@ -167,6 +167,7 @@ class Chooser:
         frame_size: tuple[int, int],
         objects: Sequence[SceneObject] = (),
         intrinsics: Any = None,
+        gravity: Any = None,
     ) -> dict[tuple[str, int], Voice]:
         """Return this frame's voices by key, chosen and kept apart (see the module's notes).
 
@@ -179,6 +180,9 @@ class Chooser:
             The segmentation's objects, for the extent of surfaces.
         intrinsics : Intrinsics, optional
             For the azimuth of each voice (pan); image columns without them.
+        gravity : Gravity, optional
+            The frame's: with the intrinsics, pitch follows elevation above the horizon
+            rather than the image row, so a tilted camera does not move it.
 
         Returns
         -------
@@ -201,11 +205,11 @@ class Chooser:
                 # It has turned away: the tracker's speed still reads the approach for a frame or
                 # two (a slope over several frames), the sound stops warning at once.
                 n = replace(n, ttc=None)
-            v = beep_voice(n, frame_size, m, intrinsics, order=order.get(vid, 0.0), key=("o", vid))
+            v = beep_voice(n, frame_size, m, intrinsics, order=order.get(vid, 0.0), key=("o", vid), gravity=gravity)
             v = self._apart(slot, v, placed)
             out[v.key] = v
         for n in glides:
-            g = glide_voice(n, frame_size, m, by_id, intrinsics, facing=n.kind in BEEP_KINDS)
+            g = glide_voice(n, frame_size, m, by_id, intrinsics, facing=n.kind in BEEP_KINDS, gravity=gravity)
             out[g.key] = g
         return out
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -45,7 +46,7 @@ def _steps(m: SoundMapping, sr: int, trees: list[SceneTree], each_s: float) -> N
 
 
 def lesson(mapping: SoundMapping, samplerate: int = 22050) -> list[Cue]:
-    """Return the cues of ``mapping``, each alone: pan, nearness, height, size, glides, approach, scan, wall ahead.
+    """Return the cues of ``mapping``, each alone: pan, nearness, height, size, glides, approach, scan, walls, tilt.
 
     Parameters
     ----------
@@ -143,7 +144,40 @@ def lesson(mapping: SoundMapping, samplerate: int = 22050) -> list[Cue]:
             render_scene(_tree(ahead), mapping=m, duration_s=2.0, samplerate=sr),
         )
     )
+    cues.append(_tilt_cue(m, sr, d))
     return cues
+
+
+def _tilt_cue(m: SoundMapping, sr: int, depth: float) -> Cue:
+    """Height against the horizon: the same object with the camera level, then tilted; then one higher."""
+    from depthgram.frame import Gravity, Intrinsics
+
+    k = Intrinsics(fx=525.0, fy=525.0, cx=(_W - 1) / 2, cy=(_H - 1) / 2)
+    up20 = k.cy - k.fy * math.tan(math.radians(20.0))  # the row 20 degrees above the optical axis
+    steps = [  # (row, camera tilt down in degrees): eye level level, eye level tilted, 20 degrees up level
+        (k.cy, 0.0),
+        (up20, 20.0),
+        (up20, 0.0),
+    ]
+    pause = np.zeros((round(_PAUSE_S * sr), 2), np.float32)
+    parts: list[NDArray[np.float32]] = []
+    hz: list[float] = []
+    for row, tilt in steps:
+        son = Sonifier(m, sr, (_W, _H))
+        g = Gravity.from_tilt(tilt)
+        for _ in range(25):  # 1.25 s at 20 frames/s: a voice takes a few frames to enter
+            parts.append(son.push(_tree(_obj(_W / 2, row, depth)), 0.05, intrinsics=k, gravity=g))
+        hz.append(next(iter(son.voices_now.values())).freq_a)
+        parts.append(pause)
+    return Cue(
+        "10-tilted-camera",
+        f"When the camera knows which way is down (a RealSense's IMU, --gravity or --tilt), height is heard "
+        f"against the horizon, not the picture: one object straight ahead at eye level with the camera level "
+        f"({hz[0]:.0f} Hz), the same object with the camera tilted 20 degrees down, where it shows near the "
+        f"top of the picture ({hz[1]:.0f} Hz: the same pitch), then an object 20 degrees above eye level "
+        f"({hz[2]:.0f} Hz: higher).",
+        np.concatenate(parts),
+    )
 
 
 def write_lesson(folder: str | Path, mapping: SoundMapping, samplerate: int = 22050) -> list[tuple[Path, str]]:

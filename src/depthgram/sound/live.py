@@ -12,6 +12,7 @@ drives it from a PortAudio stream through ``sounddevice`` (extra ``[listen]``).
 from __future__ import annotations
 
 import math
+import os
 import queue
 import threading
 import time
@@ -26,14 +27,34 @@ from numpy.typing import NDArray
 from depthgram.errors import InputError
 from depthgram.scene.tree import SceneTree
 from depthgram.segmentation.objects import SceneObject
+from depthgram.sound.binaural import HRIRSet
 from depthgram.sound.choose import Chooser
 from depthgram.sound.mapping import SoundMapping
 from depthgram.sound.synth import Voice, VoiceBank
 
+#: Voice key kinds, by their index in a :class:`TargetSlot`.
+_KINDS = ("o", "g")
+#: Numbers per voice in a :class:`TargetSlot`: kind, id, then the Voice's fields in order.
+_PER_VOICE = 16
+#: Numbers before the voices: sequence, frame, arrival (s), sent (s), voice count, checksum.
+_HEAD = 6
+
 #: Seconds the audio process has to fade out, stop its device and report.
 STOP_TIMEOUT_S = 15.0
 
-__all__ = ["STOP_TIMEOUT_S", "AudioProcess", "BlockEvent", "LivePlayer", "LiveSonifier", "percentiles"]
+#: Priority (SCHED_FIFO, 1..99) asked for the audio callback's thread when it is not realtime already.
+RT_PRIORITY = 70
+
+__all__ = [
+    "RT_PRIORITY",
+    "STOP_TIMEOUT_S",
+    "AudioProcess",
+    "BlockEvent",
+    "LivePlayer",
+    "LiveSonifier",
+    "TargetSlot",
+    "percentiles",
+]
 
 
 @dataclass(frozen=True)
@@ -41,6 +62,7 @@ class _Update:
     targets: dict[tuple[str, int], Voice]
     frame: int
     arrival_s: float | None
+    sent_s: float | None = None  # when the targets left the pipeline (s, perf_counter)
 
 
 class LiveSonifier:
@@ -54,6 +76,9 @@ class LiveSonifier:
         Samples per second (Hz).
     frame_size : tuple of int, optional
         (width, height) of the frames (px); each tree's own when omitted.
+    hrirs : HRIRSet, optional
+        Head-related impulse responses at ``samplerate``: each voice is then rendered binaurally
+        from its direction (:mod:`depthgram.sound.binaural`) instead of panned.
 
     Notes
     -----
@@ -69,14 +94,18 @@ class LiveSonifier:
     """
 
     def __init__(
-        self, mapping: SoundMapping | None = None, samplerate: int = 48000, frame_size: tuple[int, int] | None = None
+        self,
+        mapping: SoundMapping | None = None,
+        samplerate: int = 48000,
+        frame_size: tuple[int, int] | None = None,
+        hrirs: HRIRSet | None = None,
     ) -> None:
         if not isinstance(samplerate, (int, np.integer)) or not 4000 <= samplerate <= 192000:
             raise InputError(f"samplerate must be an integer in 4000..192000 Hz, got {samplerate!r}")
         self.mapping = mapping or SoundMapping()
         self.samplerate = int(samplerate)
         self.frame_size = frame_size
-        self._bank = VoiceBank(self.mapping, self.samplerate)
+        self._bank = VoiceBank(self.mapping, self.samplerate, hrirs)
         self._chooser = Chooser(self.mapping)
         self._next: _Update | None = None  # written by update(), taken by render()
         self._targets: dict[tuple[str, int], Voice] = {}
@@ -90,6 +119,7 @@ class LiveSonifier:
         frame: int = -1,
         arrival_s: float | None = None,
         intrinsics: Any = None,
+        gravity: Any = None,
     ) -> None:
         """Make a new scene the voices' targets; the next block starts ramping toward it.
 
@@ -104,20 +134,37 @@ class LiveSonifier:
             When the frame was captured or arrived (s, ``time.perf_counter`` clock), for latency.
         intrinsics : Intrinsics, optional
             The camera's, for the direction (azimuth) of each voice; image columns without them.
+        gravity : Gravity, optional
+            The frame's: pitch then follows elevation above the horizon (with the intrinsics).
         """
         size = self.frame_size or tree.frame_size
         if size is None:
             raise InputError("LiveSonifier: the tree does not carry the frame size; give frame_size=(width, height)")
-        self.set_targets(self._chooser.voices(tree, size, objects, intrinsics), frame=frame, arrival_s=arrival_s)
+        targets = self._chooser.voices(tree, size, objects, intrinsics, gravity)
+        self.set_targets(targets, frame=frame, arrival_s=arrival_s)
 
     def set_targets(
-        self, targets: dict[tuple[str, int], Voice], *, frame: int = -1, arrival_s: float | None = None
+        self,
+        targets: dict[tuple[str, int], Voice],
+        *,
+        frame: int = -1,
+        arrival_s: float | None = None,
+        sent_s: float | None = None,
     ) -> None:
-        """Make ``targets`` (voice key -> Voice, as :meth:`Chooser.voices` makes) the voices' targets."""
+        """Make ``targets`` (voice key -> Voice, as :meth:`Chooser.voices` makes) the voices' targets.
+
+        ``sent_s`` is when the targets were made (s, ``time.perf_counter``; now when omitted):
+        the log splits the latency there.
+        """
         pending = self._next
         if pending is not None:
             self.superseded += 1
-        self._next = _Update(dict(targets), frame, arrival_s)
+        sent = time.perf_counter() if sent_s is None else sent_s
+        self._next = _Update(dict(targets), frame, arrival_s, sent)
+
+    def warm_up(self) -> None:
+        """Compile the synthesis kernels now, not in the first block of a live stream."""
+        self._bank.warm_up()
 
     def clear(self) -> None:
         """Silence every voice (they fade out over the ramp)."""
@@ -141,6 +188,178 @@ class LiveSonifier:
         return dict(self._targets)
 
 
+def _schedule_callback(realtime: bool) -> str:
+    """How the calling thread (the audio callback's) is scheduled; with ``realtime``, ask for SCHED_FIFO first.
+
+    Returns
+    -------
+    str
+        A one-line note for the user: realtime (and who set it) or normal priority (and why).
+    """
+    if not hasattr(os, "sched_getscheduler"):
+        return "normal priority (no POSIX thread scheduling here)"
+    # On Linux, pid 0 names the calling thread, not the whole process.
+    given = os.sched_getparam(0).sched_priority if os.sched_getscheduler(0) in (os.SCHED_FIFO, os.SCHED_RR) else 0
+    if not realtime or given >= RT_PRIORITY:
+        return f"realtime, set by the audio server (priority {given})" if given else "normal priority"
+    try:
+        # Above the audio process's helpers (they take the interpreter lock too); a server's
+        # client priority (JACK's default is 5) is raised for the same reason.
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(RT_PRIORITY))
+    except OSError as exc:  # no CAP_SYS_NICE and no rtprio limit: play on as the server set it
+        why = f"realtime scheduling not permitted: {exc.strerror}"
+        return f"realtime, set by the audio server (priority {given}; {why})" if given else f"normal priority ({why})"
+    return f"realtime (SCHED_FIFO {RT_PRIORITY}, asked by depthgram" + (f"; the server gave {given})" if given else ")")
+
+
+def _schedule_helpers() -> None:
+    """Make the audio process's own threads realtime too (below the callback), where permitted.
+
+    Every thread of the audio process takes the interpreter lock, the callback's included: a
+    thread at normal priority preempted by another program while it holds the lock would stall
+    a realtime callback (a priority inversion) for as long as that program runs. The helpers
+    (relaying events, writing ``--wav``) hold it for microseconds at a time. Threads started
+    after this call inherit the policy. A short switch interval bounds how long the callback
+    waits for a helper that is running Python.
+    """
+    import sys
+
+    sys.setswitchinterval(0.0005)
+    if hasattr(os, "sched_setscheduler"):
+        try:
+            os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(max(1, RT_PRIORITY - 10)))
+        except OSError:  # not permitted: the callback's note says so
+            pass
+    if sys.platform.startswith("linux"):
+        # Keep the audio process's memory resident (mlockall(MCL_CURRENT | MCL_FUTURE)), as
+        # audio servers do: a page fault in the callback waits for the disk, whatever the priority.
+        import ctypes
+        import ctypes.util
+
+        try:
+            libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6", use_errno=True)
+            libc.mlockall(1 | 2)  # not permitted (RLIMIT_MEMLOCK): play on unlocked
+        except (OSError, AttributeError):
+            pass
+
+
+class TargetSlot:
+    """The newest voice targets in memory shared by two processes: one slot, no queue, no lock.
+
+    The pipeline's process writes each frame's voices with :meth:`put`; the audio callback reads
+    the newest with :meth:`take` at the start of every block. A write replaces the slot whatever
+    the reader did (a frame not yet heard is superseded, never queued), and the reader never
+    waits for the writer (a sequence lock: the reader keeps the old targets when it catches a
+    write half done and looks again at the next block). Nothing crosses a pipe and no thread of
+    the audio process has to wake up to relay the targets.
+
+    Parameters
+    ----------
+    shared : ctypes array of c_double
+        The slot's memory, from :meth:`create` (``multiprocessing`` ``RawArray``): handed to the
+        audio process as an argument of its ``Process``.
+
+    Notes
+    -----
+    Layout (float64): sequence (odd while a write is under way), frame, arrival (s), sent (s),
+    voice count, checksum, then :data:`_PER_VOICE` numbers per voice, then the sequence again.
+    The reader accepts a copy whose two sequence numbers match, are even, still match the slot
+    after the copy, and whose checksum holds.
+    """
+
+    def __init__(self, shared: Any) -> None:
+        self._shared = shared  # kept alive with the view
+        self._a = np.frombuffer(shared, dtype=np.float64)
+        self.capacity = (len(self._a) - _HEAD - 1) // _PER_VOICE
+        if self.capacity < 1 or len(self._a) != _HEAD + self.capacity * _PER_VOICE + 1:
+            raise InputError(f"TargetSlot: the shared array has {len(self._a)} numbers, not a slot's layout")
+        self._seen = float(self._a[0])  # the sequence number last taken
+        self.taken = 0  # writes read by take()
+        self.superseded = 0  # writes replaced by a newer one before take() saw them
+        self.retries = 0  # reads that caught a write half done
+
+    @classmethod
+    def create(cls, ctx: Any, capacity: int) -> TargetSlot:
+        """Return a new empty slot for ``capacity`` voices in memory made by ``ctx`` (a multiprocessing context)."""
+        if capacity < 1:
+            raise InputError(f"TargetSlot capacity must be >= 1 voice, got {capacity}")
+        return cls(ctx.RawArray("d", _HEAD + capacity * _PER_VOICE + 1))
+
+    @property
+    def shared(self) -> Any:
+        """The shared memory, for the other process."""
+        return self._shared
+
+    def put(self, targets: dict[tuple[str, int], Voice], frame: int, arrival_s: float | None, sent_s: float) -> None:
+        """Write the voices of one frame (replacing what is there), with its index and times (s)."""
+        if len(targets) > self.capacity:
+            raise InputError(f"TargetSlot: {len(targets)} voices, the slot holds at most {self.capacity}")
+        rows = np.empty((len(targets), _PER_VOICE))
+        for row, (key, v) in zip(rows, targets.items(), strict=True):
+            if key[0] not in _KINDS:
+                raise InputError(f"TargetSlot: voice key kind must be one of {_KINDS}, got {key!r}")
+            row[:] = (
+                _KINDS.index(key[0]),
+                key[1],
+                v.freq_a,
+                v.freq_b,
+                v.gain_a,
+                v.gain_b,
+                v.pan_a[0],
+                v.pan_a[1],
+                v.pan_b[0],
+                v.pan_b[1],
+                v.rate,
+                v.beep_s,
+                v.harmonics,
+                v.order,
+                math.nan if v.azimuth is None else v.azimuth,
+                math.nan if v.elevation is None else v.elevation,
+            )
+        a = self._a
+        seq = a[0] + 1.0  # odd: a write is under way
+        a[0] = seq
+        end = _HEAD + rows.size
+        a[_HEAD:end] = rows.ravel()
+        a[1:5] = (frame, math.nan if arrival_s is None else arrival_s, sent_s, len(targets))
+        a[5] = _checksum(a[1:5], a[_HEAD:end])
+        a[-1] = seq + 1.0
+        a[0] = seq + 1.0
+
+    def take(self) -> _Update | None:
+        """Return the newest write not yet taken (None when there is none, or it is being written)."""
+        a = self._a
+        seq = float(a[0])
+        if seq == self._seen or seq % 2:
+            return None
+        snap = a.copy()
+        if snap[0] != seq or snap[-1] != seq or a[0] != seq:
+            self.retries += 1
+            return None
+        n = int(snap[4])
+        body = snap[_HEAD : _HEAD + n * _PER_VOICE]
+        if not 0 <= n <= self.capacity or _checksum(snap[1:5], body) != snap[5]:
+            self.retries += 1
+            return None
+        self.superseded += max(0, int((seq - self._seen) // 2) - 1)
+        self._seen = seq
+        self.taken += 1
+        targets = {}
+        for r in body.reshape(n, _PER_VOICE).tolist():
+            key = (_KINDS[int(r[0])], int(r[1]))
+            az, el = (None if math.isnan(x) else x for x in (r[14], r[15]))
+            targets[key] = Voice(
+                key, r[2], r[3], r[4], r[5], (r[6], r[7]), (r[8], r[9]), r[10], r[11], int(r[12]), r[13], az, el
+            )
+        arrival = None if math.isnan(snap[2]) else float(snap[2])
+        return _Update(targets, int(snap[1]), arrival, float(snap[3]))
+
+
+def _checksum(head: NDArray[np.float64], body: NDArray[np.float64]) -> float:
+    # NaN-safe (a missing arrival is NaN) and the same bits for the same numbers in both processes.
+    return float(np.nansum(head) + np.nansum(body))
+
+
 @dataclass(frozen=True)
 class BlockEvent:
     """The audio block that first carried a frame.
@@ -158,6 +377,14 @@ class BlockEvent:
     sample : int
         Position of the block's first sample in the stream (samples since it started): where
         the frame starts in a copy of what was played.
+    pipeline_ms : float or None
+        The first part of the latency: from the frame's arrival to its voices leaving the
+        pipeline (segmentation, tracking, choosing the voices) (ms).
+    wait_ms : float or None
+        From the voices leaving the pipeline to the start of the first callback that took them
+        (crossing to the audio process and waiting for the next block) (ms).
+    dac_ms : float or None
+        From that callback's start to the DAC time of its block: the device's buffering (ms).
     """
 
     frame: int
@@ -165,16 +392,25 @@ class BlockEvent:
     underflows: int
     callback_ms: float
     sample: int = 0
+    pipeline_ms: float | None = None
+    wait_ms: float | None = None
+    dac_ms: float | None = None
 
     def record(self) -> dict[str, Any]:
         """Return the JSON line of ``depthgram listen --log``."""
-        lat = None if self.latency_ms is None else round(self.latency_ms, 3)
+
+        def ms(x: float | None) -> float | None:
+            return None if x is None else round(x, 3)
+
         return {
             "frame": self.frame,
-            "latency_ms": lat,
+            "latency_ms": ms(self.latency_ms),
             "underflows": self.underflows,
             "callback_ms": round(self.callback_ms, 4),
             "sample": self.sample,
+            "pipeline_ms": ms(self.pipeline_ms),
+            "wait_ms": ms(self.wait_ms),
+            "dac_ms": ms(self.dac_ms),
         }
 
 
@@ -191,6 +427,13 @@ class LivePlayer:
     copy : callable, optional
         Called from a writer thread with each block played (float32, (n, 2)), in order: a copy
         of exactly what went to the device (``depthgram listen --wav``).
+    poll : callable, optional
+        Called at the start of every callback, before the block is rendered: where the callback
+        takes new targets from another process (:meth:`TargetSlot.take`).
+    realtime : bool
+        Ask for realtime scheduling (``SCHED_FIFO``, :data:`RT_PRIORITY`) of the callback's
+        thread on its first block when the device did not give it; :attr:`priority` says what
+        the thread got.
 
     Notes
     -----
@@ -205,6 +448,8 @@ class LivePlayer:
         device: int | str | None = None,
         block: int = 256,
         copy: Callable[[NDArray[np.float32]], None] | None = None,
+        poll: Callable[[], None] | None = None,
+        realtime: bool = False,
     ) -> None:
         from depthgram._optional import needs_extra
 
@@ -221,6 +466,9 @@ class LivePlayer:
         self.callback_s: list[float] = []  # time spent in each callback (s)
         self.events: queue.SimpleQueue[BlockEvent] = queue.SimpleQueue()
         self._copy = copy
+        self._poll = poll
+        self._realtime = realtime
+        self.priority = "not started"  # how the callback's thread is scheduled (set by its first block)
         self._copies: queue.SimpleQueue[NDArray[np.float32] | None] = queue.SimpleQueue()
         self._writer: threading.Thread | None = None
         self._error: BaseException | None = None
@@ -243,8 +491,12 @@ class LivePlayer:
 
     def _callback(self, outdata: Any, frames: int, time_info: Any, status: Any) -> None:
         t0 = time.perf_counter()
+        if self.blocks == 0:
+            self.priority = _schedule_callback(self._realtime)
         if status.output_underflow:
             self.underflows += 1
+        if self._poll is not None:
+            self._poll()
         audio, taken = self.live.render_block(frames)
         outdata[:] = audio
         t1 = time.perf_counter()
@@ -258,7 +510,9 @@ class LivePlayer:
             now_dev = time_info.currentTime
             ahead = time_info.outputBufferDacTime - now_dev if now_dev > 0 else self.stream.latency
             lat = None if taken.arrival_s is None else (t0 + ahead - taken.arrival_s) * 1e3
-            self.events.put(BlockEvent(taken.frame, lat, self.underflows, (t1 - t0) * 1e3, at))
+            pipe = None if taken.arrival_s is None or taken.sent_s is None else (taken.sent_s - taken.arrival_s) * 1e3
+            wait = None if taken.sent_s is None else (t0 - taken.sent_s) * 1e3
+            self.events.put(BlockEvent(taken.frame, lat, self.underflows, (t1 - t0) * 1e3, at, pipe, wait, ahead * 1e3))
 
     def _write_copies(self) -> None:
         assert self._copy is not None
@@ -271,7 +525,7 @@ class LivePlayer:
 
     def start(self) -> None:
         """Render one block first (compiling the kernels), then start the device."""
-        self.live._bank.warm_up()
+        self.live.warm_up()
         if self._copy is not None:
             self._writer = threading.Thread(target=self._write_copies, name="depthgram-listen-wav", daemon=True)
             self._writer.start()
@@ -308,40 +562,70 @@ class LivePlayer:
 
 
 def _serve(
-    conn: Connection, mapping: SoundMapping, samplerate: int, device: int | str | None, block: int, wav: str | None
+    conn: Connection,
+    shared: Any,
+    mapping: SoundMapping,
+    samplerate: int,
+    device: int | str | None,
+    block: int,
+    wav: str | None,
+    realtime: bool,
+    binaural: str | None = None,
 ) -> None:
-    """Play the targets sent on ``conn``; send back block events and, at the end, statistics."""
+    """Play the targets found in the shared slot; send back block events and, at the end, statistics."""
+    import gc
     import signal
 
     # Ctrl-C reaches the whole process group: the pipeline's process decides when to stop (it
     # sends "stop"), so the sound fades out instead of breaking off mid-block.
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    slot = TargetSlot(shared)
+
+    def poll() -> None:
+        update = slot.take()
+        if update is not None:
+            live.set_targets(update.targets, frame=update.frame, arrival_s=update.arrival_s, sent_s=update.sent_s)
+
     try:
         out: Any = None
         if wav is not None:
             import soundfile as sf
 
             out = sf.SoundFile(wav, "w", samplerate=samplerate, channels=2, subtype="FLOAT")
-        live = LiveSonifier(mapping, samplerate, (2, 2))
-        player = LivePlayer(live, device, block, copy=out.write if out is not None else None)
+        hrirs = None
+        if binaural is not None:
+            from depthgram.sound.binaural import load_hrirs
+
+            hrirs = load_hrirs(binaural, samplerate)
+        live = LiveSonifier(mapping, samplerate, (2, 2), hrirs)
+        live.warm_up()
+        if realtime:
+            # Only now: loading the HRIRs and compiling the kernels take seconds of CPU, which
+            # at a realtime priority would hold off everything else on that core.
+            _schedule_helpers()
+        player = LivePlayer(
+            live, device, block, copy=out.write if out is not None else None, poll=poll, realtime=realtime
+        )
         player.start()
+        # Whatever the kernels and the device allocated so far lives as long as the process: a
+        # full collection then never walks it from inside the callback.
+        gc.freeze()
+        deadline = time.monotonic() + 2.0
+        while player.blocks == 0 and time.monotonic() < deadline:  # the first block sets its priority
+            time.sleep(0.005)
     except BaseException as exc:
         conn.send(("error", f"{type(exc).__name__}: {exc}"))
         return
-    conn.send(("ready", float(player.stream.latency)))
+    conn.send(("ready", (float(player.stream.latency), player.priority)))
     try:
-        while True:
-            if conn.poll(0.005):
-                try:
-                    msg = conn.recv()
-                except EOFError:  # the pipeline's process is gone: stop too
-                    break
-                if msg[0] == "stop":
-                    break
-                live.set_targets(msg[1], frame=msg[2], arrival_s=msg[3])
+        # This thread only relays the callback's events and waits for "stop": it sleeps in
+        # poll() (no interpreter lock held) all but a few microseconds every 20 ms.
+        while not conn.poll(0.02):
             events = player.drain()
             if events:
                 conn.send(("events", events))
+    except EOFError:  # the pipeline's process is gone: stop too
+        pass
     finally:
         player.stop()
         if out is not None:
@@ -350,7 +634,8 @@ def _serve(
             "underflows": player.underflows,
             "blocks": player.blocks,
             "callback_s": player.callback_s,
-            "superseded": live.superseded,
+            "superseded": slot.superseded + live.superseded,
+            "priority": player.priority,
         }
         try:
             conn.send(("events", player.drain()))
@@ -365,7 +650,8 @@ class AudioProcess:
     The audio callback needs Python's interpreter lock every block (5.3 ms at 256 samples and
     48 kHz); in the pipeline's process a busy thread holds it for milliseconds and the device
     underflows. In its own process the callback competes with nothing but a loop that mostly
-    waits on a pipe. Scenes are chosen here and only their voices (a few hundred bytes) cross.
+    waits on a pipe. Scenes are chosen here and only their voices (a few hundred bytes) cross,
+    through a :class:`TargetSlot` the callback reads itself at the start of every block.
 
     Parameters
     ----------
@@ -380,6 +666,19 @@ class AudioProcess:
         Samples per audio block.
     wav : str, optional
         File to write a copy of exactly what was played to (32-bit float WAV).
+    realtime : bool
+        Ask for realtime scheduling of the audio callback (falls back to normal priority where
+        it is not permitted; :attr:`priority` says which).
+    binaural : str, optional
+        ``"kemar"`` or a SOFA file's path: render every voice through those head-related
+        impulse responses (:func:`depthgram.sound.binaural.load_hrirs`), loaded in the audio process.
+
+    Attributes
+    ----------
+    latency_s : float
+        The output latency the device reports (s).
+    priority : str
+        How the audio callback's thread is scheduled (one line, for the user).
     """
 
     def __init__(
@@ -390,6 +689,8 @@ class AudioProcess:
         device: int | str | None = None,
         block: int = 256,
         wav: str | None = None,
+        realtime: bool = True,
+        binaural: str | None = None,
     ) -> None:
         import importlib.util
         import multiprocessing
@@ -404,6 +705,8 @@ class AudioProcess:
                 "playing sound live needs the optional package 'sounddevice': pip install 'depthgram[listen]'"
             )
 
+        if binaural is not None:
+            _check_binaural(binaural)
         self.mapping = mapping or SoundMapping()
         self.samplerate = samplerate
         self.frame_size = frame_size
@@ -412,8 +715,12 @@ class AudioProcess:
         self.stats: dict[str, Any] = {}
         ctx = multiprocessing.get_context("spawn")  # no fork of a process with threads
         self._conn, child = ctx.Pipe()
+        # Room for every voice the chooser may make, with a margin for a mapping changed later.
+        self._slot = TargetSlot.create(ctx, 2 * (self.mapping.max_voices + self.mapping.max_glides) + 8)
         self._proc = ctx.Process(
-            target=_serve, args=(child, self.mapping, samplerate, device, block, wav), name="depthgram-audio"
+            target=_serve,
+            args=(child, self._slot.shared, self.mapping, samplerate, device, block, wav, realtime, binaural),
+            name="depthgram-audio",
         )
         self._proc.start()
         child.close()
@@ -421,7 +728,8 @@ class AudioProcess:
         if kind == "error":
             self._proc.join()
             raise InputError(f"audio output: {value}")
-        self.latency_s = float(value)
+        self.latency_s = float(value[0])
+        self.priority = str(value[1])
 
     def _recv(self) -> tuple[str, Any]:
         try:
@@ -438,12 +746,20 @@ class AudioProcess:
         frame: int = -1,
         arrival_s: float | None = None,
         intrinsics: Any = None,
+        gravity: Any = None,
     ) -> None:
         """Send a new scene's voices to the audio process (see :meth:`LiveSonifier.update`)."""
         size = self.frame_size or tree.frame_size
         if size is None:
             raise InputError("AudioProcess: the tree does not carry the frame size; give frame_size=(width, height)")
-        self._conn.send(("t", self.chooser.voices(tree, size, objects, intrinsics), frame, arrival_s))
+        targets = self.chooser.voices(tree, size, objects, intrinsics, gravity)
+        self.set_targets(targets, frame=frame, arrival_s=arrival_s)
+
+    def set_targets(
+        self, targets: dict[tuple[str, int], Voice], *, frame: int = -1, arrival_s: float | None = None
+    ) -> None:
+        """Put ``targets`` in the slot the audio callback reads (see :meth:`LiveSonifier.set_targets`)."""
+        self._slot.put(targets, frame, arrival_s, time.perf_counter())
 
     def drain(self) -> list[BlockEvent]:
         """Return the block events received since the last call."""
@@ -462,7 +778,8 @@ class AudioProcess:
         Returns
         -------
         dict
-            ``underflows``, ``blocks``, ``callback_s`` (time in each callback, s), ``superseded``.
+            ``underflows``, ``blocks``, ``callback_s`` (time in each callback, s), ``superseded``
+            (frames replaced by a newer one before a block carried them), ``priority``.
         """
         if self._proc.is_alive() and not self.stats:
             self._conn.send(("stop",))
@@ -481,6 +798,32 @@ class AudioProcess:
                     self.stats = value
         self._proc.join()
         return self.stats
+
+
+def _check_binaural(spec: str) -> None:
+    """Fail here, before any process or device starts, when the HRIRs named cannot be read."""
+    import importlib.util
+    import sys
+    from pathlib import Path
+
+    from depthgram.errors import MissingExtraError
+
+    def missing(name: str) -> bool:
+        return sys.modules.get(name, ...) is None or importlib.util.find_spec(name) is None
+
+    if spec.lower() == "kemar":
+        if missing("slab"):
+            raise MissingExtraError(
+                "binaural sound with the KEMAR responses needs the optional package 'slab': "
+                "pip install 'depthgram[binaural]'"
+            )
+        return
+    if not Path(spec).is_file():
+        raise InputError(f"--binaural {spec}: expected 'kemar' or the path of a SOFA file; there is no such file")
+    if missing("netCDF4"):
+        raise MissingExtraError(
+            "reading a SOFA file needs the optional package 'netCDF4': pip install 'depthgram[binaural]'"
+        )
 
 
 def percentiles(values: Sequence[float]) -> dict[str, float]:

@@ -96,6 +96,10 @@ class SoundMapping:
         Two voices sounding together differ by at least ``min_semitones`` in pitch, or
         ``min_pan`` in pan position (0 left .. 1 right), or a factor ``min_rate_ratio`` in beep
         rate; in a stream, pitch moves on a ladder of ``min_semitones`` steps to keep them apart.
+    elevation_range_deg : float
+        When the camera's gravity is known, pitch follows each direction's elevation above the
+        horizon (degrees) instead of its image row: ``pitch_high_hz`` at this elevation and above,
+        ``pitch_low_hz`` as far below (:meth:`pitch_elevation`).
     """
 
     name: str = "default"
@@ -132,6 +136,7 @@ class SoundMapping:
     min_semitones: float = 3.0
     min_pan: float = 0.2
     min_rate_ratio: float = 1.5
+    elevation_range_deg: float = 30.0
 
     def __post_init__(self) -> None:
         def bad(what: str) -> InputError:
@@ -157,6 +162,7 @@ class SoundMapping:
             "ramp_s",
             "ttc_floor_s",
             "min_semitones",
+            "elevation_range_deg",
         ):
             if getattr(self, name) <= 0:
                 raise bad(f"{name} must be > 0, got {getattr(self, name)!r}")
@@ -256,6 +262,16 @@ class SoundMapping:
     def pitch(self, y: float, height: int) -> float:
         """Pitch (Hz) of an image row: ``pitch_high_hz`` at the top row, ``pitch_low_hz`` at the bottom."""
         up = 1.0 - min(max(y / max(height - 1, 1), 0.0), 1.0)
+        return float(self.pitch_low_hz * (self.pitch_high_hz / self.pitch_low_hz) ** up)
+
+    def pitch_elevation(self, elevation_deg: float) -> float:
+        """Pitch (Hz) of a direction's elevation above the horizon (degrees).
+
+        ``pitch_high_hz`` at ``elevation_range_deg`` above the horizon and higher, ``pitch_low_hz``
+        as far below, the geometric middle on the horizon: height heard against the world, not
+        against the image, so tilting the camera does not move the pitch of what stays put.
+        """
+        up = 0.5 + 0.5 * min(max(elevation_deg / self.elevation_range_deg, -1.0), 1.0)
         return float(self.pitch_low_hz * (self.pitch_high_hz / self.pitch_low_hz) ** up)
 
     def pan(self, x: float, width: int) -> tuple[float, float]:

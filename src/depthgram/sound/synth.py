@@ -25,6 +25,7 @@ from numpy.typing import NDArray
 from depthgram.errors import InputError
 from depthgram.scene.tree import Node, SceneTree
 from depthgram.segmentation.objects import SceneObject
+from depthgram.sound.binaural import HRIRSet
 from depthgram.sound.choose import Chooser
 from depthgram.sound.mapping import SoundMapping
 from depthgram.sound.voice import BEEP_KINDS, OBLIQUE_KINDS, Voice, beep_voice, glide_voice
@@ -184,6 +185,7 @@ class _State:
     osc: float = 0.0  # oscillator phase (cycles)
     pulse: float = 0.0  # pulse or glide phase (cycles); negative: waiting for its first beep
     fading: bool = False
+    hrir: int = -1  # binaural: the direction (index in the HRIR set) the voice is heard from; -1 none yet
 
 
 def _lerp_voice(a: Voice, b: Voice, t: float) -> Voice:
@@ -247,9 +249,17 @@ class VoiceBank:
     (one call per audio block, many per frame): a ramp longer than a call goes on in the next.
     """
 
-    def __init__(self, mapping: SoundMapping, samplerate: int) -> None:
+    def __init__(self, mapping: SoundMapping, samplerate: int, hrirs: HRIRSet | None = None) -> None:
+        if hrirs is not None and hrirs.samplerate != samplerate:
+            raise InputError(
+                f"VoiceBank: the HRIRs are at {hrirs.samplerate} Hz, the sound at {samplerate} Hz; "
+                "resample them with HRIRSet.at_rate"
+            )
         self.mapping = mapping
         self.samplerate = samplerate
+        self.hrirs = hrirs
+        self._spectra: dict[tuple[int, int], NDArray[np.complex128]] = {}  # (direction, fft size) -> (2, bins)
+        self._tail: NDArray[np.float64] | None = None  # binaural: the filters' overlap into the next call
         self.states: dict[tuple[str, int], _State] = {}
         self._tables = _wavetables(mapping.harmonics_max)
         self._hann = _hann_table()
@@ -259,7 +269,7 @@ class VoiceBank:
 
     def warm_up(self) -> None:
         """Compile the kernels now (a beep and a glide, rendered and thrown away), not in a live callback."""
-        probe = VoiceBank(self.mapping, self.samplerate)
+        probe = VoiceBank(self.mapping, self.samplerate, self.hrirs)
         beep = Voice(("o", 0), 440.0, 440.0, 0.5, 0.5, (0.7, 0.7), (0.7, 0.7), 4.0, 0.05, 2, 0.0)
         glide = replace(beep, key=("g", 0), freq_b=330.0, rate=0.0, beep_s=0.0, harmonics=1)
         probe.render({beep.key: beep, glide.key: glide}, 64)
@@ -276,6 +286,8 @@ class VoiceBank:
         ticks = np.arange(1, n + 1, dtype=np.float64)
         out_l = np.zeros(n)
         out_r = np.zeros(n)
+        scratch = np.zeros(n)  # the unused second channel of a mono voice (binaural)
+        spatial: list[tuple[NDArray[np.float64], int]] = []  # binaural: (mono input, direction) to filter
         goal = dict(targets)
         for key, st in self.states.items():
             if key not in goal:  # gone from the scene: fade out over the ramp, then drop
@@ -307,10 +319,14 @@ class VoiceBank:
             def ramp(a: float, b: float, old_w: NDArray[np.float64] | None = old_w) -> NDArray[np.float64] | float:
                 return b if a == b or old_w is None else b + (a - b) * old_w
 
+            # Binaural: the voice is made mono (pan 1, 0 into a scratch pair), then filtered by
+            # the responses of its direction into both ears.
+            dest_l, dest_r = (np.zeros(n), scratch) if self.hrirs is not None else (out_l, out_r)
+            pan_old_a, pan_new_a = (_MONO, _MONO) if self.hrirs is not None else (old.pan_a, new.pan_a)
             if key[0] == "o":
                 st.osc, st.pulse = self._pulse_voice(
-                    out_l,
-                    out_r,
+                    dest_l,
+                    dest_r,
                     self._tables[new.harmonics],
                     self._tables[old.harmonics],
                     self._hann,
@@ -330,10 +346,10 @@ class VoiceBank:
                     new.beep_s,
                     old.gain_a,
                     new.gain_a,
-                    old.pan_a[0],
-                    new.pan_a[0],
-                    old.pan_a[1],
-                    new.pan_a[1],
+                    pan_old_a[0],
+                    pan_new_a[0],
+                    pan_old_a[1],
+                    pan_new_a[1],
                 )
             else:
                 # A glide: continuous tone, parameters following the triangle near -> far -> near.
@@ -344,14 +360,88 @@ class VoiceBank:
                 gain = (ramp(old.gain_a, new.gain_a) * (1 - tri) + ramp(old.gain_b, new.gain_b) * tri) * m.master_gain
                 cyc = st.osc + np.cumsum(freq) / sr
                 wave = self._tables[new.harmonics][(cyc * _TABLE).astype(np.int64) & (_TABLE - 1)] * gain
-                out_l += wave * (ramp(old.pan_a[0], new.pan_a[0]) * (1 - tri) + ramp(old.pan_b[0], new.pan_b[0]) * tri)
-                out_r += wave * (ramp(old.pan_a[1], new.pan_a[1]) * (1 - tri) + ramp(old.pan_b[1], new.pan_b[1]) * tri)
+                if self.hrirs is not None:
+                    dest_l += wave
+                else:
+                    out_l += wave * (
+                        ramp(old.pan_a[0], new.pan_a[0]) * (1 - tri) + ramp(old.pan_b[0], new.pan_b[0]) * tri
+                    )
+                    out_r += wave * (
+                        ramp(old.pan_a[1], new.pan_a[1]) * (1 - tri) + ramp(old.pan_b[1], new.pan_b[1]) * tri
+                    )
                 st.osc = float(cyc[-1] % 1.0)
                 st.pulse = float(gp[-1] % 1.0)
+            if self.hrirs is not None:
+                self._place(st, new, dest_l, spatial)
             st.done = min(done + n, r)
         for key in [k for k, s in self.states.items() if s.fading and s.done >= r]:
             del self.states[key]
+        if spatial:
+            self._convolve(spatial, out_l, out_r)
+        elif self._tail is not None:  # the last voices' filters still ringing
+            self._convolve([(np.zeros(n), 0)], out_l, out_r)
         return _soft_limit(np.column_stack((out_l, out_r)))
+
+    def _spectrum(self, index: int, nfft: int) -> NDArray[np.complex128]:
+        """Both ears' transfer functions of one direction at an FFT size (cached)."""
+        assert self.hrirs is not None
+        got = self._spectra.get((index, nfft))
+        if got is None:
+            got = np.fft.rfft(self.hrirs.irs[index], nfft, axis=1)
+            self._spectra[(index, nfft)] = got
+        return got
+
+    def _place(self, st: _State, v: Voice, mono: NDArray[np.float64], spatial: list[Any]) -> None:
+        """Queue ``mono`` for the filters of the voice's direction (a new direction: cross-faded over the call)."""
+        h = self.hrirs
+        assert h is not None
+        az, el = _direction_of(v, self.mapping)
+        index = h.nearest(az, el)
+        if st.hrir < 0 or index == st.hrir:
+            spatial.append((mono, index))
+        else:
+            # The input moves from the old pair of filters to the new one; the old filters'
+            # response to what they already had rings on in the shared tail: no click.
+            w = np.arange(1, len(mono) + 1) / len(mono)
+            spatial += [(mono * (1.0 - w), st.hrir), (mono * w, index)]
+        st.hrir = index
+
+    def _convolve(
+        self, spatial: list[tuple[NDArray[np.float64], int]], out_l: NDArray[np.float64], out_r: NDArray[np.float64]
+    ) -> None:
+        """Add every queued input filtered by its direction's pair to both ears (one overlap-add for all).
+
+        Filtering is linear, so the voices are summed in the frequency domain and transformed
+        back once: two inverse FFTs a call whatever the number of voices.
+        """
+        h = self.hrirs
+        assert h is not None
+        n, taps = len(out_l), h.taps
+        nfft = 1 << (n + taps - 2).bit_length()
+        x = np.fft.rfft(np.stack([m for m, _ in spatial]), nfft, axis=1)  # (inputs, bins)
+        spectra = np.stack([self._spectrum(i, nfft) for _, i in spatial])  # (inputs, 2, bins)
+        y = np.fft.irfft(np.einsum("kb,keb->eb", x, spectra), nfft, axis=1)[:, : n + taps - 1]
+        if self._tail is not None:
+            y[:, : taps - 1] += self._tail
+        out_l += y[0, :n]
+        out_r += y[1, :n]
+        tail = y[:, n:]
+        self._tail = tail.copy() if np.abs(tail).max(initial=0.0) > 1e-9 else None
+
+
+#: Pan gains that put a voice in the left buffer alone (a mono voice, for binaural rendering).
+_MONO = (1.0, 0.0)
+
+
+def _direction_of(v: Voice, mapping: SoundMapping) -> tuple[float, float]:
+    """(azimuth, elevation) in degrees of a voice: its own, or read back from its pan without intrinsics."""
+    if v.azimuth is not None and v.elevation is not None:
+        return v.azimuth, v.elevation
+    # The pan's angle runs 0 (left) .. pi/2 (right) over -pan_azimuth_deg .. +pan_azimuth_deg.
+    lr = (v.pan_a[0] + v.pan_b[0], v.pan_a[1] + v.pan_b[1])
+    p = math.atan2(lr[1], lr[0]) / (math.pi / 2)
+    az = (2.0 * p - 1.0) / max(mapping.pan_width, 1e-6) * mapping.pan_azimuth_deg
+    return az, 0.0
 
 
 class Sonifier:
@@ -398,13 +488,19 @@ class Sonifier:
         return self._seconds
 
     def push(
-        self, tree: SceneTree, duration_s: float, objects: Sequence[SceneObject] = (), intrinsics: Any = None
+        self,
+        tree: SceneTree,
+        duration_s: float,
+        objects: Sequence[SceneObject] = (),
+        intrinsics: Any = None,
+        gravity: Any = None,
     ) -> NDArray[np.float32]:
         """Audio for one frame of ``duration_s`` seconds.
 
         ``objects`` are the frame's segmented objects (``SceneResult.segmentation.objects``):
         with them a surface's glide spans its real near and far ends. ``intrinsics`` (the
-        frame's) make the pan follow each object's azimuth. The voices are chosen frame after
+        frame's) make the pan follow each object's azimuth; with ``gravity`` (the frame's) too,
+        pitch follows elevation above the horizon instead of the image row. The voices are chosen frame after
         frame by :attr:`chooser` (:class:`depthgram.sound.choose.Chooser`): a voice belongs to a
         tracked object, and concurrent voices are kept apart.
 
@@ -418,7 +514,7 @@ class Sonifier:
         """
         if not isinstance(duration_s, (int, float)) or not math.isfinite(duration_s) or duration_s < 0:
             raise InputError(f"frame duration must be a finite number of seconds >= 0, got {duration_s!r}")
-        self.voices_now = self.chooser.voices(tree, self._size_of(tree), objects, intrinsics)
+        self.voices_now = self.chooser.voices(tree, self._size_of(tree), objects, intrinsics, gravity)
         return self._push_targets(self.voices_now, duration_s)
 
     def _push_targets(self, targets: dict[tuple[str, int], Voice], duration_s: float) -> NDArray[np.float32]:

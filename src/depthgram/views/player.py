@@ -147,7 +147,7 @@ def tree_lines(tree_dict: dict[str, Any]) -> list[dict[str, Any]]:
     return out
 
 
-def _pcm16_b64(audio: np.ndarray) -> str:
+def pcm16_b64(audio: np.ndarray) -> str:
     """Interleaved stereo float32 (n, 2) in [-1, 1] as little-endian PCM16, base64."""
     pcm = np.clip(np.rint(np.asarray(audio, np.float32) * 32767.0), -32768, 32767).astype("<i2")
     return base64.b64encode(np.ascontiguousarray(pcm).tobytes()).decode("ascii")
@@ -170,28 +170,42 @@ class Delivery:
 class Page:
     """One open page: its newest undelivered frame, what it missed, whether it wants sound.
 
-    Used on the event loop's thread only.
+    Used on the event loop's thread only. A page with sound on has a live renderer of its own
+    (:class:`~depthgram.sound.live.LiveSonifier`): each frame swaps its voices' targets, and the
+    page pulls blocks from it as its audio clock consumes them (:attr:`audio_need`).
     """
 
     def __init__(self) -> None:
         self.slot: Delivery | None = None
-        self.audio: list[str] = []
         self.ready = asyncio.Event()  # set when the page may receive the next frame
         self.ready.set()
-        self.wake = asyncio.Event()  # set when the slot is filled or the ack arrives
+        self.wake = asyncio.Event()  # set when the slot is filled, the ack or an audio request arrives
         self.dropped = 0
         self.sound = False
+        self.live: Any = None  # the page's LiveSonifier, made when it first turns sound on
+        self.audio_need = 0  # samples the page asked for and has not been sent yet
+        self.audio_sent = 0  # samples sent so far
+        self.heard = -1  # the newest frame whose voices a sent block carries
         self.notices: list[dict[str, Any]] = []  # sent after the newest frame, never dropped
 
-    def offer(self, delivery: Delivery, audio: str | None) -> None:
-        """Put the newest frame in the page's slot, dropping one the page has not taken yet."""
+    def offer(self, delivery: Delivery, targets: dict[Any, Any] | None) -> None:
+        """Put the newest frame in the page's slot (dropping one not taken yet) and swap its voices.
+
+        ``targets``: the frame's voices (``{}`` silences them), or None to leave them as they are.
+        The voices change now, not when the page draws the frame: the sound never waits for
+        the picture.
+        """
         if self.slot is not None:
             self.dropped += 1  # the page is behind: the older frame is never sent
         self.slot = delivery
-        if audio is not None and self.sound:
-            # Audio is kept across dropped frames so that the sound stays continuous.
-            self.audio.append(audio)
+        if targets is not None and self.live is not None and self.sound:
+            self.live.set_targets(targets, frame=delivery.header["index"])
         self.wake.set()
+
+    def silence(self) -> None:
+        """Fade the page's voices out (a pause, the end): its blocks go on, silent."""
+        if self.live is not None:
+            self.live.clear()
 
     def notify(self, message: dict[str, Any]) -> None:
         """Queue a notice for the page; notices are never dropped."""
@@ -278,7 +292,7 @@ class Player:
         self._steps: list[asyncio.Future[None]] = []
         self._settles: list[asyncio.Future[None]] = []  # pauses waiting for the frame in progress
         self._seek: tuple[int, asyncio.Future[None]] | None = None
-        self._sonifier: Any = None
+        self._chooser: Any = None  # picks each frame's voices for every page with sound on
         self._sound_error: str | None = None
         self._loop: asyncio.AbstractEventLoop | None = None
         self._thread: threading.Thread | None = None
@@ -348,6 +362,7 @@ class Player:
             "error": self.error,
             "params": {"method": seg.method, "min_area": seg.min_area, "fraction": seg.fraction, "bin_mm": seg.bin_mm},
             "sound_available": self.sound_available,
+            "samplerate": self.viewer.samplerate,
             "methods": list(METHODS),
         }
 
@@ -378,6 +393,8 @@ class Player:
             self._settles.append(fut)
             self._cv.notify_all()
         await fut
+        for c in self.clients:
+            c.silence()
 
     async def step(self) -> None:
         """Pause, then process and push exactly one more frame; return once it is pushed."""
@@ -525,7 +542,6 @@ class Player:
             self._settles = []
 
     def _play_loop(self) -> None:
-        advanced = 0  # frames of the recording since the last pushed one (for the audio duration)
         fresh = True  # the next frame is the first since playback (re)started
         tail = None  # the newest frame skipped since the last one pushed
         while True:
@@ -557,7 +573,7 @@ class Player:
                         if self.mode is Mode.SEEKING and self._seek is None:
                             self._to(Mode.PAUSED)
                     self._post(self._resolve, [fut])
-                fresh, advanced, tail = True, 0, None
+                fresh, tail = True, None
                 continue
             if self._finished:
                 self._finished = False
@@ -567,43 +583,41 @@ class Player:
             frame = None
             if want:
                 try:
-                    frame, tail, skipped = self._read_due(tail)
+                    frame, tail, _skipped = self._read_due(tail)
                 except Exception as exc:  # a broken file mid-recording: say so, keep serving
                     self._fail(f"{self.name}: reading the frame after {self.index}: {exc}")
                     continue
-                advanced += skipped
             with self._cv:
                 step = self._steps.pop(0) if self._steps else None  # maybe asked for during the read
                 # Paused (before or during the read): the frame in hand is shown rather than
                 # kept or dropped, so the page ends on the newest frame read and a step shows
                 # the very next one; a source cannot be rewound to a frame skipped earlier.
                 settling = step is None and not self.playing
-            last = False
             if frame is None and tail is not None:
                 # The recording ended, or playback paused, just after skipping: the newest
                 # frame read is shown rather than dropped, so the page ends on the recording's
-                # last scene and the sound lasts as long as the recording.
-                frame, tail, last = tail, None, True
+                # last scene.
+                frame, tail = tail, None
                 self.dropped -= 1
             if frame is None:
                 self._end(step)
                 continue
-            if not last:
-                advanced += 1
             if self.config is not self.pipeline.config:
                 self.pipeline.config = self.config  # tracks survive a parameter change
-            # Sound only while playing: a step or a pause has no duration to fill.
-            sound = step is None and not settling and any(c.sound for c in tuple(self.clients))
+            # Voices only while playing: a step or a pause is silent.
+            listening = any(c.sound for c in tuple(self.clients))
+            sound = step is None and not settling and listening
             try:
-                delivery, audio = self._render(frame, advanced / (self.fps * self.speed), sound)
+                delivery, targets = self._render(frame, sound)
             except Exception as exc:
                 if step is not None:
                     self._post(self._resolve, [step])
                 self._fail(f"{frame.name or self.name}: frame {frame.index}: {exc}")
                 continue
-            advanced = 0
             tail = None
-            self._post(self._deliver, frame.index, delivery, audio)
+            if targets is None and listening:
+                targets = {}
+            self._post(self._deliver, delivery, targets)
             if step is not None:
                 self._post(self._resolve, [step])
             if fresh:
@@ -619,12 +633,12 @@ class Player:
             else:
                 self.pacer.advance()
 
-    def _deliver(self, index: int, delivery: Delivery, audio: str | None) -> None:
-        """Hand a frame to every page (on the event loop)."""
-        self.index = index
+    def _deliver(self, delivery: Delivery, targets: dict[Any, Any] | None) -> None:
+        """Hand a frame, and its voices, to every page (on the event loop)."""
+        self.index = delivery.header["index"]
         self.processed += 1
         for c in self.clients:
-            c.offer(delivery, audio)
+            c.offer(delivery, targets)
 
     def _end(self, step: asyncio.Future[None] | None) -> None:
         """Mark the recording ended (not looping): tell the pages, answer the steps waiting for a frame."""
@@ -638,6 +652,7 @@ class Player:
 
         def tell() -> None:
             for c in self.clients:
+                c.silence()
                 c.notify({"type": "end", **self.state()})
 
         self._post(tell)
@@ -675,11 +690,11 @@ class Player:
             return
         self._finished = False
         try:
-            delivery, _ = self._render(frame, 0.0, False)
+            delivery, _ = self._render(frame, False)
         except Exception as exc:
             self._fail(f"{frame.name or self.name}: frame {frame.index}: {exc}")
             return
-        self._post(self._deliver, frame.index, delivery, None)
+        self._post(self._deliver, delivery, {})  # a sought frame is shown, not heard
 
     def _rewind(self, target: int) -> Frame | None:
         """Re-open the recording and return its frame ``target``, the pipeline primed with the frames before."""
@@ -708,11 +723,12 @@ class Player:
 
         def tell() -> None:
             for c in self.clients:
+                c.silence()
                 c.notify({"type": "error", "message": message})
 
         self._post(tell)
 
-    def _render(self, frame: Frame, duration_s: float, with_sound: bool) -> tuple[Delivery, str | None]:
+    def _render(self, frame: Frame, with_sound: bool) -> tuple[Delivery, dict[Any, Any] | None]:
         """Process one frame and build what the pages get."""
         from depthgram.act import plan_to_dict
         from depthgram.scene import tree_to_dict
@@ -750,22 +766,41 @@ class Player:
         }
         head = json.dumps(header, separators=(",", ":"))[:-1]
         t, c = self._timed("pack", t, c), time.thread_time()
-        audio = None
+        targets = None
         if with_sound:
-            audio = self._sonify(result, duration_s)
+            targets = self._voices(result)
             self._timed("sound", t, c)
-        return Delivery(header, head, body), audio
+        return Delivery(header, head, body), targets
 
-    def _sonify(self, result: SceneResult, duration_s: float) -> str | None:
+    def _voices(self, result: SceneResult) -> dict[Any, Any] | None:
+        """Return the frame's voices, chosen once for every page (None when the sound stage is missing)."""
         if self._sound_error is not None:
             return None
-        if self._sonifier is None:
+        if self._chooser is None:
             try:
-                from depthgram.sound import Sonifier
+                from depthgram.sound.choose import Chooser
             except ImportError as exc:  # the sound stage is optional for the picture
                 self._sound_error = f"sound unavailable: {exc}"
                 return None
-            self._sonifier = Sonifier(self.config.sound, self.viewer.samplerate, result.frame.size)
+            self._chooser = Chooser(self.config.sound)
         # With the objects' extents and the camera's intrinsics, as sonify and listen hear them.
-        audio = self._sonifier.push(result.tree, duration_s, result.segmentation.objects, result.frame.intrinsics)
-        return _pcm16_b64(audio)
+        frame = result.frame
+        voices: dict[Any, Any] = self._chooser.voices(
+            result.tree, frame.size, result.segmentation.objects, frame.intrinsics, frame.gravity
+        )
+        return voices
+
+    def new_live(self) -> Any:
+        """Return a live renderer for one page's sound, kernels compiled (None when the sound stage cannot load).
+
+        Called off the event loop (it may compile): ``await asyncio.to_thread(player.new_live)``.
+        """
+        try:
+            from depthgram.sound.live import LiveSonifier
+
+            live = LiveSonifier(self.config.sound, self.viewer.samplerate, (2, 2))
+            live.warm_up()
+        except ImportError as exc:  # the sound stage is optional for the picture
+            self._sound_error = f"sound unavailable: {exc}"
+            return None
+        return live

@@ -17,14 +17,19 @@ HTTP interface (all JSON errors are ``{"error": message}`` with a 4xx status):
   ``error`` and ``sound``, and one binary message per frame (:mod:`depthgram.views.wire`: a
   JSON header with the record of :meth:`~depthgram.pipeline.SceneResult.to_record`, the tree
   as an indented list, the plan of :func:`depthgram.act.plan_to_dict`, drop counts and, for
-  pages with sound on, the audio as base64 little-endian PCM16 stereo; then the depth and label
-  images). The page answers ``{"type": "ack"}`` after drawing each frame and
-  ``{"type": "sound", "on": true}`` for audio.
+  pages with sound on, then the depth and label images). The page answers ``{"type": "ack"}``
+  after drawing each frame and ``{"type": "sound", "on": true}`` for audio; with sound on it
+  asks for blocks, ``{"type": "audio", "need": N}`` (samples), and gets ``{"type": "audio",
+  "samplerate", "channels": 2, "pcm": base64 little-endian PCM16 stereo, "frame": the newest
+  frame whose voices the block carries}``.
 
-Sound is rendered on the server by :class:`depthgram.sound.Sonifier`, the same code as
-``depthgram sonify``, rather than re-synthesised in Web Audio: one mapping, one implementation,
-and what is heard in the browser is what the WAV file holds. It costs about 2.9 kB of PCM16 per
-frame at 22050 samples/s and 30 frames/s.
+Sound is rendered on the server by the live renderer of ``depthgram listen``
+(:class:`depthgram.sound.live.LiveSonifier`), not re-synthesised in Web Audio: one mapping, one
+implementation. Each frame only swaps the page's voices' targets, which the renderer ramps
+toward; the page's AudioWorklet plays the blocks and asks for more as its own audio clock
+consumes them, keeping about ``AUDIO_AHEAD_S`` (page side) buffered. So the audio clock paces
+the synthesis: no drift between the server's clock and the speaker's, and no catch-up queue (a
+stall of the server freezes the scene; the page counts the blocks it ran dry).
 """
 
 from __future__ import annotations
@@ -53,7 +58,7 @@ from depthgram.views.guard import (
     parse_json,
     same_origin,
 )
-from depthgram.views.player import Player, ViewerConfig, recording_name, tree_lines
+from depthgram.views.player import Player, ViewerConfig, pcm16_b64, recording_name, tree_lines
 from depthgram.views.wire import colour_table, pack_frame
 
 # Player, ViewerConfig, recording_name and tree_lines are re-exported: they lived here before the split.
@@ -229,22 +234,43 @@ def create_app(
                     client.ready.set()
                     client.wake.set()
                 elif kind == "sound":
-                    client.sound = bool(msg.get("on"))
+                    on = bool(msg.get("on"))
+                    if on and client.live is None and player.sound_available:
+                        client.live = await asyncio.to_thread(player.new_live)
+                    if not on:
+                        client.silence()
+                        client.audio_need = 0
+                    client.sound = on
                     client.notify({"type": "sound", "on": client.sound, "available": player.sound_available})
+                elif kind == "audio":
+                    need = msg.get("need")
+                    if type(need) is int and need > 0 and client.sound and client.live is not None:
+                        # Never more than half a second at once: a page cannot make the server
+                        # render ahead of the scene.
+                        client.audio_need = min(client.audio_need + need, player.viewer.samplerate // 2)
+                        client.wake.set()
 
         reader = asyncio.get_running_loop().create_task(receive())
         try:
             while not reader.done():
                 client.wake.clear()
+                if client.audio_need > 0 and client.live is not None:
+                    # Sound first: the page's audio clock is waiting for it, a frame can wait.
+                    n, client.audio_need = client.audio_need, 0
+                    block, taken = client.live.render_block(n)
+                    if taken is not None:
+                        client.heard = taken.frame
+                    client.audio_sent += n
+                    sr = player.viewer.samplerate
+                    msg = {"type": "audio", "samplerate": sr, "channels": 2, "pcm": pcm16_b64(block)}
+                    await ws.send_text(json.dumps({**msg, "frame": client.heard}))
+                    continue
                 if client.slot is not None and client.ready.is_set():
                     t0, c0 = time.perf_counter(), time.thread_time()
                     frame, client.slot = client.slot, None
-                    audio, client.audio = client.audio, []
                     client.ready.clear()
                     # The header was serialised once for every page: only this page's counts are added.
                     mine = {"dropped": client.dropped + frame.header["server_dropped"], "page_dropped": client.dropped}
-                    if audio:
-                        mine["audio"] = {"samplerate": player.viewer.samplerate, "channels": 2, "chunks": audio}
                     head = frame.head + "," + json.dumps(mine, separators=(",", ":"))[1:]
                     await ws.send_bytes(pack_frame(head, frame.body))
                     player._timed("send", t0, c0)

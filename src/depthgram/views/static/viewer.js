@@ -9,11 +9,16 @@ const canvas = $("canvas");
 const ctx = canvas.getContext("2d");
 let name = null;
 let socket = null;
-let audio = null; // AudioContext, created on the user's click (browsers require a gesture)
-let audioNext = 0; // time at which the next audio chunk starts (s, AudioContext clock)
+let audio = null; // AudioContext at the server's rate, created on the user's click (a gesture)
+let audioNode = null; // the AudioWorkletNode playing the server's live blocks (sound-worklet.js)
+let audioRate = 22050; // the server's samples per second (hello)
+let audioAsked = 0; // samples asked for and not yet received
 let audioTotal = 0; // seconds of sound received so far (exposed as data-audio)
-let audioSkipped = 0; // of which skipped to keep the queue short (data-audio-skipped)
-const AUDIO_AHEAD_S = 0.25; // most sound queued ahead of the speaker (s): the worst added latency
+// Sound kept buffered ahead of the speaker (s): the delay a new scene adds on its way to the
+// ear, and the margin against a server busy sending a frame. The page asks for more as the
+// audio clock consumes it, so the speaker's clock, not the server's, paces the synthesis.
+const AUDIO_AHEAD_S = 0.08;
+const AUDIO_ASK_S = 0.02; // smallest request (s): fewer, larger messages
 const shown = []; // arrival times of recent frames, for the displayed rate
 
 function fmt(v, nd = 0) {
@@ -178,36 +183,37 @@ function showStatus(msg) {
   view.dataset.playing = String(msg.playing);
 }
 
-function playAudio(a) {
-  if (!audio || !a) return;
-  for (const chunk of a.chunks) {
-    const bytes = Uint8Array.from(atob(chunk), (c) => c.charCodeAt(0));
-    const pcm = new Int16Array(bytes.buffer);
-    const n = pcm.length / a.channels;
-    if (n < 1) continue;
-    const buf = audio.createBuffer(a.channels, n, a.samplerate);
-    for (let c = 0; c < a.channels; c++) {
-      const out = buf.getChannelData(c);
-      for (let i = 0; i < n; i++) out[i] = pcm[i * a.channels + c] / 32768;
-    }
-    const src = audio.createBufferSource();
-    src.buffer = buf;
-    src.connect(audio.destination);
-    // Chunks are queued back to back; after a stall restart a little ahead to avoid clicks.
-    audioNext = Math.max(audioNext, audio.currentTime + 0.05);
-    // Never more than AUDIO_AHEAD_S queued: the catch-up chunk after a stall (as long as the
-    // stall, all of it the newest scene) and a server clock running ahead of the audio clock
-    // would otherwise make every later sound late. The start of such a chunk is skipped.
-    const skip = Math.min(buf.duration, Math.max(0, audioNext + buf.duration - audio.currentTime - AUDIO_AHEAD_S));
-    if (skip < buf.duration) {
-      src.start(audioNext, skip);
-      audioNext += buf.duration - skip;
-    }
-    audioTotal += buf.duration;
-    audioSkipped += skip;
-    view.dataset.audio = audioTotal.toFixed(3);
-    view.dataset.audioSkipped = audioSkipped.toFixed(3);
+function playAudio(msg) {
+  if (!audioNode) return;
+  const bytes = Uint8Array.from(atob(msg.pcm), (c) => c.charCodeAt(0));
+  const pcm16 = new Int16Array(bytes.buffer);
+  const pcm = new Float32Array(pcm16.length);
+  for (let i = 0; i < pcm16.length; i++) pcm[i] = pcm16[i] / 32768;
+  audioAsked = Math.max(0, audioAsked - pcm.length / 2);
+  audioTotal += pcm.length / 2 / msg.samplerate;
+  audioNode.port.postMessage({ pcm }, [pcm.buffer]);
+  view.dataset.audio = audioTotal.toFixed(3);
+  view.dataset.audioFrame = String(msg.frame);
+}
+
+function askAudio(level) {
+  // The worklet's report: ask for what keeps AUDIO_AHEAD_S buffered, counting what is on its way.
+  view.dataset.audioPlayed = (level.played / audioRate).toFixed(3);
+  view.dataset.audioDry = String(level.dry);
+  const need = Math.round(AUDIO_AHEAD_S * audioRate) - level.buffered - audioAsked;
+  if (need >= AUDIO_ASK_S * audioRate && socket && socket.readyState === WebSocket.OPEN && $("sound").checked) {
+    audioAsked += need;
+    socket.send(JSON.stringify({ type: "audio", need }));
   }
+}
+
+async function startAudio() {
+  audio = new AudioContext({ sampleRate: audioRate });
+  await audio.audioWorklet.addModule("/static/sound-worklet.js");
+  audioNode = new AudioWorkletNode(audio, "depthgram-live-sound", { outputChannelCount: [2] });
+  audioNode.port.onmessage = (e) => askAudio(e.data);
+  audioNode.port.postMessage({ startAt: Math.round(0.5 * AUDIO_AHEAD_S * audioRate) });
+  audioNode.connect(audio.destination);
 }
 
 let colours = null; // 256 RGB triples: index 255 is the near end of the depth range
@@ -398,7 +404,6 @@ async function onFrame(buf) {
   showStatus(msg);
   showTimeline(msg);
   if ($("show3d").checked) cloud.draw(f);
-  playAudio(msg.audio);
   socket.send(JSON.stringify({ type: "ack", index: msg.index }));
   window.__depthgramShown = (window.__depthgramShown || 0) + 1;
   (window.__depthgramDrawMs = window.__depthgramDrawMs || []).push(performance.now() - t0);
@@ -447,8 +452,11 @@ function connect() {
       $("method").replaceChildren(...msg.methods.map((m) => new Option(m, m)));
       fillParams(msg.params);
       if (!msg.sound_available) $("sound").disabled = true;
+      if (msg.samplerate) audioRate = msg.samplerate;
       colours = msg.colours;
       if (msg.frames) $("timeline").max = String(msg.frames - 1);
+    } else if (msg.type === "audio") {
+      playAudio(msg);
     } else if (msg.type === "error") {
       showError(msg.message);
     } else if (msg.type === "end") {
@@ -485,12 +493,16 @@ $("apply").onclick = () => {
   }
   api("PUT", "/params", params);
 };
-$("sound").onchange = () => {
+$("sound").onchange = async () => {
   const on = $("sound").checked;
-  if (on && !audio) audio = new AudioContext();
-  if (audio) (on ? audio.resume() : audio.suspend());
-  audioNext = 0;
   socket.send(JSON.stringify({ type: "sound", on }));
+  audioAsked = 0;
+  try {
+    if (on && !audio) await startAudio();
+    if (audio) await (on ? audio.resume() : audio.suspend());
+  } catch (e) {
+    showError(`sound cannot play in this browser: ${e}`);
+  }
 };
 
 fetch("/api/recordings")
