@@ -62,3 +62,32 @@ def test_frames_without_rate_are_refused_or_played_at_the_given_rate(
     assert "3 frame periods from 10 frames/s" in capsys.readouterr().out
     assert main(["sonify", str(stack), "--wav", str(out), "--quiet", "--stills"]) == 0
     assert "4 still(s)" in capsys.readouterr().out
+
+
+def test_a_tilted_camera_is_heard_against_the_horizon(tmp_path: Path) -> None:
+    # sonify hands the frame's gravity to the synthesis: under --tilt an object's pitch follows
+    # its elevation above the horizon, not its image row
+    from depthgram.frame import Gravity
+    from depthgram.sound import Sonifier
+
+    src = "sim:approach?frames=30"
+    r = list(Pipeline(Config()).run(open_source(src)))[-1]
+
+    def beep_hz(gravity: Gravity | None) -> float:
+        son = Sonifier(SoundMapping(), 22050, r.frame.size)
+        son.push(r.tree, 1 / 30, r.segmentation.objects, r.frame.intrinsics, gravity)
+        (hz,) = [v.freq_a for v in son.voices_now.values() if v.rate > 0]
+        return hz
+
+    level_hz, tilted_hz = beep_hz(None), beep_hz(Gravity.from_tilt(30.0))
+    # looking 30 degrees down, the object ahead sits below the horizon: a lower pitch
+    assert 12 * np.log2(level_hz / tilted_hz) >= 3
+    for args, hz, other in (([], level_hz, tilted_hz), (["--tilt", "30"], tilted_hz, None)):
+        out = tmp_path / "a.wav"
+        assert main(["sonify", src, "--wav", str(out), "--quiet", *args]) == 0
+        audio, sr = read(out)
+        heard = listen(audio, sr, hz)
+        assert heard.times.size >= 3, args
+        np.testing.assert_allclose(heard.pitch_hz, hz, rtol=0.01)
+        if other is not None:  # (the level pitch is a harmonic of the tilted one: not checked)
+            assert listen(audio, sr, other).times.size == 0, args

@@ -125,7 +125,7 @@ class _Writer:
         self._last_period = period
         if self.stream is None:
             self.stream = Sonifier(self.mapping, self.sr, r.frame.size)
-        audio = self.stream.push(r.tree, period, r.segmentation.objects, r.frame.intrinsics)
+        audio = self.stream.push(r.tree, period, r.segmentation.objects, r.frame.intrinsics, r.frame.gravity)
         if fade:  # the run ends: fade out over the ramp, so that it lasts as long as it did and ends without a click
             k = min(len(audio), max(1, round(self.mapping.ramp_s * self.sr)))
             audio[len(audio) - k :] *= np.linspace(1.0, 0.0, k, dtype=np.float32)[:, None]
