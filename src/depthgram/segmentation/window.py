@@ -23,7 +23,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-__all__ = ["bits_range", "exact_in_float64", "exact_rows", "fill_ends", "next_columns", "start_columns", "window_row"]
+__all__ = ["bits_range", "exact_in_float64", "exact_rows", "start_columns", "window_row"]
 
 _ABS = 0x7FFFFFFF
 _NONE = 0xFFFFFFFF
@@ -121,42 +121,22 @@ def start_columns(src: NDArray[np.float32], r: int, pad: NDArray[np.floating[Any
 
 
 @njit(cache=True, inline="always")
-def next_columns(src: NDArray[np.float32], y: int, r: int, pad: NDArray[np.floating[Any]]) -> None:
-    """Move the column sums in ``pad[r:r + W]`` from output row ``y - 1`` to ``y`` (replicated rows).
-
-    The row ``r`` below is added and the row ``r + 1`` above taken off, in ``pad``'s type (a
-    float32 value is exact in float64).
-    """
-    h, w = src.shape
-    new = src[min(y + r, h - 1)]
-    old = src[max(y - r - 1, 0)]
-    mid = pad[r : r + w]
-    for x in range(w):
-        mid[x] = (mid[x] + new[x]) - old[x]
-
-
-@njit(cache=True, inline="always")
-def fill_ends(pad: NDArray[np.floating[Any]], r: int, w: int) -> None:
-    """Repeat the first and last of the ``w`` column sums in ``pad[r:r + w]`` over its ``r`` ends."""
-    first = pad[r]
-    last = pad[r + w - 1]
-    for i in range(r):
-        pad[i] = first
-        pad[r + w + i] = last
-
-
-@njit(cache=True, inline="always")
 def window_row(
     pad: NDArray[np.floating[Any]], r: int, pairs: NDArray[np.floating[Any]], out: NDArray[np.float32]
 ) -> None:
     """Give ``out`` (W,) the sums of ``2 r + 1`` column sums across (replicated border), as float32.
 
-    ``pad`` (W + 2 r,) holds the column sums in its middle (:func:`next_columns`); its ends are
-    filled here. ``pairs`` (W + 2 r,): scratch of ``pad``'s type. For r = 3 the pairs of
-    neighbours are summed once and a window is three pairs and one sum (4 additions for 6).
+    ``pad`` (W + 2 r,) holds the column sums in its middle; its ends are filled here.
+    ``pairs`` (W + 2 r,): scratch of ``pad``'s type. For r = 3 the pairs of neighbours are
+    summed once and a window is three pairs and one sum (4 additions for 6).
     """
     w = out.size
-    fill_ends(pad, r, w)
+    # the first and last column sums repeated over the r places beyond each end
+    first = pad[r]
+    last = pad[r + w - 1]
+    for i in range(r):
+        pad[i] = first
+        pad[r + w + i] = last
     if r == 3:
         m = w + 5
         a, b = pad[0:m], pad[1 : m + 1]
