@@ -729,6 +729,23 @@ def test_relabel_equals_numpy_fancy_indexing() -> None:
     np.testing.assert_array_equal(relabel(labels[:, ::2], lut), lut[labels[:, ::2]])  # a strided view
 
 
+@pytest.mark.parametrize("sigma", [0.6, 1.0, 2.5])
+def test_histogram_smoothing_gives_scipys_numbers(sigma: float) -> None:
+    # the compiled smoothing must equal gaussian_filter1d exactly (peak positions and cuts
+    # depend on comparisons of neighbouring bins), edges reflected, tiny histograms too
+    from scipy.ndimage import gaussian_filter1d
+
+    from depthgram.segmentation.histogram import _gaussian_weights, _smooth_padded
+
+    rng = np.random.default_rng(int(sigma * 10))
+    for _ in range(200):
+        n = int(rng.integers(1, 300))
+        counts = rng.integers(0, int(rng.choice([3, 100, 50_000])), n).astype(np.int64)
+        padded = _smooth_padded(counts, _gaussian_weights(sigma))
+        np.testing.assert_array_equal(padded[1:-1], gaussian_filter1d(counts.astype(np.float64), sigma))
+        assert padded[0] == 0.0 and padded[-1] == 0.0
+
+
 def test_sensor_estimate_keeps_tied_depths_in_raster_order() -> None:
     # which of the pixels tied at a depth range's boundary fall on each side changes the
     # estimate; numpy's default sort left that to the CPU's SIMD level (three different models
@@ -1148,6 +1165,26 @@ def test_large_pieces_are_opencvs_8_connected_pieces() -> None:
         np.testing.assert_array_equal(_large_pieces(mask, min_px), large_pieces_opencv(mask, min_px))
     diagonal = np.eye(5, dtype=bool)  # one piece through corners only
     assert _large_pieces(diagonal, 5).sum() == 5 and not _large_pieces(diagonal, 6).any()
+
+
+def test_prominent_peaks_are_scipys_find_peaks() -> None:
+    # the histogram's peaks: flat tops (their middle sample, rounded down), peaks at the ends
+    # of the padding, ties between the two sides, every prominence floor
+    from scipy.signal import find_peaks
+
+    from depthgram.segmentation.histogram import prominent_peaks
+
+    rng = np.random.default_rng(16)
+    for t in range(600):
+        n = int(rng.integers(0, 300))
+        x = rng.integers(0, 6 if t % 2 else 1000, n).astype(np.float64)  # few levels: plateaus
+        if t % 3 == 0:
+            x = np.concatenate(([0.0], x, [0.0]))
+        floor = float(rng.choice([1e-9, 0.5, 1.0, 3.0, 50.0, 400.0]))
+        want = find_peaks(x, prominence=floor)[0]
+        got = prominent_peaks(x, floor)
+        np.testing.assert_array_equal(got, want)
+        assert got.dtype == want.dtype
 
 
 def _raster_sums(labels: np.ndarray, n: int, depth: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -13,12 +13,12 @@ Both readings are compared on the simulator's seeded scenes by ``benchmarks/tabl
 from __future__ import annotations
 
 import math
+from functools import lru_cache
 
 import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 from scipy.ndimage import gaussian_filter1d
-from scipy.signal import find_peaks
 
 from depthgram.segmentation.binning import bin_linear, bin_pixels, depth_range, log_counts
 from depthgram.segmentation.config import SegmentConfig
@@ -163,6 +163,90 @@ def _cuts(
     return lut, first, last
 
 
+@lru_cache(maxsize=16)
+def _gaussian_weights(sigma: float) -> NDArray[np.float64]:
+    """Return the kernel ``gaussian_filter1d`` uses for ``sigma``: its response to a unit impulse."""
+    radius = int(4.0 * sigma + 0.5)  # gaussian_filter1d's default truncate=4.0
+    impulse = np.zeros(2 * radius + 1)
+    impulse[radius] = 1.0
+    weights: NDArray[np.float64] = gaussian_filter1d(impulse, sigma, mode="constant")
+    weights.setflags(write=False)
+    return weights
+
+
+@njit(cache=True, nogil=True)
+def _smooth_padded(counts: NDArray[np.int64], weights: NDArray[np.float64]) -> NDArray[np.float64]:
+    # scipy's gaussian_filter1d (mode "reflect") with the same weights and the same order of
+    # operations, so the same numbers (a test compares them on random histograms), written
+    # into a zero-padded array for the peak search. Kept compiled: scipy's gaussian_filter1d
+    # and find_peaks cost 28 us more a frame (+22 % for the threshold method at 176 x 132).
+    n = counts.size
+    r = (weights.size - 1) // 2
+    out = np.zeros(n + 2)
+    for i in range(n):
+        t = counts[i] * weights[r]
+        for j in range(r, 0, -1):  # outermost pair first, as scipy sums a symmetric kernel
+            a = i - j
+            while a < 0 or a >= n:  # reflect about the edges: (d c b a | a b c d | d c b a)
+                a = -a - 1 if a < 0 else 2 * n - a - 1
+            b = i + j
+            while b < 0 or b >= n:
+                b = -b - 1 if b < 0 else 2 * n - b - 1
+            t += (counts[a] + counts[b]) * weights[r + j]
+        out[i + 1] = t
+    return out
+
+
+@njit(cache=True, nogil=True)
+def prominent_peaks(x: NDArray[np.float64], min_prominence: float) -> NDArray[np.intp]:
+    """Return the peaks of ``x`` of at least ``min_prominence``, in order.
+
+    ``scipy.signal.find_peaks(x, prominence=min_prominence)[0]``, step by step: a peak is a
+    sample (the middle one, rounded down, of a flat top) higher than both neighbours; its
+    prominence is its height over the higher of the lowest points on each side before a
+    higher sample. Kept compiled (with :func:`_smooth_padded`: 28 us a frame, +22 % for the
+    threshold method at 176 x 132, against scipy's calls); the same float64 comparisons and
+    subtraction give the same peaks (a test compares them). No warning for a prominence of
+    0, which a strict local maximum never has.
+    """
+    n = x.size
+    tops = np.empty(max(n // 2, 1), np.intp)
+    m = 0
+    i = 1
+    i_max = n - 1
+    while i < i_max:
+        if x[i - 1] < x[i]:
+            i_ahead = i + 1
+            while i_ahead < i_max and x[i_ahead] == x[i]:
+                i_ahead += 1
+            if x[i_ahead] < x[i]:
+                tops[m] = (i + i_ahead - 1) // 2
+                m += 1
+                i = i_ahead
+        i += 1
+    out = np.empty(m, np.intp)
+    k = 0
+    for j in range(m):
+        peak = tops[j]
+        top = x[peak]
+        i = peak
+        left_min = top
+        while 0 <= i and x[i] <= top:
+            if x[i] < left_min:
+                left_min = x[i]
+            i -= 1
+        i = peak
+        right_min = top
+        while i <= i_max and x[i] <= top:
+            if x[i] < right_min:
+                right_min = x[i]
+            i += 1
+        if min_prominence <= top - max(left_min, right_min):
+            out[k] = peak
+            k += 1
+    return out[:k]
+
+
 def depth_bands(counts: NDArray[np.int64], edges: NDArray[np.float64], config: SegmentConfig) -> Bands:
     """Peaks and cuts of a histogram from :func:`bin_index`."""
     nb = edges.size - 1
@@ -171,12 +255,12 @@ def depth_bands(counts: NDArray[np.int64], edges: NDArray[np.float64], config: S
         empty = np.zeros(0)
         return Bands(Histogram(edges, counts, empty, empty), np.full(max(nb, 1), -1, np.int32), empty)
     # padded with a zero bin at each end so that a peak in the first or last bin is found too
-    padded = np.zeros(nb + 2)
-    padded[1:-1] = counts
     if config.smooth_bins > 0:
-        padded[1:-1] = gaussian_filter1d(counts, float(config.smooth_bins), mode="reflect", output=np.float64)
+        padded = _smooth_padded(np.ascontiguousarray(counts, np.int64), _gaussian_weights(float(config.smooth_bins)))
+    else:
+        padded = np.concatenate(([0.0], counts.astype(np.float64), [0.0]))
     smooth = padded[1:-1]
-    peaks = find_peaks(padded, prominence=max(config.min_prominence * n_valid, 1e-9))[0] - 1
+    peaks = prominent_peaks(padded, max(config.min_prominence * n_valid, 1e-9)) - 1
     t = 1.0 - config.fraction if config.cut_from == "minimum" else config.fraction
     lut, first, last = _cuts(np.ascontiguousarray(smooth, np.float64), peaks, t, config.gap_pixels == "nearest")
     lower = edges[first]

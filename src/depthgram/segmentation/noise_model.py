@@ -180,15 +180,26 @@ def _range_fit(
 
     The steps of :func:`estimate_sensor` from the samples to the fit: the range estimates
     (median depth, step, sigma, 1; none below 200 samples) and, with two ranges or more,
-    ``(a, b)`` of the step's and the sigma's least squares against depth squared (one
-    ``np.linalg.lstsq`` for both; zeros with fewer than two rows).
+    ``(a, b)`` of the step's and the sigma's least squares against depth squared (zeros with
+    fewer than two rows).
     """
     est = _range_estimates_counted(depth, valid, rows)
     fit = est[est[:, 3] > 0]
     sol = np.zeros(4, np.float64)
     if fit.shape[0] > 1:
-        a = np.stack([np.ones(fit.shape[0]), fit[:, 0] * fit[:, 0]], axis=1)
-        sol[:] = np.linalg.lstsq(a, fit[:, 1:3], rcond=None)[0].T.reshape(4)
+        # a straight line through (z**2, step) and (z**2, sigma): slope from the centred sums
+        # (np.linalg.lstsq costs three times as much around two unknowns); lstsq's minimum-norm
+        # answer when every range has one depth
+        x = fit[:, 0] * fit[:, 0]
+        dx = x - x.mean()
+        sxx = float(dx @ dx)
+        y = fit[:, 1:3]
+        if sxx > 0.0:
+            b = dx @ (y - y.mean(axis=0)) / sxx
+            a = y.mean(axis=0) - b * x.mean()
+            sol[:] = a[0], b[0], a[1], b[1]
+        else:
+            sol[:] = np.linalg.lstsq(np.stack([np.ones_like(x), x], axis=1), y, rcond=None)[0].T.reshape(4)
     return fit, sol
 
 
@@ -196,19 +207,15 @@ def _range_estimates_counted(depth: NDArray[np.float32], valid: NDArray[np.bool_
     """Each depth range's row of the estimate (median depth, step, sigma, 1; none below 200 samples).
 
     When every reading of the sampled rows is a whole number in [1, 2**24) (what most cameras
-    give), the ranges' order statistics come from counts in two compiled passes
-    (:func:`_whole_samples`, :func:`_ranges_from_counts`); other frames take the readable route
+    give), the ranges' order statistics come from counts in one compiled call
+    (:func:`_ranges_from_counts`); other frames take the readable route
     (:func:`range_estimates_readable`), which gives the same values (a test holds both). Kept
     compiled: the estimate runs in every ``segment`` call, and the readable route's stable sort
     and per-range selections cost 0.4-1 ms a frame against 0.1 ms here (over 30 % of the
     default method at 176 x 132).
     """
-    key, d1, d2, lo, hi, whole = _whole_samples(depth, valid, rows)
-    if not whole or hi - lo >= 1 << 20 or 0.05 * hi > _MAX_WHOLE_LIM:
-        return range_estimates_readable(depth, valid, rows)
-    if hi < lo:  # no reading in the sampled rows
-        return np.zeros((0, 4), np.float64)
-    return _ranges_from_counts(key, d1, d2, lo, hi)
+    est, counted = _ranges_from_counts(depth, valid, rows)
+    return est if counted else range_estimates_readable(depth, valid, rows)
 
 
 #: Widest depth tolerance (mm) whose differences :func:`_ranges_from_counts` counts.
@@ -256,9 +263,17 @@ def range_estimates_readable(depth: NDArray[np.float32], valid: NDArray[np.bool_
 
 
 @njit(cache=True, nogil=True)
-def _whole_samples(
+def _ranges_from_counts(
     depth: NDArray[np.float32], valid: NDArray[np.bool_], rows: int
-) -> tuple[NDArray[np.int32], NDArray[np.int32], NDArray[np.int32], int, int, bool]:
+) -> tuple[NDArray[np.float64], bool]:
+    # range_estimates_readable from counts, and True; (empty, False) unless every reading of
+    # the sampled rows is a whole number in [1, 2**24) within a span and a depth it counts.
+    # The samples are taken as whole numbers; then, without their order, the depths' counts
+    # give each equal-count range's limits and median depth; a table gives each depth its
+    # range (its pixels' differences counted in that range's histograms), and only the few
+    # depths tied across a range boundary take their pixels' places in raster order, as the
+    # stable order does. Each range's order statistics are read from the counts of its
+    # differences (an order statistic is a value of the sample whatever finds it).
     # every ``rows``-th row, every place x in 1 .. w - 2 in raster order: the depth (0 unless
     # x and both row neighbours have a reading), |z[x+1] - z[x]| and (z[x-1] - 2 z[x]) + z[x+1]
     # as whole numbers, with the smallest and largest reading of the rows and whether every
@@ -277,41 +292,31 @@ def _whole_samples(
     lo = none
     hi = np.int32(0)
     bad = np.uint8(0)
-    p = 0
+    at = 0
     for y in range(0, h, rows):
         zrow = depth[y]
         vrow = valid[y]
         for x in range(w):
-            v = zrow[x]
-            m = np.uint8(vrow[x])
-            g = np.uint8((v >= np.float32(1.0)) & (v < np.float32(16777216.0)) & (np.floor(v) == v)) & m
-            bad |= m ^ g
-            t = np.int32(v) if g else np.int32(0)
-            iz[x] = t
-            ok[x] = g
-            lo = min(lo, t if g else none)
-            hi = max(hi, t)
+            zv = zrow[x]
+            has = np.uint8(vrow[x])
+            whole = np.uint8((zv >= np.float32(1.0)) & (zv < np.float32(16777216.0)) & (np.floor(zv) == zv)) & has
+            bad |= has ^ whole
+            zi = np.int32(zv) if whole else np.int32(0)
+            iz[x] = zi
+            ok[x] = whole
+            lo = min(lo, zi if whole else none)
+            hi = max(hi, zi)
         for x in range(1, w - 1):
-            b = iz[x]
-            c = iz[x + 1]
-            key[p + x - 1] = b if ok[x - 1] & ok[x] & ok[x + 1] else np.int32(0)
-            d1[p + x - 1] = abs(c - b)
-            d2[p + x - 1] = (iz[x - 1] - 2 * b) + c
-        p += places
-    return key, d1, d2, int(lo), int(hi), bad == 0
-
-
-@njit(cache=True, nogil=True)
-def _ranges_from_counts(
-    key: NDArray[np.int32], d1: NDArray[np.int32], d2: NDArray[np.int32], lo: int, hi: int
-) -> NDArray[np.float64]:
-    # range_estimates_readable for the whole-number samples of _whole_samples (depths lo..hi),
-    # without their order: the depths' counts give each equal-count range's limits and median
-    # depth; a table gives each depth its range (its pixels' differences counted in that
-    # range's histograms), and only the few depths tied across a range boundary take their
-    # pixels' places in raster order, as the stable order does. Each range's order statistics
-    # are read from the counts of its differences (an order statistic is a value of the
-    # sample whatever finds it).
+            zm = iz[x]
+            zn = iz[x + 1]
+            key[at + x - 1] = zm if ok[x - 1] & ok[x] & ok[x + 1] else np.int32(0)
+            d1[at + x - 1] = abs(zn - zm)
+            d2[at + x - 1] = (iz[x - 1] - 2 * zm) + zn
+        at += places
+    if bad != 0 or hi - lo >= 1 << 20 or 0.05 * hi > _MAX_WHOLE_LIM:
+        return np.zeros((0, 4), np.float64), False
+    if hi < lo:  # no reading in the sampled rows
+        return np.zeros((0, 4), np.float64), True
     # each depth's count (slot 0 holds the places without a sample), the places keyed in place
     count = np.zeros(hi - lo + 2, np.int32)
     off = np.int32(1 - lo)
@@ -321,7 +326,7 @@ def _ranges_from_counts(
         count[np.uint64(j)] += 1
     n = key.size - count[0]
     if n < 200:
-        return np.zeros((0, 4), np.float64)
+        return np.zeros((0, 4), np.float64), True
     k = min(12, max(2, n // 400))
     each, extra = divmod(n, k)
     ends = np.empty(k + 1, np.int64)
@@ -457,7 +462,7 @@ def _ranges_from_counts(
         out[r, 1] = step
         out[r, 2] = math.sqrt(sigma2)
         out[r, 3] = 1.0
-    return out
+    return out, True
 
 
 def _non_negative(z: NDArray[np.float64], y: NDArray[np.float64], a: float, b: float) -> tuple[float, float]:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from functools import lru_cache
 
 import numpy as np
 from numba import njit
@@ -100,6 +101,7 @@ def _valid_pixels(
     return ok, dirty != 0, n_far
 
 
+@lru_cache(maxsize=16)
 def _far_bound(far: float) -> np.float32:
     """Return the float32 ``f`` with ``z < f`` exactly when ``z < far`` (float64) for every float32 ``z``.
 
