@@ -14,7 +14,7 @@ import pytest
 from scipy import ndimage
 
 from depthgram.segmentation.label import label_stats_fused
-from depthgram.segmentation.order_stats import percentile32
+from depthgram.segmentation.order_stats import median_inplace, percentile32
 from depthgram.segmentation.surfaces import keep_large, merge_openings
 
 
@@ -27,6 +27,14 @@ def test_percentile32_is_numpys_on_repeating_values(seed: int) -> None:
     for q in (0.0, 5.0, 20.0, 50.0, 95.0, 100.0):
         np.testing.assert_allclose(percentile32(a.copy(), q, True), np.percentile(a, q), rtol=1e-7)
         np.testing.assert_allclose(percentile32(a.copy(), q, False), np.percentile(a, [q])[0], rtol=1e-12)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_median_inplace_is_np_median(seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    for n in (1, 2, 7, 8, 301):
+        a = np.round(rng.normal(1000.0, 30.0, n), 1)
+        np.testing.assert_allclose(median_inplace(a.copy()), np.median(a), rtol=1e-15)
 
 
 def _blobs(seed: int, shape: tuple[int, int] = (60, 80)) -> tuple[np.ndarray, np.ndarray, int]:

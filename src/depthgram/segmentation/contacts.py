@@ -109,9 +109,9 @@ def _faces(
         n_f, n_s = contact.shape
         contact = np.where(mean_depth[None, :n_s] > mean_depth[:n_f, None], contact, 0)
     best = contact.argmax(axis=1)
-    most = np.take_along_axis(contact, best[:, None], axis=1)[:, 0]
+    most = contact[np.arange(best.size), best]
     keep = (most > 0) & (most >= min_contact * size)
-    return {f: s for f, s in zip(np.flatnonzero(keep).tolist(), best[keep].tolist(), strict=True) if s}
+    return {f: s for f, s in enumerate(np.where(keep, best, 0).tolist()) if s}
 
 
 @njit(cache=True, nogil=True)

@@ -19,7 +19,7 @@ __all__ = ["median_inplace", "percentile32"]
 
 @njit(cache=True, nogil=True)
 def percentile32(a: NDArray[np.float32], q: float, weak: bool) -> float:
-    """Return ``np.percentile(a, q)`` (method ``linear``) of float32 values, ``a`` reordered in place.
+    """Return ``np.percentile(a, q)`` (method ``linear``) of float32 values.
 
     numpy interpolates between the two order statistics around ``(n - 1) q / 100`` in float32
     when ``q`` is a Python number (``weak``) and in float64 when it is one of a sequence of
@@ -32,9 +32,9 @@ def percentile32(a: NDArray[np.float32], q: float, weak: bool) -> float:
     if vi >= n - 1:
         return float(a.max())
     j = math.floor(vi)
-    a[:] = np.partition(a, j)
-    lo = a[j]
-    hi = a[j + 1 :].min()
+    part = np.partition(a, j)
+    lo = part[j]
+    hi = part[j + 1 :].min()
     diff = hi - lo  # float32, as numpy takes the difference of the two values
     t = vi - j
     if weak:
@@ -47,5 +47,11 @@ def percentile32(a: NDArray[np.float32], q: float, weak: bool) -> float:
 
 
 def median_inplace(a: NDArray[np.float64]) -> float:
-    """Return ``np.median`` of a 1-D float64 array (which may be reordered)."""
-    return float(np.median(a, overwrite_input=True))
+    """Return ``np.median`` of a 1-D float64 array (which is sorted in place).
+
+    The middle value, or the mean of the two middle ones, of the sorted array: np.median's
+    value (a test compares them) without its 50 us of argument handling around a few values.
+    """
+    a.sort()
+    h = a.size // 2
+    return float(a[h]) if a.size % 2 else float((a[h - 1] + a[h]) / 2.0)

@@ -234,19 +234,25 @@ def _search_plane(
         return _NO_SAMPLE, 0.0, 0.0, 0.0, on_img
     coef = coef[:k]
     best = best_hypothesis(coef, u, v, z, tol, ev)
-    # u, v and 1000 / z of the points on the best plane, refitted by least squares
+    # the points on the best plane, [u v 1] and 1000 / z, refitted by least squares (one pass:
+    # numpy's masks cost six temporaries)
     a, b, c = coef[best, 0], coef[best, 1], coef[best, 2]
-    inv = a * u + b * v + c
-    on = (inv > 0) & (np.abs(1000.0 - z * inv) <= tol * inv)
-    uo, vo, qo = u[on], v[on], 1000.0 / z[on]
-    if uo.size < min_inliers:
+    n = u.size
+    sys = np.empty((n, 3), np.float64)
+    qo = np.empty(n, np.float64)
+    m_on = 0
+    for i in range(n):
+        inv = a * u[i] + b * v[i] + c
+        if inv > 0 and abs(1000.0 - z[i] * inv) <= tol[i] * inv:
+            sys[m_on, 0] = u[i]
+            sys[m_on, 1] = v[i]
+            sys[m_on, 2] = 1.0
+            qo[m_on] = 1000.0 / z[i]
+            m_on += 1
+    if m_on < min_inliers:
         return _FEW, 0.0, 0.0, 0.0, on_img
-    sys = np.empty((uo.size, 3), np.float64)
-    sys[:, 0] = uo
-    sys[:, 1] = vo
-    sys[:, 2] = 1.0
     # np.linalg.lstsq's rcond=None is eps times the larger dimension
-    fit = np.linalg.lstsq(sys, qo, eps * max(uo.size, 3))[0]
+    fit = np.linalg.lstsq(sys[:m_on], qo[:m_on], eps * max(m_on, 3))[0]
     # the refitted plane's grid pixels (ransac.plane_residual_mask's float32 operations in
     # its order), taken out of `left`
     hs, ws = z_sub.shape

@@ -109,8 +109,8 @@ def add_rows(sums: NDArray[np.float64], boxes: NDArray[np.int64], src: NDArray[n
     """
     for s, d in zip(src.tolist(), dst.tolist(), strict=True):
         sums[d] += sums[s]
-        boxes[d, :2] = np.minimum(boxes[d, :2], boxes[s, :2])
-        boxes[d, 2:] = np.maximum(boxes[d, 2:], boxes[s, 2:])
+        (a0, a1, a2, a3), (b0, b1, b2, b3) = boxes[d].tolist(), boxes[s].tolist()
+        boxes[d] = min(a0, b0), min(a1, b1), max(a2, b2), max(a3, b3)
 
 
 @njit(cache=True, inline="always")
