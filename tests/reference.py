@@ -439,24 +439,14 @@ def sensor_samples(
 
 
 def sensor_ranges(depth: NDArray[np.float32], valid: NDArray[np.bool_], rows: int) -> NDArray[np.float64]:
-    """Each depth range's row of the sensor estimate (median depth, step, sigma, 1), the steps one by one.
+    """Each depth range's row of the sensor estimate (median depth, step, sigma, 1), in numpy.
 
-    The route ``noise_model._range_estimates_counted`` replaced: the samples (:func:`sensor_samples`),
-    their stable order (numpy's), and the range estimates, counted
-    (``noise_model._range_estimates_whole``) when every depth is a whole number of millimetres from
-    the smallest within 2**20 of it, else from masked copies and selections
-    (``noise_model._range_estimates``). No rows below 200 samples.
+    The readable route (``noise_model.range_estimates_readable``) that the counted one
+    (``noise_model._range_estimates_counted``) is held to.
     """
-    from depthgram.segmentation.noise_model import _range_estimates, _range_estimates_whole
+    from depthgram.segmentation.noise_model import range_estimates_readable
 
-    z, d1, d2 = sensor_samples(depth, valid, rows)
-    if z.size < 200:
-        return np.zeros((0, 4), np.float64)
-    k = min(12, max(2, z.size // 400))
-    order = np.argsort(z, kind="stable")
-    off = z - z.min()
-    whole = bool(np.all(off == np.trunc(off))) and float(off.max()) < 1 << 20
-    return (_range_estimates_whole if whole else _range_estimates)(z, d1, d2, order, k)
+    return range_estimates_readable(depth, valid, rows)
 
 
 @njit(cache=True, nogil=True)

@@ -128,26 +128,6 @@ def test_compiled_plane_search_equals_numpy() -> None:
     assert n >= 10
 
 
-def test_sample_determinant_test_equals_numpy() -> None:
-    # three grid points have a solvable plane exactly when numpy's LU determinant passes
-    # |det| > 1e-6 (the numpy route's test), collinear samples included
-    from depthgram.segmentation._kernels.ransac import sample_systems as _hypotheses
-
-    rng = np.random.default_rng(0)
-    for s in (1, 4, 16):
-        u = (rng.integers(0, 1280 // s, 3000) * s).astype(np.float64)
-        v = (rng.integers(0, 720 // s, 3000) * s).astype(np.float64)
-        u[:1000], v[:1000] = (np.arange(1000) % 40) * s, (np.arange(1000) % 40) * 2 * s  # one line
-        u[1000:1500] = 7 * s  # one column
-        pick = rng.integers(0, 3000, size=(20_000, 3))
-        pick[:5000] = rng.integers(0, 1000, size=(5000, 3))
-        pick[5000:8000] = rng.integers(1000, 1500, size=(3000, 3))
-        a, good = _hypotheses(u, v, pick)
-        np.testing.assert_array_equal(a, np.stack([u[pick], v[pick], np.ones(pick.shape)], axis=2))
-        np.testing.assert_array_equal(good, np.abs(np.linalg.det(a)) > 1e-6)
-        assert 0 < good.sum() < good.size
-
-
 def test_boxes_on_tilted_table_come_apart() -> None:
     z, truth = _render()
     seg = segment(z, valid=z > 0, intrinsics=CAM)

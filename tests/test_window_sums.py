@@ -17,7 +17,7 @@ import pytest
 from numba import njit
 from numpy.typing import NDArray
 
-from depthgram.segmentation.window import bits_range, exact_in_float64, exact_rows
+from depthgram.segmentation.window import bits_range, exact_rows
 
 f32 = np.float32
 
@@ -27,9 +27,9 @@ def _range_of(v: NDArray[np.float32]) -> tuple[int, int]:
     return bits_range(v)
 
 
-@njit(cache=True)
 def _exact(hi: int, lo: int, n: int) -> bool:
-    return exact_in_float64(hi, lo, n)
+    # the test of one band of rows whose largest and smallest nonzero magnitudes are hi and lo
+    return _exact_rows(np.array([hi], np.int64), np.array([lo], np.int64), n, 0, 0)
 
 
 @njit(cache=True)

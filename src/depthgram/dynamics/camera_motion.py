@@ -309,80 +309,6 @@ _ICP_PRIOR = 1e-3
 
 
 @njit(cache=True, nogil=True)
-def _icp_sums(
-    sx: NDArray[np.float32],
-    sy: NDArray[np.float32],
-    sz: NDArray[np.float32],
-    r32: NDArray[np.float32],
-    t32: NDArray[np.float32],
-    cam32: NDArray[np.float32],
-    px0: NDArray[np.float32],
-    py0: NDArray[np.float32],
-    pz0: NDArray[np.float32],
-    nx0: NDArray[np.float32],
-    ny0: NDArray[np.float32],
-    nz0: NDArray[np.float32],
-    target_ok: NDArray[np.bool_],
-    w: int,
-    h: int,
-    gate: float,
-) -> tuple[int, NDArray[np.float64], NDArray[np.float64]]:
-    """One ICP step's matches and normal equations: how many pairs, ``J^T J`` and ``J^T r``.
-
-    Each point ``s`` of this frame, moved by ``(r32, t32)``, is projected into the previous
-    frame's grid (intrinsics ``cam32`` = fx, fy, cx, cy of the grid) and paired with the point
-    there; a pair counts when both its depth gap and its point-to-plane residual are under
-    ``gate`` (m). J's rows are ``(q x n, n)``. One compiled pass in float32, as the numpy steps it
-    replaces (3.2 of the ICP's 5.4 ms per 7-Scenes frame were their calls and temporaries), and
-    summed in sequence: BLAS's ``jac.T @ jac`` sums in an order that depends on its buffers'
-    alignment, which moved the ICP's motion in its seventh digit from run to run.
-    """
-    ata = np.zeros((6, 6))
-    atr = np.zeros(6)
-    row = np.empty(6)
-    fx, fy, cx, cy = cam32[0], cam32[1], cam32[2], cam32[3]
-    g = np.float32(gate)
-    n = 0
-    for k in range(sx.shape[0]):
-        x0, y0, z0 = sx[k], sy[k], sz[k]
-        qx = r32[0, 0] * x0 + r32[0, 1] * y0 + r32[0, 2] * z0 + t32[0]
-        qy = r32[1, 0] * x0 + r32[1, 1] * y0 + r32[1, 2] * z0 + t32[1]
-        qz = r32[2, 0] * x0 + r32[2, 1] * y0 + r32[2, 2] * z0 + t32[2]
-        if not qz > np.float32(1e-6):
-            continue
-        u = np.rint(fx * qx / qz + cx)
-        v = np.rint(fy * qy / qz + cy)
-        if not (u >= 0 and u < w and v >= 0 and v < h):
-            continue
-        i = int(v) * w + int(u)
-        if not target_ok[i]:
-            continue
-        a, b, c = nx0[i], ny0[i], nz0[i]
-        dz = qz - pz0[i]
-        r = (qx - px0[i]) * a + (qy - py0[i]) * b + dz * c
-        if not (abs(dz) < g and abs(r) < g):
-            continue
-        n += 1
-        xf, yf, zf = float(qx), float(qy), float(qz)
-        af, bf, cf = float(a), float(b), float(c)
-        row[0] = yf * cf - zf * bf
-        row[1] = zf * af - xf * cf
-        row[2] = xf * bf - yf * af
-        row[3] = af
-        row[4] = bf
-        row[5] = cf
-        rk = float(r)
-        for p in range(6):
-            atr[p] += row[p] * rk
-            for q in range(p, 6):
-                ata[p, q] += row[p] * row[q]
-    for p in range(6):
-        for q in range(p):
-            ata[p, q] = ata[q, p]
-    return n, ata, atr
-
-
-@njit(cache=True, nogil=True)
 def _icp_steps(
     sx: NDArray[np.float32],
     sy: NDArray[np.float32],
@@ -405,18 +331,69 @@ def _icp_steps(
 ) -> bool:
     """Run ``iterations`` ICP steps on one pass's points, updating ``rot`` and ``t`` in place.
 
-    Each step solves the normal equations of :func:`_icp_sums`, pulled toward standing still
-    by ``prior`` per matched pair, and applies the increment by Rodrigues' formula. Compiled
-    with the sums: as numpy calls, the 6 x 6 solve and the 3 x 3 products cost some 50 us a
-    step, eleven steps a frame. False when a step matches fewer than 100 pairs.
+    Each step sums the normal equations of its matched pairs, solves them pulled toward
+    standing still by ``prior`` per matched pair, and applies the increment by Rodrigues'
+    formula. Compiled with the sums: as numpy calls, the 6 x 6 solve and the 3 x 3 products
+    cost some 50 us a step, eleven steps a frame. False when a step matches fewer than 100
+    pairs.
     """
     eye6 = np.eye(6)
     total = np.empty(6)
+    ata = np.zeros((6, 6))
+    atr = np.zeros(6)
+    row = np.empty(6)
+    fx, fy, cx, cy = cam32[0], cam32[1], cam32[2], cam32[3]
+    g = np.float32(gate)
     for _ in range(iterations):
-        n, ata, atr = _icp_sums(
-            sx, sy, sz, rot.astype(np.float32), t.astype(np.float32), cam32,
-            px0, py0, pz0, nx0, ny0, nz0, target_ok, w, h, gate,
-        )  # fmt: skip
+        # the step's matches and normal equations: how many pairs, J^T J and J^T r. Each point
+        # s of this frame, moved by (rot, t), is projected into the previous frame's grid and
+        # paired with the point there; a pair counts when both its depth gap and its
+        # point-to-plane residual are under `gate` (m). J's rows are (q x n, n). One pass in
+        # float32, as the numpy steps it replaced (3.2 of the ICP's 5.4 ms per 7-Scenes frame
+        # were their calls and temporaries), summed in sequence: BLAS's jac.T @ jac sums in an
+        # order that depends on its buffers' alignment, which moved the ICP's motion in its
+        # seventh digit from run to run.
+        r32 = rot.astype(np.float32)
+        t32 = t.astype(np.float32)
+        ata[:] = 0.0
+        atr[:] = 0.0
+        n = 0
+        for k in range(sx.shape[0]):
+            x0, y0, z0 = sx[k], sy[k], sz[k]
+            qx = r32[0, 0] * x0 + r32[0, 1] * y0 + r32[0, 2] * z0 + t32[0]
+            qy = r32[1, 0] * x0 + r32[1, 1] * y0 + r32[1, 2] * z0 + t32[1]
+            qz = r32[2, 0] * x0 + r32[2, 1] * y0 + r32[2, 2] * z0 + t32[2]
+            if not qz > np.float32(1e-6):
+                continue
+            u = np.rint(fx * qx / qz + cx)
+            v = np.rint(fy * qy / qz + cy)
+            if not (u >= 0 and u < w and v >= 0 and v < h):
+                continue
+            i = int(v) * w + int(u)
+            if not target_ok[i]:
+                continue
+            a, b, c = nx0[i], ny0[i], nz0[i]
+            dz = qz - pz0[i]
+            r = (qx - px0[i]) * a + (qy - py0[i]) * b + dz * c
+            if not (abs(dz) < g and abs(r) < g):
+                continue
+            n += 1
+            xf, yf, zf = float(qx), float(qy), float(qz)
+            af, bf, cf = float(a), float(b), float(c)
+            row[0] = yf * cf - zf * bf
+            row[1] = zf * af - xf * cf
+            row[2] = xf * bf - yf * af
+            row[3] = af
+            row[4] = bf
+            row[5] = cf
+            rk = float(r)
+            for p in range(6):
+                atr[p] += row[p] * rk
+                for q in range(p, 6):
+                    ata[p, q] += row[p] * row[q]
+        for p in range(6):
+            for q in range(p):
+                ata[p, q] = ata[q, p]
         if n < 100:
             return False
         mu = prior * n
@@ -425,23 +402,17 @@ def _icp_steps(
         total[2] = 0.5 * (rot[1, 0] - rot[0, 1])
         total[3:] = t
         delta = -np.linalg.solve(ata + mu * eye6, atr + mu * total)
-        d_rot = _rodrigues(delta[0], delta[1], delta[2])
+        # the increment's rotation matrix, by Rodrigues' formula
+        th = math.sqrt(delta[0] * delta[0] + delta[1] * delta[1] + delta[2] * delta[2])
+        kx = np.array([[0.0, -delta[2], delta[1]], [delta[2], 0.0, -delta[0]], [-delta[1], delta[0], 0.0]])
+        if th < 1e-12:
+            d_rot = np.eye(3) + kx
+        else:
+            kx /= th
+            d_rot = np.eye(3) + math.sin(th) * kx + (1.0 - math.cos(th)) * (kx @ kx)
         rot[:] = d_rot @ rot
         t[:] = d_rot @ t + delta[3:]
     return True
-
-
-@njit(cache=True, nogil=True)
-def _rodrigues(w0: float, w1: float, w2: float) -> NDArray[np.float64]:
-    """Return the rotation matrix of the rotation vector ``(w0, w1, w2)`` (rad), by Rodrigues' formula."""
-    th = math.sqrt(w0 * w0 + w1 * w1 + w2 * w2)
-    k: NDArray[np.float64] = np.array([[0.0, -w2, w1], [w2, 0.0, -w0], [-w1, w0, 0.0]])
-    if th < 1e-12:
-        small: NDArray[np.float64] = np.eye(3) + k
-        return small
-    k /= th
-    rot: NDArray[np.float64] = np.eye(3) + math.sin(th) * k + (1.0 - math.cos(th)) * (k @ k)
-    return rot
 
 
 def _icp(now: _Surface, before: _Surface, cam: tuple[float, float, float, float]) -> NDArray[np.float64] | None:

@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from depthgram.dynamics.kernels import fit_row, fit_rows
+from depthgram.dynamics.kernels import fit_row
 from depthgram.errors import InputError
 
 __all__ = ["fit_radial_velocity", "fit_row", "time_to_collision"]
@@ -51,10 +51,33 @@ def fit_radial_velocity(
     z2 = np.ascontiguousarray(np.atleast_2d(z))
     tn = t2[:, -1] if t_now is None else np.asarray(t_now, dtype=np.float64)
     tn = np.ascontiguousarray(np.broadcast_to(tn, t2.shape[:1]))
-    v, zn = fit_rows(t2, z2, tn)
+    v, zn = _fit_rows(t2, z2, tn)
     if one:
         return v[0], zn[0]
     return v, zn
+
+
+def _fit_rows(
+    t: NDArray[np.float64], z: NDArray[np.float64], t_now: NDArray[np.float64]
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """:func:`fit_row` of every row's queue, in numpy: the slope and the fitted depth at ``t_now``."""
+    ok = np.isfinite(z) & np.isfinite(t)
+    n = ok.sum(axis=1)
+    rows = np.arange(z.shape[0])
+    # the last valid depth of each row (NaN without one)
+    last = np.where(n > 0, z[rows, z.shape[1] - 1 - np.argmax(ok[:, ::-1], axis=1)], np.nan)
+    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+        # centred on t_now so that large timestamps (Unix seconds) keep full precision
+        dt = np.where(ok, t - t_now[:, None], 0.0)
+        zz = np.where(ok, z, 0.0)
+        tb = dt.sum(axis=1) / n
+        zb = zz.sum(axis=1) / n
+        d = np.where(ok, dt - tb[:, None], 0.0)
+        num = (d * np.where(ok, zz - zb[:, None], 0.0)).sum(axis=1)
+        den = (d * d).sum(axis=1)
+        fit = (n >= 2) & (den > 0.0)
+        v = np.where(fit, num / den, np.nan)
+        return v, np.where(fit, zb - v * tb, last)
 
 
 def time_to_collision(depth: ArrayLike, v_radial: ArrayLike, min_speed: float) -> NDArray[np.float64]:

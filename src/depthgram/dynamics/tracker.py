@@ -22,15 +22,14 @@ from scipy.optimize import linear_sum_assignment
 from depthgram.dynamics.camera_motion import CameraMotion, EgoMotion, FramePixels, shift_structure, structure_shift
 from depthgram.dynamics.config import NOMINAL_FPS, TrackerConfig
 from depthgram.dynamics.core_depth import core_depth_change, inner_edge_shift, still_depth_change
+from depthgram.dynamics.estimate import EstimateParams, estimate
 from depthgram.dynamics.kernels import (
     FORBIDDEN,
     OBJECT_DTYPE,
     OBJECT_FIELDS,
     OCCLUDED,
-    EstimateParams,
     Status,
     StepParams,
-    estimate,
     keep_tracks,
     mark_behind,
     new_tracks,
@@ -205,7 +204,7 @@ def step_params(config: TrackerConfig) -> StepParams:
 
 
 def estimate_params(config: TrackerConfig) -> EstimateParams:
-    """Return the settings of the compiled :func:`~depthgram.dynamics.kernels.estimate`."""
+    """Return the settings of the compiled :func:`~depthgram.dynamics.estimate.estimate`."""
     c = config
     return EstimateParams(
         kalman=c.estimator == "kalman",
@@ -623,7 +622,7 @@ class Tracker:
     ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
         """Radial velocity, time to collision and v_sigma of every live row (mm/s, s, mm/s).
 
-        See :func:`depthgram.dynamics.kernels.estimate`.
+        See :func:`depthgram.dynamics.estimate.estimate`.
         """
         nn = self._n
         return estimate(

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 
+import cv2
 import numpy as np
 from numba import njit
 from numpy.typing import NDArray
@@ -16,24 +17,6 @@ from numpy.typing import NDArray
 from depthgram.segmentation.label import ACTIVE, BLOCK, HOLE
 
 __all__ = ["band_state", "bin_linear", "bin_pixels", "depth_range", "log_counts"]
-
-
-@njit(cache=True, nogil=True)
-def _range(depth: NDArray[np.float32], valid: NDArray[np.bool_]) -> tuple[float, float, int]:
-    h, w = depth.shape
-    lo = np.inf
-    hi = -np.inf
-    n = 0
-    for y in range(h):
-        for x in range(w):
-            if valid[y, x]:
-                z = depth[y, x]
-                n += 1
-                if z < lo:
-                    lo = z
-                if z > hi:
-                    hi = z
-    return lo, hi, n
 
 
 @njit(cache=True, nogil=True)
@@ -129,13 +112,14 @@ def depth_range(
     read from the bit patterns of the positive floats, which order as integers do (no
     float comparison per pixel).
     """
-    if not zero_outside:
-        lo, hi, n = _range(depth_mm, valid)
-        return float(lo), float(hi), int(n)
-    lo, hi, n = _range_bits(depth_mm.reshape(-1).view(np.uint32))
+    if zero_outside:
+        lo, hi, n = _range_bits(depth_mm.reshape(-1).view(np.uint32))
+    else:
+        n = int(np.count_nonzero(valid))
+        lo, hi = cv2.minMaxLoc(depth_mm, valid.view(np.uint8))[:2] if n else (0.0, 0.0)
     if n == 0:
         return float("inf"), float("-inf"), 0
-    return lo, hi, int(n)
+    return float(lo), float(hi), int(n)
 
 
 def bin_pixels(
@@ -200,37 +184,19 @@ def _log_counts_whole(
     return counts, True
 
 
-@njit(cache=True, nogil=True)
-def _bin_linear(
-    depth: NDArray[np.float32], valid: NDArray[np.bool_], bits: NDArray[np.uint32], use_bits: bool, step: float
-) -> tuple[NDArray[np.int32], NDArray[np.int64], float, int]:
-    if use_bits:
-        lo, hi, n = _range_bits(bits)
-    else:
-        lo, hi, n = _range(depth, valid)
-    if n == 0:
-        return np.full(depth.shape, -1, np.int32), np.zeros(0, np.int64), 0.0, 0
-    nb = int((hi - lo) / step) + 1
-    bins, counts = _bins(depth, valid, lo, step, False, nb)
-    return bins, counts, lo, n
-
-
 def bin_linear(
     depth_mm: NDArray[np.float32], valid: NDArray[np.bool_], step_mm: float, *, zero_outside: bool = False
 ) -> tuple[NDArray[np.int32], NDArray[np.int64], float]:
     """:func:`depth_range` and :func:`bin_pixels` with bins ``step_mm`` wide from the nearest depth.
 
-    One call instead of two: on small frames each call from Python costs microseconds.
     Returns the bins (-1 where invalid), the counts (empty without a valid pixel) and the
     lower edge of the first bin (mm).
     """
-    bits = depth_mm.reshape(-1).view(np.uint32) if zero_outside else _NO_BITS
-    bins, counts, lo, _ = _bin_linear(depth_mm, valid, bits, zero_outside, float(step_mm))
-    return bins, counts, float(lo)
-
-
-#: Stand-in for the bit patterns when they are not used (numba wants an array).
-_NO_BITS = np.zeros(1, np.uint32)
+    lo, hi, n = depth_range(depth_mm, valid, zero_outside=zero_outside)
+    if n == 0:
+        return np.full(depth_mm.shape, -1, np.int32), np.zeros(0, np.int64), 0.0
+    bins, counts = _bins(depth_mm, valid, lo, float(step_mm), False, int((hi - lo) / step_mm) + 1)
+    return bins, counts, lo
 
 
 def band_state(

@@ -1,17 +1,35 @@
-"""Configuration of the segmentation stage: one frozen dataclass, loadable from TOML."""
+"""Configuration of the segmentation stage: one frozen dataclass, loadable from TOML.
+
+:class:`SegmentConfig` keeps every setting as a flat field (the TOML ``[segment]`` keys, and
+what the stages read); the settings of each method and step are also grouped in small frozen
+classes, read as ``config.histogram``, ``.slices``, ``.planes``, ``.surfaces``, ``.region`` and
+``.paper``, and may be given so in TOML (``[segment.paper] min_slices = 4`` for the flat
+``paper_min_slices = 4``).
+"""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import warnings
+from collections.abc import Mapping
 from dataclasses import dataclass, fields, replace
 from functools import lru_cache
-from typing import Any
+from typing import Any, ClassVar, TypeVar
 
 from depthgram.errors import InputError
 from depthgram.segmentation.noise_model import PROFILES
 
-__all__ = ["METHODS", "SegmentConfig"]
+__all__ = [
+    "METHODS",
+    "HistogramConfig",
+    "PaperConfig",
+    "PlaneConfig",
+    "RegionConfig",
+    "SegmentConfig",
+    "SliceConfig",
+    "SurfaceConfig",
+]
 
 #: Segmentation methods: ``threshold`` (the paper's global histogram), ``slices`` (global
 #: histogram for surfaces facing the sensor plus slicing for floor, ceiling, walls and supports),
@@ -340,6 +358,217 @@ class SegmentConfig:
                 return math.ceil(self.min_area)
             return max(1, math.ceil(self.min_area * n_pixels))
         return max(1, self.min_area_px, math.ceil(self.min_area_fraction * n_pixels))
+
+    @property
+    def histogram(self) -> HistogramConfig:
+        """The global histogram's settings (every method's depth labels; the ``threshold`` method)."""
+        return _group(HistogramConfig, self)
+
+    @property
+    def slices(self) -> SliceConfig:
+        """The orientation field's and the supports' slicing settings (``slices``, ``surfaces``)."""
+        return _group(SliceConfig, self)
+
+    @property
+    def planes(self) -> PlaneConfig:
+        """The support planes' settings (RANSAC; ``slices``, ``surfaces``)."""
+        return _group(PlaneConfig, self)
+
+    @property
+    def surfaces(self) -> SurfaceConfig:
+        """The ``surfaces`` method's settings: the sensor model and the join rule."""
+        return _group(SurfaceConfig, self)
+
+    @property
+    def region(self) -> RegionConfig:
+        """The ``region`` method's settings (region growing)."""
+        return _group(RegionConfig, self)
+
+    @property
+    def paper(self) -> PaperConfig:
+        """The ``paper`` method's settings (the paper's slicing)."""
+        return _group(PaperConfig, self)
+
+    @classmethod
+    def from_dict(cls, values: Mapping[str, Any]) -> SegmentConfig:
+        """Build from TOML's ``[segment]`` table: flat keys, or groups as tables (``paper = {min_slices = 4}``).
+
+        A group's key is its class's field name; a group given as a table and the same flat
+        key together are an error, as are unknown names.
+        """
+        flat: dict[str, Any] = {}
+        for key, value in values.items():
+            group = _GROUPS.get(key)
+            if group is None:
+                flat[key] = value
+                continue
+            items = dataclasses.asdict(value) if isinstance(value, group) else value
+            if not isinstance(items, Mapping):
+                raise InputError(f"segment config: {key} must be a table of settings")
+            names = {f.name for f in fields(group)}
+            unknown = sorted(set(items) - names)
+            if unknown:
+                raise InputError(f"segment config: unknown {key} setting(s) {unknown}; known: {sorted(names)}")
+            for name, v in items.items():
+                field_name = group.FLAT[name]
+                if field_name in values:
+                    raise InputError(f"segment config: {field_name} is given twice ({key}.{name})")
+                _check_kind(f"{key}.{name}", v, getattr(_DEFAULT, field_name))
+                flat[field_name] = v
+        known = {f.name for f in fields(cls)}
+        unknown = sorted(set(flat) - known)
+        if unknown:
+            raise InputError(f"segment config: unknown setting(s) {unknown}; known: {sorted(known)}")
+        return cls(**flat)
+
+
+@dataclass(frozen=True)
+class HistogramConfig:
+    """The global histogram's settings; see :class:`SegmentConfig` (the same names)."""
+
+    bin_mm: float
+    depth_dependent_bins: bool
+    ref_depth_mm: float
+    fraction: float
+    cut_from: str
+    gap_pixels: str
+    smooth_bins: float
+    min_prominence: float
+
+    #: Each field's flat :class:`SegmentConfig` name.
+    FLAT: ClassVar[dict[str, str]] = {
+        n: n
+        for n in (
+            "bin_mm", "depth_dependent_bins", "ref_depth_mm", "fraction", "cut_from", "gap_pixels", "smooth_bins",
+            "min_prominence",
+        )
+    }  # fmt: skip
+
+
+@dataclass(frozen=True)
+class SliceConfig:
+    """Orientation and slicing settings: ``SegmentConfig.slice_aperture_fraction`` is ``aperture_fraction`` here."""
+
+    aperture_fraction: float
+    aperture_px: int
+    directions: str
+    oblique_deg: float
+    min_spread: float
+    normal_window_px: int
+    jump_rel: float
+    side_max_area: float
+
+    FLAT: ClassVar[dict[str, str]] = {
+        "aperture_fraction": "slice_aperture_fraction",
+        "aperture_px": "slice_aperture_px",
+        "directions": "slice_directions",
+        "oblique_deg": "oblique_deg",
+        "min_spread": "min_spread",
+        "normal_window_px": "normal_window_px",
+        "jump_rel": "jump_rel",
+        "side_max_area": "side_max_area",
+    }
+
+
+@dataclass(frozen=True)
+class PlaneConfig:
+    """Support-plane settings: ``SegmentConfig.plane_min_area`` is ``min_area`` here, ``support_planes`` ``enabled``."""
+
+    enabled: bool
+    min_area: float
+    min_spread: float
+    tol_mm: float
+    tol_rel: float
+    max_planes: int
+
+    FLAT: ClassVar[dict[str, str]] = {
+        "enabled": "support_planes",
+        "min_area": "plane_min_area",
+        "min_spread": "plane_min_spread",
+        "tol_mm": "plane_tol_mm",
+        "tol_rel": "plane_tol_rel",
+        "max_planes": "max_planes",
+    }
+
+
+@dataclass(frozen=True)
+class SurfaceConfig:
+    """The ``surfaces`` method's settings; see :class:`SegmentConfig` (the same names)."""
+
+    sensor: str
+    join_resolutions: float
+    max_slope_deg: float
+    crease_deg: float
+    raised_sigmas: float
+    work_width_px: int
+
+    FLAT: ClassVar[dict[str, str]] = {
+        n: n for n in ("sensor", "join_resolutions", "max_slope_deg", "crease_deg", "raised_sigmas", "work_width_px")
+    }
+
+
+@dataclass(frozen=True)
+class RegionConfig:
+    """Region growing's settings: ``SegmentConfig.region_tol_mm`` is ``tol_mm`` here."""
+
+    tol_mm: float
+    relative: bool
+
+    FLAT: ClassVar[dict[str, str]] = {"tol_mm": "region_tol_mm", "relative": "region_relative"}
+
+
+@dataclass(frozen=True)
+class PaperConfig:
+    """The ``paper`` method's settings: ``SegmentConfig.paper_min_slices`` is ``min_slices`` here."""
+
+    min_slices: int
+    prominence: float
+    aperture_fraction: float
+    aperture_px: int
+
+    FLAT: ClassVar[dict[str, str]] = {
+        "min_slices": "paper_min_slices",
+        "prominence": "paper_prominence",
+        "aperture_fraction": "paper_aperture_fraction",
+        "aperture_px": "paper_aperture_px",
+    }
+
+
+#: The groups of :class:`SegmentConfig`, by the name of the property that reads each.
+_GROUPS: dict[str, Any] = {
+    "histogram": HistogramConfig,
+    "slices": SliceConfig,
+    "planes": PlaneConfig,
+    "surfaces": SurfaceConfig,
+    "region": RegionConfig,
+    "paper": PaperConfig,
+}
+
+
+_G = TypeVar("_G")
+
+#: The defaults, whose kinds a grouped setting must have (true/false, a number, text).
+_DEFAULT = SegmentConfig()
+
+
+def _check_kind(name: str, value: object, default: object) -> None:
+    """Refuse a grouped setting whose kind differs from its default's, as the flat keys are refused."""
+    if isinstance(default, bool):
+        ok, expected = isinstance(value, bool), "true or false"
+    elif isinstance(default, (int, float)):
+        ok = isinstance(value, (int, float)) and not isinstance(value, bool)
+        ok = ok and (isinstance(value, int) or not isinstance(default, int))
+        expected = "an integer" if isinstance(default, int) else "a number"
+    else:
+        ok, expected = isinstance(value, str), "text"
+    if not ok:
+        raise InputError(f"segment config: {name} = {value!r}, expected {expected}")
+
+
+def _group(group: type[_G], config: SegmentConfig) -> _G:
+    """One group of a config's flat fields as its small class."""
+    flat: dict[str, str] = group.FLAT  # type: ignore[attr-defined]
+    return group(**{name: getattr(config, f) for name, f in flat.items()})
 
 
 def _step(old: float | None, px: int, fraction: float, length: int, rounding: Any) -> int:

@@ -97,84 +97,21 @@ def _faces(
     n_facing = size.size - 1
     n_ids = int(labels.max(initial=0)) + 1 if n_ids is None else n_ids
     rel = np.float32(jump_rel)
-    if boxes is not None:
-        contact = _contacts_in_boxes(
-            labels, depth_mm, np.asarray(support_ids, np.intp), np.asarray(boxes, np.int64), n_ids, n_facing, rel, side
-        )
-    else:
-        is_support = np.zeros(n_ids, np.bool_)
-        is_support[support_ids] = True
-        contact = _contacts(labels, depth_mm, is_support, n_facing, rel, side)
-    best = _best_faces(contact, float(min_contact), size, mean_depth, side)
-    return _as_pairs(best)
-
-
-def _as_pairs(best: NDArray[np.int64]) -> dict[int, int]:
-    """``{facing id: support id}`` of the facing ids with a support in ``best``."""
-    return {f: s for f, s in enumerate(best.tolist()) if s}
-
-
-@njit(cache=True, nogil=True)
-def _best_faces(
-    contact: NDArray[np.int64],
-    min_contact: float,
-    extent: NDArray[np.float64],
-    mean_depth: NDArray[np.float64],
-    behind: bool,
-) -> NDArray[np.int64]:
-    # The support each facing row touches most (the first of equal ones, numpy's argmax), kept
-    # when that contact (px) reaches min_contact times the face's extent (0: none). With
-    # `behind`, only supports whose mean depth lies behind the face's count. Compiled: the
-    # half-dozen numpy calls on a few rows cost more than the counting pass.
-    n_f, n_s = contact.shape
-    out = np.zeros(n_f, np.int64)
-    for f in range(n_f):
-        best = 0
-        most = -1
-        for s in range(n_s):
-            v = contact[f, s]
-            if behind and not mean_depth[s] > mean_depth[f]:
-                v = 0
-            if v > most:
-                most = v
-                best = s
-        if most > 0 and most >= min_contact * extent[f]:
-            out[f] = best
-    return out
-
-
-@njit(cache=True, nogil=True)
-def _contacts(
-    labels: NDArray[np.int32],
-    depth: NDArray[np.float32],
-    is_support: NDArray[np.bool_],
-    n_facing: int,
-    rel: np.float32,
-    side_by_side: bool,
-) -> NDArray[np.int64]:
-    # One pass counting (facing id, support id) neighbours without a depth jump: a support
-    # pixel right above a facing one (front faces), or with ``side_by_side`` the two next to
-    # each other in either order (side faces), where numpy needs masks over the whole frame
-    # and np.unique of the pairs. The depth test is in float32 like the numpy one, so the
-    # counts are the same. Facing ids are 1..n_facing, supports above.
-    h, w = labels.shape
-    dy, dx = (0, 1) if side_by_side else (1, 0)
-    out = np.zeros((n_facing + 1, is_support.size), np.int64)
-    for y in range(h - dy):
-        for x in range(w - dx):
-            a = labels[y, x]
-            b = labels[y + dy, x + dx]
-            if 0 < b <= n_facing and is_support[a]:
-                f, s = b, a
-            elif side_by_side and 0 < a <= n_facing and is_support[b]:
-                f, s = a, b
-            else:
-                continue
-            za = depth[y, x]
-            zb = depth[y + dy, x + dx]
-            if abs(za - zb) <= rel * max(za, zb):
-                out[f, s] += 1
-    return out
+    ids = np.asarray(support_ids, np.intp)
+    if boxes is None:  # each support read over the whole frame
+        h, w = labels.shape
+        boxes = np.tile(np.array([0, 0, w - 1, h - 1], np.int64), (ids.size, 1))
+    contact = _contacts_in_boxes(labels, depth_mm, ids, np.asarray(boxes, np.int64), n_ids, n_facing, rel, side)
+    # the support each facing row touches most (the first of equal ones), kept when that
+    # contact (px) reaches min_contact times the face's extent; for a side face only supports
+    # whose mean depth lies behind the face's count
+    if side:
+        n_f, n_s = contact.shape
+        contact = np.where(mean_depth[None, :n_s] > mean_depth[:n_f, None], contact, 0)
+    best = contact.argmax(axis=1)
+    most = contact[np.arange(best.size), best]
+    keep = (most > 0) & (most >= min_contact * size)
+    return {f: s for f, s in enumerate(np.where(keep, best, 0).tolist()) if s}
 
 
 @njit(cache=True, nogil=True)
@@ -188,8 +125,11 @@ def _contacts_in_boxes(
     rel: np.float32,
     side_by_side: bool,
 ) -> NDArray[np.int64]:
-    # _contacts read support by support inside its box: every counted pair holds one support
-    # pixel, so each pair is met once, under its support, with the same float32 depth test
+    # One pass per support inside its box counting (facing id, support id) neighbours without
+    # a depth jump: a support pixel right above a facing one (front faces), or with
+    # ``side_by_side`` the two next to each other in either order (side faces); every counted
+    # pair holds one support pixel, so each pair is met once, under its support. numpy needs
+    # masks over the whole frame and np.unique of the pairs. Facing ids are 1..n_facing.
     h, w = labels.shape
     out = np.zeros((n_facing + 1, n_ids), np.int64)
     hit = np.empty(w, np.bool_)

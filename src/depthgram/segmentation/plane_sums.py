@@ -29,21 +29,26 @@ def plane_sums(
     """Normal-equation sums of the plane fit ``1/Z = alpha u' + beta v' + gamma`` per label.
 
     Columns: u'u', u'v', u', v'v', v', 1, u'/Z, v'/Z, 1/Z with ``u' = (x - cx) / fx``,
-    ``v' = (y - cy) / fy`` (one pass; the bincount route took nine). ``only`` (bool per label,
-    length ``n + 1``): the rows of other labels stay 0 and their pixels cost no arithmetic.
+    ``v' = (y - cy) / fy``: nine ``np.bincount`` over the labelled pixels. ``only`` (bool per
+    label, length ``n + 1``): the rows of other labels stay 0. The segmentation gathers these
+    sums while labelling (:func:`depthgram.segmentation.label.label_keyed_planes`) or reads a
+    few labels' boxes (:func:`plane_sums_in_boxes`); this is the readable route they are
+    tested against.
     """
-    want = _NO_WANT if only is None else np.ascontiguousarray(only, np.bool_)
-    return kernels_sums.plane_sums(
-        np.ascontiguousarray(labels, np.int32),
-        int(n),
-        np.ascontiguousarray(depth_mm, np.float32),
-        float(fx),
-        float(fy),
-        float(cx),
-        float(cy),
-        want,
-        only is not None,
-    )
+    lab = np.asarray(labels)
+    keep = lab > 0
+    if only is not None:
+        keep &= np.asarray(only, np.bool_)[lab]
+    ys, xs = np.nonzero(keep)
+    ids = lab[keep]
+    u = (xs - float(cx)) / float(fx)
+    v = (ys - float(cy)) / float(fy)
+    q = 1.0 / np.asarray(depth_mm, np.float32)[keep].astype(np.float64)
+    cols = (u * u, u * v, u, v * v, v, np.ones_like(u), u * q, v * q, q)
+    out = np.zeros((int(n) + 1, 9), np.float64)
+    for j, col in enumerate(cols):
+        out[:, j] = np.bincount(ids, weights=col, minlength=int(n) + 1)[: int(n) + 1]
+    return out
 
 
 def plane_sums_in_boxes(
@@ -113,15 +118,11 @@ def shares_beneath(
     )  # fmt: skip
 
 
-#: Stand-in for a missing ``only`` table of :func:`plane_sums` (numba wants an array).
-_NO_WANT = np.ones(1, np.bool_)
-
-
 def planes_from_sums(sums: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
     """Return unit normals, offsets (mm) and pixel counts from the sums of :func:`plane_sums` (row 0 unused).
 
     The sums are additive, so the plane of a union of pieces comes from the sum of their rows
     without another pass over the image. Each row's normal equations (plus 1e-12 on the
-    diagonal) are solved as ``np.linalg.solve`` solves them (:func:`depthgram.segmentation._kernels.solve3.lu_solve3`).
+    diagonal) are solved by LAPACK (``np.linalg.solve``, compiled).
     """
     return kernels_sums.planes_from_sums(np.ascontiguousarray(sums, np.float64))

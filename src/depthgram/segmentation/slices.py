@@ -13,7 +13,6 @@ touches it at the same depth.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable
 
 import numpy as np
@@ -27,7 +26,6 @@ from depthgram.segmentation.label import ACTIVE, BLOCK, HOLE, label_keyed_planes
 from depthgram.segmentation.label.stats import (
     COUNT,
     KEY,
-    N_COLUMNS,
     N_SUMS,
     SUM_X,
     SUM_XZ,
@@ -173,7 +171,7 @@ def _parts_tables(
     w: int,
     h: int,
 ) -> tuple[NDArray[np.float64], NDArray[np.int64], NDArray[np.int64]]:
-    """Return the parts of every object of ``objs`` (:func:`_part_table`'s rows, in their order).
+    """Return the parts of every object of ``objs``, each object's nearest first, in the objects' order.
 
     ``objs`` rows: id, inclusive box x0, y0, x1, y1, slice step, horizontal (1 / 0), slices.
     Returns the float attributes (count, mean depth, std, center x, y, centroid X, Y, area
@@ -194,74 +192,36 @@ def _parts_tables(
         # make_objects' attributes in the box's coordinates: the principal point shifted by its corner
         px = cx - x0 if metric else cx
         py = cy - y0 if metric else cy
-        t = _part_table(
-            labels, depth, objs[c, 0], x0, y0, objs[c, 3], objs[c, 4], objs[c, 5], objs[c, 6] != 0, objs[c, 7],
-            fx, fy, px, py, metric,
+        # per slice with pixels: count, mean depth, depth std, center x and y (px), centroid X
+        # and Y (mm), area (mm²) as attributes.make_objects takes them from the slices' sums
+        # (box coordinates), then the half-open box; rows in a stable order of mean depth
+        sums, boxes = _part_sums(
+            labels, depth, objs[c, 0], x0, y0, objs[c, 3], objs[c, 4], objs[c, 5], objs[c, 6] != 0, objs[c, 7]
+        )
+        sz = sums[:, SUM_Z]
+        attrs = attribute_table(
+            sums[:, COUNT], sz, sums[:, SUM_ZZ], sums[:, SUM_X], sums[:, SUM_Y],
+            sums[:, SUM_XZ] if metric else sz, sums[:, SUM_YZ] if metric else sz, fx, fy, px, py,
         )  # fmt: skip
-        for q in range(t.shape[0]):
+        present = np.flatnonzero(attrs[:, 0] > 0)
+        # a stable sort on the mean depth, as of the parts in slice order
+        order = present[np.argsort(attrs[present, 1], kind="mergesort")]
+        for q in range(order.size):
+            jq = order[q]
             for j in range(8):
-                table[r, j] = t[q, j]
-            table[r, 3] = t[q, 3] * k
-            table[r, 4] = t[q, 4] * k
-            ints[r, 0] = np.int64(t[q, 0])
-            ints[r, 1] = np.int64(t[q, 8]) * k
-            ints[r, 2] = np.int64(t[q, 9]) * k
-            right = np.int64(t[q, 10]) * k
-            bottom = np.int64(t[q, 11]) * k
+                table[r, j] = attrs[jq, j]
+            table[r, 3] = (attrs[jq, 3] + x0) * k
+            table[r, 4] = (attrs[jq, 4] + y0) * k
+            ints[r, 0] = np.int64(attrs[jq, 0])
+            ints[r, 1] = (boxes[jq + 1, 0] + x0) * k
+            ints[r, 2] = (boxes[jq + 1, 1] + y0) * k
+            right = (boxes[jq + 1, 2] + 1 + x0) * k
+            bottom = (boxes[jq + 1, 3] + 1 + y0) * k
             ints[r, 3] = right if right < w else w
             ints[r, 4] = bottom if bottom < h else h
             owner[r] = c
             r += 1
     return table[:r], ints[:r], owner[:r]
-
-
-@njit(cache=True, nogil=True)
-def _part_table(
-    labels: NDArray[np.int32],
-    depth: NDArray[np.float32],
-    oid: int,
-    x0: int,
-    y0: int,
-    x1: int,
-    y1: int,
-    step: int,
-    horizontal: bool,
-    n: int,
-    fx: float,
-    fy: float,
-    cx: float,
-    cy: float,
-    metric: bool,
-) -> NDArray[np.float64]:
-    """Return the attributes of every slice of one object, nearest first, in frame coordinates.
-
-    Per part with pixels: count, mean depth, depth std, center x and y (px), centroid X and Y
-    (mm), area (mm²) as :func:`depthgram.segmentation.attributes.make_objects` takes them from
-    the slices' sums (:func:`_part_sums`, box coordinates, the principal point ``cx, cy``
-    shifted by the box's corner), then the half-open box x0, y0, x1, y1 (px); rows in a stable
-    order of mean depth. One compiled call for what took a dozen numpy calls and a Python
-    sort per compound object.
-    """
-    sums, boxes = _part_sums(labels, depth, oid, x0, y0, x1, y1, step, horizontal, n)
-    sz = sums[:, SUM_Z]
-    attrs = attribute_table(
-        sums[:, COUNT], sz, sums[:, SUM_ZZ], sums[:, SUM_X], sums[:, SUM_Y],
-        sums[:, SUM_XZ] if metric else sz, sums[:, SUM_YZ] if metric else sz, fx, fy, cx, cy,
-    )  # fmt: skip
-    present = np.flatnonzero(attrs[:, 0] > 0)
-    # a stable sort on the mean depth, as of the parts in slice order
-    order = present[np.argsort(attrs[present, 1], kind="mergesort")]
-    out = np.empty((order.size, 12), np.float64)
-    for k in range(order.size):
-        j = order[k]
-        out[k, :8] = attrs[j]
-        out[k, 3] = attrs[j, 3] + x0
-        out[k, 4] = attrs[j, 4] + y0
-        out[k, 8] = boxes[j + 1, 0] + x0
-        out[k, 9] = boxes[j + 1, 1] + y0
-        out[k, 10] = boxes[j + 1, 2] + 1 + x0
-        out[k, 11] = boxes[j + 1, 3] + 1 + y0
-    return out
 
 
 @njit(cache=True, nogil=True)
@@ -338,25 +298,13 @@ def small_supports(sums: NDArray[np.float64], min_px: int, min_spread: float) ->
     its mean depth: numpy's ``(count < min_px) | (std < min_spread * mean)`` with ``mean =
     SUM_Z / max(count, 1)`` and ``std = sqrt(max(SUM_ZZ / max(count, 1) - mean², 0))``.
     """
-    return _small_supports(sums, float(min_px), float(min_spread))
-
-
-@njit(cache=True, nogil=True)
-def _small_supports(sums: NDArray[np.float64], min_px: float, min_spread: float) -> tuple[NDArray[np.bool_], int]:
-    # compiled: the half-dozen numpy calls on a few rows cost more than their arithmetic (two
-    # uses per frame); the same float64 operations
-    n = sums.shape[0]
-    small = np.zeros(n, np.bool_)
-    k = 0
-    for i in range(1, n):
-        c = sums[i, COUNT]
-        d = max(c, 1.0)
-        mean = sums[i, SUM_Z] / d
-        std = math.sqrt(max(sums[i, SUM_ZZ] / d - mean * mean, 0.0))
-        if c < min_px or std < min_spread * mean:
-            small[i] = True
-            k += 1
-    return small, k
+    count = sums[:, COUNT]
+    d = np.maximum(count, 1.0)
+    mean = sums[:, SUM_Z] / d
+    std = np.sqrt(np.maximum(sums[:, SUM_ZZ] / d - mean * mean, 0.0))
+    small = (count < min_px) | (std < min_spread * mean)
+    small[0] = False
+    return small, int(np.count_nonzero(small))
 
 
 def support_kind(cls: int, centroid_y_mm: float, is_lowest: bool) -> str:
@@ -401,7 +349,7 @@ def add_through(
         labels,
         np.ascontiguousarray(more, np.int32),
         np.ascontiguousarray(lut, np.int32),
-        np.ascontiguousarray(boxes, np.int64).reshape(-1, 4),
+        _cover(np.ascontiguousarray(boxes, np.int64).reshape(-1, 4), *labels.shape),
     )
 
 
@@ -410,7 +358,6 @@ def _add_through(
     labels: NDArray[np.int32], more: NDArray[np.int32], lut: NDArray[np.int32], boxes: NDArray[np.int64]
 ) -> None:
     # boxes may overlap: a pixel read twice is written the same value twice
-    boxes = _cover(boxes, labels.shape[0], labels.shape[1])
     for k in range(boxes.shape[0]):
         for y in range(boxes[k, 1], boxes[k, 3] + 1):
             src = more[y]
@@ -421,21 +368,10 @@ def _add_through(
                 dst[ux] = v if v else dst[ux]
 
 
-@njit(cache=True, inline="always")
 def _cover(boxes: NDArray[np.int64], h: int, w: int) -> NDArray[np.int64]:
-    # the boxes (k, 4, inclusive), or the whole frame as one box when they cover more than it
-    # (taken inside the kernels: numpy's few calls on a few boxes cost more on small frames)
-    area = 0
-    for k in range(boxes.shape[0]):
-        area += max(boxes[k, 2] - boxes[k, 0] + 1, 0) * max(boxes[k, 3] - boxes[k, 1] + 1, 0)
-    if area < h * w:
-        return boxes
-    whole = np.empty((1, 4), np.int64)
-    whole[0, 0] = 0
-    whole[0, 1] = 0
-    whole[0, 2] = w - 1
-    whole[0, 3] = h - 1
-    return whole
+    """Return the boxes (k, 4, inclusive), or the whole frame as one box when they cover more than it."""
+    area = sum(max(x1 - x0 + 1, 0) * max(y1 - y0 + 1, 0) for x0, y0, x1, y1 in boxes.tolist())
+    return boxes if area < h * w else np.array([[0, 0, w - 1, h - 1]], np.int64)
 
 
 def drop_classes(
@@ -459,7 +395,7 @@ def drop_classes(
         int(base),
         classes,
         np.int8(to_class),
-        np.ascontiguousarray(boxes, np.int64).reshape(-1, 4),
+        _cover(np.ascontiguousarray(boxes, np.int64).reshape(-1, 4), *labels.shape),
     )
 
 
@@ -473,7 +409,6 @@ def _drop_classes(
     boxes: NDArray[np.int64],
 ) -> None:
     n = through.size - 1
-    boxes = _cover(boxes, labels.shape[0], labels.shape[1])
     for k in range(boxes.shape[0]):
         for y in range(boxes[k, 1], boxes[k, 3] + 1):
             for x in range(boxes[k, 0], boxes[k, 2] + 1):
@@ -588,39 +523,19 @@ def join_pieces(
     lut, m = coplanar_groups(normal, off, count, min_fit_px=min_fit_px)
     if m == n:
         return None, n, sums, boxes, planes, fit
-    msums, mplanes, mboxes = _merge_rows(lut, m, sums, planes, boxes)
+    # the rows of the joined pieces added (sums, plane sums) and their boxes' union
+    msums = np.zeros((m + 1, sums.shape[1]), np.float64)
+    np.add.at(msums, lut, sums)
+    mplanes = np.zeros((m + 1, planes.shape[1]), np.float64)
+    np.add.at(mplanes, lut, planes)
+    mboxes = np.empty((m + 1, 4), np.int64)
+    mboxes[:, :2] = np.iinfo(np.int64).max
+    mboxes[:, 2:] = -1
+    np.minimum.at(mboxes[:, :2], lut, boxes[:, :2])
+    np.maximum.at(mboxes[:, 2:], lut, boxes[:, 2:])
     msums[:, KEY] = 0.0
     return lut, m, msums, mboxes, mplanes, None
 
 
-@njit(cache=True, nogil=True)
-def _merge_rows(
-    lut: NDArray[np.int32], m: int, sums: NDArray[np.float64], planes: NDArray[np.float64], boxes: NDArray[np.int64]
-) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.int64]]:
-    # the rows of the joined pieces added (sums, plane sums) and their boxes' union, row by
-    # row in index order as np.add.at / np.minimum.at / np.maximum.at add them (the same sums)
-    msums = np.zeros((m + 1, sums.shape[1]), np.float64)
-    mplanes = np.zeros((m + 1, planes.shape[1]), np.float64)
-    mboxes = np.empty((m + 1, 4), np.int64)
-    mboxes[:, :2] = np.iinfo(np.int64).max
-    mboxes[:, 2:] = -1
-    for i in range(lut.size):
-        g = lut[i]
-        for c in range(sums.shape[1]):
-            msums[g, c] += sums[i, c]
-        for c in range(planes.shape[1]):
-            mplanes[g, c] += planes[i, c]
-        mboxes[g, 0] = min(mboxes[g, 0], boxes[i, 0])
-        mboxes[g, 1] = min(mboxes[g, 1], boxes[i, 1])
-        mboxes[g, 2] = max(mboxes[g, 2], boxes[i, 2])
-        mboxes[g, 3] = max(mboxes[g, 3], boxes[i, 3])
-    return msums, mplanes, mboxes
-
-
 def warm_up() -> None:
-    """Load (on a fresh install: compile) the kernel that adds the rows of coplanar pieces joined.
-
-    Only frames whose support pieces join reach it (:func:`depthgram.segmentation.core.warm_up`).
-    """
-    rows = np.zeros((3, N_COLUMNS), np.float64)
-    _merge_rows(np.array([0, 1, 1], np.int32), 1, rows, np.zeros((3, 9), np.float64), np.zeros((3, 4), np.int64))
+    """Nothing left to load: the rows of coplanar pieces joined are added by numpy (kept for callers)."""

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from functools import lru_cache
 
 import numpy as np
 from numba import njit
@@ -55,9 +56,9 @@ def check_depth_far(
             raise InputError(f"{where}: valid mask has shape {v.shape}, depth has shape {arr.shape}")
         if v.dtype != np.bool_:
             raise InputError(f"{where}: valid mask must be boolean, got dtype {v.dtype}")
-        ok, dirty, n_far = _valid_pixels(depth, np.ascontiguousarray(v), True, float(far_mm))
+        ok, dirty, n_far = _valid_pixels(depth, np.ascontiguousarray(v), True, _far_bound(float(far_mm)))
     else:
-        ok, dirty, n_far = _valid_pixels(depth, np.zeros((1, 1), np.bool_), False, float(far_mm))
+        ok, dirty, n_far = _valid_pixels(depth, np.zeros((1, 1), np.bool_), False, _far_bound(float(far_mm)))
     if dirty:
         depth = np.where(ok, depth, np.float32(0))
     return depth, ok, int(n_far)
@@ -65,11 +66,12 @@ def check_depth_far(
 
 @njit(cache=True, nogil=True)
 def _valid_pixels(
-    depth: NDArray[np.float32], valid: NDArray[np.bool_], use_valid: bool, far: float
+    depth: NDArray[np.float32], valid: NDArray[np.bool_], use_valid: bool, f: np.float32
 ) -> tuple[NDArray[np.bool_], bool, int]:
     # one pass for the finite-and-positive test, the mask and "does any rejected pixel hold a
-    # nonzero value", where numpy needs four full-frame temporaries. The tests are taken as
-    # bytes and the far limit as the float32 bound that splits float32 depths as `far` does
+    # nonzero value", where numpy needs four full-frame temporaries (kept compiled: numpy's
+    # route costs about 0.25 ms more at 640 x 480, 7 % of the default method). The tests are
+    # taken as bytes and the far limit as the float32 bound `f` (_far_bound)
     # (so the row loops vectorise without widening each depth to float64): 83 -> 60 us at
     # 640 x 480
     h, w = depth.shape
@@ -78,7 +80,6 @@ def _valid_pixels(
     v8 = valid.view(np.uint8)
     # without a mask every row is read against a row of ones (the same loop either way)
     ones = np.ones(w, np.uint8)
-    f = _far_bound(far)
     one = np.uint8(1)
     dirty = np.uint8(0)
     n_far = 0
@@ -100,10 +101,13 @@ def _valid_pixels(
     return ok, dirty != 0, n_far
 
 
-@njit(cache=True, nogil=True)
+@lru_cache(maxsize=16)
 def _far_bound(far: float) -> np.float32:
-    # the float32 f with z < f exactly when z < far (float64) for every float32 z: far rounded
-    # to float32, one step up when it rounded down (no float32 lies between far and that step);
-    # a NaN limit stays NaN (no z is below it or at it either way)
-    c = np.float32(far)
-    return c if c >= far else np.nextafter(c, np.float32(np.inf))
+    """Return the float32 ``f`` with ``z < f`` exactly when ``z < far`` (float64) for every float32 ``z``.
+
+    ``far`` rounded to float32, one step up when it rounded down (no float32 lies between
+    ``far`` and that step); a NaN limit stays NaN (no z is below it or at it either way).
+    """
+    with np.errstate(over="ignore"):  # a limit beyond float32's range is +inf
+        c = np.float32(far)
+    return c if float(c) >= far else np.nextafter(c, np.float32(np.inf))

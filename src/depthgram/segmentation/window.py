@@ -23,7 +23,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-__all__ = ["bits_range", "exact_in_float64", "exact_rows", "fill_ends", "next_columns", "start_columns", "window_row"]
+__all__ = ["bits_range", "exact_rows", "start_columns", "window_row"]
 
 _ABS = 0x7FFFFFFF
 _NONE = 0xFFFFFFFF
@@ -51,43 +51,19 @@ def bits_range(v: NDArray[np.float32]) -> tuple[np.int64, np.int64]:
 
 
 @njit(cache=True, inline="always")
-def exact_in_float64(hi: Any, lo: Any, n: int) -> bool:
-    """Whether ``n`` times the largest magnitude is a float64 whole multiple of the smallest's last bit.
-
-    ``hi`` and ``lo``: bit patterns of the largest and smallest nonzero magnitudes
-    (:func:`bits_range`); ``n`` at most ``2**30``. Exact integer arithmetic on exponents and
-    mantissas: ``n * m * 2**(e_hi - 150) <= 2**(53 + e_lo - 150)`` with ``m`` the largest
-    value's 24-bit mantissa and ``e`` the biased exponents (1 for subnormals). Infinite or NaN
-    values fail; so do sums that could leave float32's range.
-    """
-    if hi == 0:
-        return True  # all zeros
-    e_hi = hi >> 23
-    if e_hi >= 240:  # infinities, NaNs and sums near float32's largest value
-        return False
-    m = hi & 0x7FFFFF
-    if e_hi == 0:
-        e_hi = 1  # subnormal: no hidden bit
-    else:
-        m += 1 << 23
-    e_lo = max(lo >> 23, 1)
-    s = 53 + e_lo - e_hi
-    if s < 0:
-        return False
-    if s >= 62:
-        return True
-    fits: bool = n * m <= (1 << s)
-    return fits
-
-
-@njit(cache=True, inline="always")
 def exact_rows(hi: NDArray[np.int64], lo: NDArray[np.int64], n: int, before: int, after: int) -> bool:
-    """Whether every output row's band of source rows passes :func:`exact_in_float64`.
+    """Whether every output row's band of source rows sums exactly in float64, ``n`` values at a time.
 
     ``hi``, ``lo`` (H,): each source row's :func:`bits_range`. Output row ``y`` reads source
     rows ``y - before`` to ``y + after`` (clamped to the image): a running column sum takes the
     row ``r + 1`` above and adds the row ``r`` below. A band of rows instead of the whole image,
     so that a row of tiny values far from the largest ones does not send the frame to OpenCV.
+
+    A band passes when ``n`` times its largest magnitude is a float64 whole multiple of its
+    smallest nonzero magnitude's last bit (``n`` at most ``2**30``). Exact integer arithmetic
+    on exponents and mantissas: ``n * m * 2**(e_hi - 150) <= 2**(53 + e_lo - 150)`` with ``m``
+    the largest value's 24-bit mantissa and ``e`` the biased exponents (1 for subnormals).
+    Infinite or NaN values fail; so do sums that could leave float32's range.
     """
     h = hi.size
     for y in range(h):
@@ -99,7 +75,18 @@ def exact_rows(hi: NDArray[np.int64], lo: NDArray[np.int64], n: int, before: int
             top = max(top, hi[i])
             if lo[i] != 0:
                 low = min(low, lo[i])
-        if top != 0 and not exact_in_float64(top, low, n):
+        if top == 0:
+            continue  # all zeros
+        e_hi = top >> 23
+        if e_hi >= 240:  # infinities, NaNs and sums near float32's largest value
+            return False
+        m = top & 0x7FFFFF
+        if e_hi == 0:
+            e_hi = 1  # subnormal: no hidden bit
+        else:
+            m += 1 << 23
+        s = 53 + max(low >> 23, 1) - e_hi
+        if s < 0 or (s < 62 and n * m > (1 << s)):
             return False
     return True
 
@@ -121,42 +108,22 @@ def start_columns(src: NDArray[np.float32], r: int, pad: NDArray[np.floating[Any
 
 
 @njit(cache=True, inline="always")
-def next_columns(src: NDArray[np.float32], y: int, r: int, pad: NDArray[np.floating[Any]]) -> None:
-    """Move the column sums in ``pad[r:r + W]`` from output row ``y - 1`` to ``y`` (replicated rows).
-
-    The row ``r`` below is added and the row ``r + 1`` above taken off, in ``pad``'s type (a
-    float32 value is exact in float64).
-    """
-    h, w = src.shape
-    new = src[min(y + r, h - 1)]
-    old = src[max(y - r - 1, 0)]
-    mid = pad[r : r + w]
-    for x in range(w):
-        mid[x] = (mid[x] + new[x]) - old[x]
-
-
-@njit(cache=True, inline="always")
-def fill_ends(pad: NDArray[np.floating[Any]], r: int, w: int) -> None:
-    """Repeat the first and last of the ``w`` column sums in ``pad[r:r + w]`` over its ``r`` ends."""
-    first = pad[r]
-    last = pad[r + w - 1]
-    for i in range(r):
-        pad[i] = first
-        pad[r + w + i] = last
-
-
-@njit(cache=True, inline="always")
 def window_row(
     pad: NDArray[np.floating[Any]], r: int, pairs: NDArray[np.floating[Any]], out: NDArray[np.float32]
 ) -> None:
     """Give ``out`` (W,) the sums of ``2 r + 1`` column sums across (replicated border), as float32.
 
-    ``pad`` (W + 2 r,) holds the column sums in its middle (:func:`next_columns`); its ends are
-    filled here. ``pairs`` (W + 2 r,): scratch of ``pad``'s type. For r = 3 the pairs of
-    neighbours are summed once and a window is three pairs and one sum (4 additions for 6).
+    ``pad`` (W + 2 r,) holds the column sums in its middle; its ends are filled here.
+    ``pairs`` (W + 2 r,): scratch of ``pad``'s type. For r = 3 the pairs of neighbours are
+    summed once and a window is three pairs and one sum (4 additions for 6).
     """
     w = out.size
-    fill_ends(pad, r, w)
+    # the first and last column sums repeated over the r places beyond each end
+    first = pad[r]
+    last = pad[r + w - 1]
+    for i in range(r):
+        pad[i] = first
+        pad[r + w + i] = last
     if r == 3:
         m = w + 5
         a, b = pad[0:m], pad[1 : m + 1]

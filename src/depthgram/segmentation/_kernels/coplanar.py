@@ -16,28 +16,18 @@ def coplanar_join(
     Pair ``i < j`` joins when ``cosines[i, j] > min_cos`` and ``|off_i - off_j| <= rel
     max(off_i, off_j)``, numpy's tests on the same float64 numbers; compiled because the
     half-dozen numpy calls on a few pieces' matrices cost more than the tests (three uses per
-    frame). Returns :func:`_join_groups`' table and group count.
+    frame). Returns each piece's group (0 for piece 0's) and the group count.
     """
+    # union of the joined pairs (the smaller root becomes the root), then the groups numbered
+    # 1..m in the order of their smallest piece (np.unique of the roots); pieces 0..n. A Python
+    # loop over every piece (hundreds of noise specks on a real frame) cost more than the rest.
     k = big.size
-    join = np.zeros((k, k), np.bool_)
+    parent = np.arange(n + 1)
     for i in range(k):
         oi = off[big[i]]
         for j in range(i + 1, k):
             oj = off[big[j]]
-            join[i, j] = cosines[i, j] > min_cos and abs(oi - oj) <= rel * max(oi, oj)
-    return _join_groups(join, big, n)
-
-
-@njit(cache=True, nogil=True)
-def _join_groups(join: NDArray[np.bool_], big: NDArray[np.intp], n: int) -> tuple[NDArray[np.int32], int]:
-    # union of the joined pairs (the smaller root becomes the root), then the groups numbered
-    # 1..m in the order of their smallest piece (np.unique of the roots); pieces 0..n. A Python
-    # loop over every piece (hundreds of noise specks on a real frame) cost more than the rest.
-    parent = np.arange(n + 1)
-    k = join.shape[0]
-    for i in range(k):
-        for j in range(k):
-            if not join[i, j]:
+            if not (cosines[i, j] > min_cos and abs(oi - oj) <= rel * max(oi, oj)):
                 continue
             a = big[i]
             while parent[a] != a:

@@ -2,13 +2,9 @@
 
 from __future__ import annotations
 
-from typing import Any
-
 import numpy as np
 from numba import njit
 from numpy.typing import NDArray
-
-from depthgram.segmentation.order_stats import kth_smallest, next_smallest
 
 
 @njit(cache=True, nogil=True)
@@ -161,20 +157,11 @@ def opening_parents(
         width_mm = (ax1 - ax0 + 1) * z_mean[a] / focal_px
         if zr - z_mean[a] > width_mm:
             continue
-        if median32(on_a) >= zr:
+        # np.median of A's ring depths, in float32 as numpy takes it (the mean of the two
+        # middle values of an even count)
+        h2 = best // 2
+        part = np.partition(on_a, h2)
+        med = part[h2] if best % 2 else (part[:h2].max() + part[h2]) / np.float32(2.0)
+        if med >= zr:
             continue
         parent[r] = a
-
-
-@njit(cache=True, nogil=True)
-def median32(a: NDArray[np.float32]) -> Any:
-    # np.median of float32 values, in float32 as numpy computes it (the mean of the two middle
-    # values of an even count)
-    n = a.size
-    h = n // 2
-    if n % 2:
-        return kth_smallest(a, h)
-    # the order statistics come back as float64 (exact); their mean is taken in float32
-    lo = np.float32(kth_smallest(a, h - 1))
-    hi = np.float32(next_smallest(a, h - 1))
-    return (lo + hi) / np.float32(2.0)

@@ -10,7 +10,6 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-from depthgram.segmentation._kernels.solve3 import lu_solve3
 from depthgram.segmentation.label.unionfind import find, union
 from depthgram.segmentation.order_stats import percentile32
 
@@ -95,9 +94,10 @@ def search_planes(
 
     Each search draws its three-point samples and (beyond 2000 points) its scoring points as
     ``np.random.default_rng(seed).integers`` would, from the numbers ``raw`` of the seed
-    (:func:`depthgram.segmentation.ransac._raw32`, :func:`bounded`), then runs :func:`_search_plane` and
-    :func:`plane_pieces`; a plane too small or too flat is dropped and the search goes on, as
-    the numpy route does. ``left`` (the grid points still searched) is taken in place.
+    (:func:`depthgram.segmentation.ransac._raw32`, :func:`bounded`), then runs :func:`_search_plane`
+    and keeps the plane's large pieces (:func:`large_pieces`); a plane too small or too flat
+    is dropped and the search goes on, as the numpy route does. ``left`` (the grid points
+    still searched) is taken in place.
 
     Returns the number of planes found (-1 when ``raw`` ran out), their coefficients, their
     large pieces on the grid and their depth spreads (the first rows).
@@ -112,8 +112,26 @@ def search_planes(
     for _ in range(max_planes * 2):
         if k >= max_planes:
             break
-        u, v, z, tz = _grid_points(z_sub, left, step, tol_mm, tol_rel)
-        n = u.size
+        # column and row (full-frame px), depth (mm) and tolerance (mm) of the grid points still
+        # searched, in raster order, the tolerance numpy's float32 np.maximum(tol_mm, tol_rel * z)
+        n = 0
+        for y in range(hs):
+            for x in range(ws):
+                n += left[y, x]
+        u = np.empty(n, np.float64)
+        v = np.empty(n, np.float64)
+        z = np.empty(n, np.float64)
+        tz = np.empty(n, np.float64)
+        j = 0
+        for y in range(hs):
+            for x in range(ws):
+                if left[y, x]:
+                    zz = z_sub[y, x]
+                    u[j] = x * step
+                    v[j] = y * step
+                    z[j] = zz
+                    tz[j] = max(tol_mm, tol_rel * zz)
+                    j += 1
         if n < max(min_sub, 3.0):
             break
         pick = np.empty((hypotheses, 3), np.int64)
@@ -136,9 +154,15 @@ def search_planes(
         status, a, b, c, on_img = _search_plane(u, v, z, tz, pick, ev, min_sub, eps, z_sub, left, tol_mm, tol_rel, step)
         if status < _FOUND:
             break
-        pieces, n_on, p5, p50, p95 = plane_pieces(on_img, max(int(min_sub) // 4, 1), z_sub, min_sub)
-        if n_on < min_sub:
+        # the plane's large pieces and the 5th, 50th and 95th percentiles of their depth,
+        # np.percentile(z_sub[pieces], (5, 50, 95))
+        pieces = large_pieces(on_img, max(int(min_sub) // 4, 1))
+        on_z = z_sub.ravel()[pieces.ravel()]
+        if on_z.size < min_sub or on_z.size == 0:
             continue
+        p5 = percentile32(on_z, 5.0, False)
+        p50 = percentile32(on_z, 50.0, False)
+        p95 = percentile32(on_z, 95.0, False)
         spread = (p95 - p5) / max(p50, 1e-6)
         if spread < min_spread:
             continue  # a fronto-parallel plane (a back wall) is a facing object, not a support
@@ -173,101 +197,80 @@ def _search_plane(
 ) -> tuple[int, float, float, float, NDArray[np.bool_]]:
     """One RANSAC search of ``1000 / Z = a u + b v + c`` on the grid points, compiled end to end.
 
-    The three-point samples ``pick`` are solved (:func:`lu_solve3`, numpy's numbers), scored
+    The three-point samples ``pick`` are solved (in closed form), scored
     on the points ``ev`` (:func:`best_hypothesis`), the best one's inliers refitted by least
     squares (LAPACK's ``dgelsd`` through numba, with numpy's default ``rcond``: the same
     numbers as ``np.linalg.lstsq``) and the refitted plane's grid pixels taken out of ``left``
-    (:func:`_take_residual`, in place). Compiled because the dozen numpy calls of a search
+    (in place). Compiled because the dozen numpy calls of a search
     (the batched solve, the least squares, the masks) cost more than their arithmetic.
 
     Returns the outcome (``_NO_SAMPLE``, ``_FEW`` inliers, ``_FOUND``), the refitted
     coefficients and the plane's grid pixels (all False unless found).
     """
     on_img = np.zeros(z_sub.shape, np.bool_)
-    a, good = sample_systems(u, v, pick)
+    # each sample's plane through its three points (u, v, 1000 / z), by Cramer's rule on the
+    # differences from its first point; the points lie on the integer pixel grid, so the
+    # determinant is an integer, exact here, and zero for three points on a line
+    m = pick.shape[0]
+    coef = np.empty((m, 3), np.float64)
     k = 0
-    for i in range(good.size):
-        k += good[i]
+    for i in range(m):
+        p0, p1, p2 = pick[i, 0], pick[i, 1], pick[i, 2]
+        du1, dv1 = u[p1] - u[p0], v[p1] - v[p0]
+        du2, dv2 = u[p2] - u[p0], v[p2] - v[p0]
+        det = du1 * dv2 - du2 * dv1
+        if det == 0.0:
+            continue
+        q0 = 1000.0 / z[p0]
+        dq1 = 1000.0 / z[p1] - q0
+        dq2 = 1000.0 / z[p2] - q0
+        a = (dq1 * dv2 - dq2 * dv1) / det
+        b = (du1 * dq2 - du2 * dq1) / det
+        coef[k, 0] = a
+        coef[k, 1] = b
+        coef[k, 2] = q0 - a * u[p0] - b * v[p0]
+        k += 1
     if k == 0:
         return _NO_SAMPLE, 0.0, 0.0, 0.0, on_img
-    coef = np.empty((k, 3), np.float64)
-    x = np.empty(3, np.float64)
-    j = 0
-    for i in range(good.size):
-        if good[i]:
-            for r in range(3):
-                x[r] = 1000.0 / z[pick[i, r]]
-            lu_solve3(a[i], x)
-            coef[j] = x
-            j += 1
+    coef = coef[:k]
     best = best_hypothesis(coef, u, v, z, tol, ev)
-    uo, vo, qo = _inliers(u, v, z, tol, coef[best, 0], coef[best, 1], coef[best, 2])
-    if uo.size < min_inliers:
+    # the points on the best plane, [u v 1] and 1000 / z, refitted by least squares (one pass:
+    # numpy's masks cost six temporaries)
+    a, b, c = coef[best, 0], coef[best, 1], coef[best, 2]
+    n = u.size
+    sys = np.empty((n, 3), np.float64)
+    qo = np.empty(n, np.float64)
+    m_on = 0
+    for i in range(n):
+        inv = a * u[i] + b * v[i] + c
+        if inv > 0 and abs(1000.0 - z[i] * inv) <= tol[i] * inv:
+            sys[m_on, 0] = u[i]
+            sys[m_on, 1] = v[i]
+            sys[m_on, 2] = 1.0
+            qo[m_on] = 1000.0 / z[i]
+            m_on += 1
+    if m_on < min_inliers:
         return _FEW, 0.0, 0.0, 0.0, on_img
-    sys = np.empty((uo.size, 3), np.float64)
-    sys[:, 0] = uo
-    sys[:, 1] = vo
-    sys[:, 2] = 1.0
     # np.linalg.lstsq's rcond=None is eps times the larger dimension
-    fit = np.linalg.lstsq(sys, qo, eps * max(uo.size, 3))[0]
-    on_img = _take_residual(z_sub, left, fit[0], fit[1], fit[2], tol_mm, tol_rel, np.float32(step))
+    fit = np.linalg.lstsq(sys[:m_on], qo[:m_on], eps * max(m_on, 3))[0]
+    # the refitted plane's grid pixels (ransac.plane_residual_mask's float32 operations in
+    # its order), taken out of `left`
+    hs, ws = z_sub.shape
+    a32, b32, c32 = np.float32(fit[0]), np.float32(fit[1]), np.float32(fit[2])
+    s32 = np.float32(step)
+    thousand = np.float32(1000.0)
+    for y in range(hs):
+        bv = b32 * (np.float32(y) * s32)
+        for x in range(ws):
+            if not left[y, x]:
+                continue
+            inv32 = (a32 * (np.float32(x) * s32) + bv) + c32
+            zz = z_sub[y, x]
+            t32 = max(tol_mm, tol_rel * zz)
+            if inv32 > 0 and abs(thousand - zz * inv32) <= t32 * inv32:
+                on_img[y, x] = True
+                left[y, x] = False
     return _FOUND, fit[0], fit[1], fit[2], on_img
-
-
-@njit(cache=True, nogil=True)
-def plane_pieces(
-    on_img: NDArray[np.bool_], piece_px: int, z_sub: NDArray[np.float32], min_px: float
-) -> tuple[NDArray[np.bool_], int, float, float, float]:
-    """Return a found plane's large pieces on the grid, their pixel count and depth percentiles.
-
-    The pieces are those of :func:`large_pieces` (8-connected pieces of ``on_img`` of at
-    least ``piece_px`` pixels); the 5th, 50th and 95th percentiles of their depth are
-    ``np.percentile(z_sub[pieces], (5, 50, 95))`` (:func:`percentile32`), left at 0 below
-    ``min_px`` pixels, where the search drops the plane anyway. One compiled call for OpenCV's
-    labelling (30 us on a 3000-point grid, most of it the call) and a handful of numpy calls.
-    """
-    pieces = large_pieces(on_img, piece_px)
-    h, w = z_sub.shape
-    n = 0
-    for y in range(h):
-        for x in range(w):
-            n += pieces[y, x]
-    if n < min_px or n == 0:
-        return pieces, n, 0.0, 0.0, 0.0
-    on_z = np.empty(n, np.float32)
-    k = 0
-    for y in range(h):
-        for x in range(w):
-            if pieces[y, x]:
-                on_z[k] = z_sub[y, x]
-                k += 1
-    p5 = percentile32(on_z, 5.0, False)
-    p50 = percentile32(on_z, 50.0, False)
-    p95 = percentile32(on_z, 95.0, False)
-    return pieces, n, p5, p50, p95
-
-
-@njit(cache=True, nogil=True)
-def sample_systems(
-    u: NDArray[np.float64], v: NDArray[np.float64], pick: NDArray[np.int64]
-) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
-    # the 3 x 3 systems [u v 1] of the three-point samples, and which have a solution. The
-    # points lie on the integer pixel grid, so the determinant is an integer, exact here;
-    # numpy's LU determinant (the numpy route's test |det| > 1e-6) is within 1e-9 of it
-    m = pick.shape[0]
-    a = np.empty((m, 3, 3), np.float64)
-    good = np.empty(m, np.bool_)
-    for k in range(m):
-        for i in range(3):
-            a[k, i, 0] = u[pick[k, i]]
-            a[k, i, 1] = v[pick[k, i]]
-            a[k, i, 2] = 1.0
-        du1 = a[k, 1, 0] - a[k, 0, 0]
-        dv1 = a[k, 1, 1] - a[k, 0, 1]
-        du2 = a[k, 2, 0] - a[k, 0, 0]
-        dv2 = a[k, 2, 1] - a[k, 0, 1]
-        good[k] = du1 * dv2 - du2 * dv1 != 0.0
-    return a, good
 
 
 @njit(cache=True, nogil=True)
@@ -352,99 +355,6 @@ def inliers_counted(
         inv = a * u[i] + b * v[i] + c
         cnt += (inv > 0) & (abs(1000.0 - z[i] * inv) <= tol[i] * inv)
     return cnt
-
-
-@njit(cache=True, nogil=True)
-def _grid_points(
-    z_sub: NDArray[np.float32], left: NDArray[np.bool_], step: int, tol_mm: np.float32, tol_rel: np.float32
-) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
-    # column and row (full-frame px), depth (mm) and tolerance (mm) of the grid points still
-    # searched, in raster order: numpy's flatnonzero and four gathers, with the tolerance of
-    # its float32 np.maximum(tol_mm, tol_rel * z)
-    h, w = z_sub.shape
-    n = 0
-    for y in range(h):
-        for x in range(w):
-            n += left[y, x]
-    u = np.empty(n, np.float64)
-    v = np.empty(n, np.float64)
-    z = np.empty(n, np.float64)
-    tz = np.empty(n, np.float64)
-    k = 0
-    for y in range(h):
-        for x in range(w):
-            if left[y, x]:
-                zz = z_sub[y, x]
-                u[k] = x * step
-                v[k] = y * step
-                z[k] = zz
-                tz[k] = max(tol_mm, tol_rel * zz)
-                k += 1
-    return u, v, z, tz
-
-
-@njit(cache=True, nogil=True)
-def _inliers(
-    u: NDArray[np.float64],
-    v: NDArray[np.float64],
-    z: NDArray[np.float64],
-    tol: NDArray[np.float64],
-    a: float,
-    b: float,
-    c: float,
-) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
-    # u, v and 1000 / z of the points on the plane, by numpy's float64 test
-    # (inv > 0) & (|1000 - z inv| <= tol inv) with inv = a u + b v + c
-    n = u.size
-    on = np.zeros(n, np.bool_)
-    m = 0
-    for i in range(n):
-        inv = a * u[i] + b * v[i] + c
-        if inv > 0 and abs(1000.0 - z[i] * inv) <= tol[i] * inv:
-            on[i] = True
-            m += 1
-    uo = np.empty(m, np.float64)
-    vo = np.empty(m, np.float64)
-    qo = np.empty(m, np.float64)
-    k = 0
-    for i in range(n):
-        if on[i]:
-            uo[k] = u[i]
-            vo[k] = v[i]
-            qo[k] = 1000.0 / z[i]
-            k += 1
-    return uo, vo, qo
-
-
-@njit(cache=True, nogil=True)
-def _take_residual(
-    z: NDArray[np.float32],
-    left: NDArray[np.bool_],
-    a: float,
-    b: float,
-    c: float,
-    tol_mm: np.float32,
-    tol_rel: np.float32,
-    step: np.float32,
-) -> NDArray[np.bool_]:
-    # plane_residual_mask(z, left, (a, b, c), step=step) in one pass, and its pixels taken out
-    # of `left` (in place): the same float32 operations in the same order
-    h, w = z.shape
-    out = np.zeros((h, w), np.bool_)
-    a32, b32, c32 = np.float32(a), np.float32(b), np.float32(c)
-    thousand = np.float32(1000.0)
-    for y in range(h):
-        bv = b32 * (np.float32(y) * step)
-        for x in range(w):
-            if not left[y, x]:
-                continue
-            inv = (a32 * (np.float32(x) * step) + bv) + c32
-            zz = z[y, x]
-            tol = max(tol_mm, tol_rel * zz)
-            if inv > 0 and abs(thousand - zz * inv) <= tol * inv:
-                out[y, x] = True
-                left[y, x] = False
-    return out
 
 
 @njit(cache=True, nogil=True)

@@ -100,23 +100,17 @@ def flush_run(
     boxes[i, 3] = y  # rows are scanned in order: the latest row is the lowest
 
 
-@njit(cache=True, nogil=True)
 def add_rows(sums: NDArray[np.float64], boxes: NDArray[np.int64], src: NDArray[np.intp], dst: NDArray[np.intp]) -> None:
     """Add row ``src[k]`` of the table to row ``dst[k]``, and its box to that box, for each k in turn (in place).
 
     The union of two labels' pixels: the additive columns (the first ``sums.shape[1]``, at most
-    :data:`N_SUMS`) summed, the inclusive boxes joined; numpy's ``sums[d] += sums[s]`` and
-    ``np.minimum`` / ``np.maximum`` of the boxes, row after row, in one call.
+    :data:`N_SUMS`) summed, the inclusive boxes joined. Row after row, so that a row added to
+    carries what was added to it before; a few rows a frame.
     """
-    for k in range(src.size):
-        s = src[k]
-        d = dst[k]
-        for c in range(sums.shape[1]):
-            sums[d, c] += sums[s, c]
-        boxes[d, 0] = min(boxes[d, 0], boxes[s, 0])
-        boxes[d, 1] = min(boxes[d, 1], boxes[s, 1])
-        boxes[d, 2] = max(boxes[d, 2], boxes[s, 2])
-        boxes[d, 3] = max(boxes[d, 3], boxes[s, 3])
+    for s, d in zip(src.tolist(), dst.tolist(), strict=True):
+        sums[d] += sums[s]
+        (a0, a1, a2, a3), (b0, b1, b2, b3) = boxes[d].tolist(), boxes[s].tolist()
+        boxes[d] = min(a0, b0), min(a1, b1), max(a2, b2), max(a3, b3)
 
 
 @njit(cache=True, inline="always")
