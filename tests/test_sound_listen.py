@@ -29,7 +29,8 @@ from numpy.testing import assert_allclose
 from depthgram.scene.tree import Node, SceneTree
 from depthgram.sound import SoundMapping
 from depthgram.sound.choose import Chooser, distinguishable
-from depthgram.sound.live import LiveSonifier, TargetSlot
+from depthgram.sound.live import LiveSonifier
+from depthgram.sound.slot import TargetSlot
 from depthgram.sound.synth import Voice, VoiceBank
 from sound_decode import listen
 
