@@ -125,20 +125,26 @@ def _nudge(v: Any, k: int) -> Any:
     return replace(v, freq_a=v.freq_a * f, freq_b=v.freq_b * f, gain_a=v.gain_a * 0.999, azimuth=az)
 
 
-def live(seconds: float, device: int | str | None, realtime: bool = True) -> dict[str, Any]:
-    """Play ``seconds`` of the loop; return the figures."""
+def live(seconds: float, device: int | str | None, realtime: bool = True, decimate: str = "auto") -> dict[str, Any]:
+    """Play ``seconds`` of the loop; return the figures.
+
+    ``decimate``: as ``listen --decimate`` (``auto`` reads every 2nd pixel of 640 x 480).
+    """
     import gc
 
     import psutil
 
+    from depthgram.commands.listen import decimation
     from depthgram.pacing import Pacer
     from depthgram.pipeline import Pipeline
     from depthgram.sound.live import AudioProcess, percentiles
     from depthgram.sources.prefetch import prefetch
 
     spec, frames = _frames(seconds)
-    src = prefetch(frames, ahead=2)
-    first = next(src)
+    whole = next(frames)
+    step = decimation(decimate, whole.size[0])
+    src = prefetch((f.decimated(step) for f in frames), ahead=2)
+    first = whole.decimated(step)
     pipe = Pipeline()
     pipe.warm_up(first)
     audio = AudioProcess(None, SR, first.size, device, BLOCK, realtime=realtime)
@@ -189,6 +195,8 @@ def live(seconds: float, device: int | str | None, realtime: bool = True) -> dic
     cb = np.asarray(stats["callback_s"]) * 1e3
     return {
         "input": spec,
+        "size": whole.size,
+        "read": first.size,
         "seconds": wall,
         "frames": played,
         "dropped": dropped,
@@ -242,6 +250,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         action="store_false",
         help="leave the audio callback at normal priority (as `listen --no-realtime`)",
     )
+    p.add_argument(
+        "--decimate", default="auto", metavar="N", help="as listen --decimate (default auto: 320 pixels a row)"
+    )
     args = p.parse_args(argv)
     seconds = 10.0 if args.quick else args.seconds
     syn = synthesis_share()
@@ -265,7 +276,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             return 0
     device = int(args.device) if args.device and args.device.isdigit() else args.device
     try:
-        r = live(seconds, device, args.realtime)
+        r = live(seconds, device, args.realtime, args.decimate)
     finally:
         if jack is not None:
             jack.terminate()
@@ -273,7 +284,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     lat, cb = r["latency"], r["callback"]
     mode = "-R" if args.server == "realtime" else "--no-realtime"
     where = args.device or f"JACK dummy (jackd {mode} -d dummy -r 48000 -p 256)"
-    print(f"input {r['input']} (640x480) at 30 frames/s for {r['seconds']:.1f} s to {where}")
+    (w, h), (rw, rh) = r["size"], r["read"]
+    print(f"input {r['input']} ({w}x{h}, read {rw}x{rh}) at 30 frames/s for {r['seconds']:.1f} s to {where}")
     print(
         f"  load average {r['load'][0][0]:.2f} at the start, {r['load'][1][0]:.2f} at the end "
         f"({os.cpu_count()} cores); audio callback {r['priority']}"

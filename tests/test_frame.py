@@ -2,6 +2,7 @@
 
 import numpy as np
 import pytest
+from numpy.testing import assert_allclose
 
 from depthgram.frame import DepthError, depth_from_8bit, depth_to_8bit, make_frame
 
@@ -46,3 +47,27 @@ def test_8bit_round_trip_within_one_code_step() -> None:
     back = depth_from_8bit(depth_to_8bit(d, near, far), near, far)
     assert np.max(np.abs(back - d)) <= step / 2 + 1e-3
     assert depth_to_8bit(np.array([0.0]), near, far)[0] == 0
+
+
+def test_decimated_frame_keeps_readings_and_rays() -> None:
+    from depthgram.errors import InputError
+    from depthgram.frame import Intrinsics
+
+    rng = np.random.default_rng(3)
+    raw = rng.integers(500, 4000, (480, 640)).astype(np.uint16)
+    raw[10, 20] = 0
+    k = Intrinsics(525.0, 527.0, 319.5, 239.5)
+    f = make_frame(raw, intrinsics=k, name="a.png")
+    half = f.decimated(2)
+    assert half.size == (320, 240) and half.depth.flags.c_contiguous
+    # readings kept as they are (no mean across an outline), invalid ones too
+    assert_allclose(half.depth, f.depth[::2, ::2])
+    assert not half.valid[5, 10] and not f.valid[10, 20]
+    # pixel (i, j) of the result looks along the ray of pixel (2i, 2j)
+    hk = half.intrinsics
+    assert hk is not None
+    for x, y in ((0, 0), (100, 37), (319, 239)):
+        assert_allclose(((x - hk.cx) / hk.fx, (y - hk.cy) / hk.fy), ((2 * x - k.cx) / k.fx, (2 * y - k.cy) / k.fy))
+    assert f.decimated(1) is f and half.meta["decimated"] == 2
+    with pytest.raises(InputError, match=r"a\.png: decimation step must be >= 1"):
+        f.decimated(0)

@@ -399,3 +399,43 @@ def test_target_slot_names_what_does_not_fit() -> None:
         writer.put(_voices(), 0, None, 0.0)
     with pytest.raises(Exception, match="kind must be one of"):
         writer.put({("x", 1): next(iter(_voices().values()))}, 0, None, 0.0)
+
+
+@pytest.mark.parametrize("spec", ["sim:approach?size=640x480&frames=40", "sim:table?size=640x480&frames=4"])
+def test_every_second_pixel_gives_the_ear_the_same_voices(spec: str) -> None:
+    """listen's default decimation (640 -> 320 pixels a row) changes no voice a listener could tell."""
+    from depthgram import read
+    from depthgram.pipeline import Pipeline
+    from depthgram.sound.choose import pan_position
+
+    def voices(step: int) -> list[list[Voice]]:
+        pipe, chooser, out = Pipeline(), Chooser(SoundMapping()), []
+        for f in read(spec):
+            f = f.decimated(step)
+            r = pipe.process(f)
+            vs = chooser.voices(r.tree, f.size, r.segmentation.objects, f.intrinsics, f.gravity)
+            out.append(sorted(vs.values(), key=lambda v: (v.rate > 0, pan_position(v), v.freq_a)))
+        return out
+
+    full, half = voices(1), voices(2)
+    assert sum(map(len, full)) >= len(full)
+    for k, (a, b) in enumerate(zip(full, half, strict=True)):
+        assert len(a) == len(b), f"frame {k}: {len(a)} voices read whole, {len(b)} decimated"
+        for va, vb in zip(a, b, strict=True):
+            # well under the 3 semitones / 0.2 pan / 1.5x rate that tell two voices apart
+            assert abs(12 * np.log2(vb.freq_a / va.freq_a)) < 0.5, (k, va, vb)
+            assert abs(pan_position(vb) - pan_position(va)) < 0.05, (k, va, vb)
+            assert_allclose(vb.rate, va.rate, rtol=0.1)
+
+
+def test_listen_reads_a_large_frame_decimated_and_says_so(jack: dict[str, str], tmp_path: Path) -> None:
+    log = tmp_path / "listen.jsonl"
+    cmd = [sys.executable, "-m", "depthgram.cli", "listen", "sim:approach?size=640x480&frames=20&fps=15"]
+    done = subprocess.run([*cmd, "--log", str(log)], env=jack, capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr
+    assert "reads every 2 pixels of every 2 rows: 640x480 as 320x240 (--decimate 1 reads them all)" in done.stderr
+    assert len(log.read_text().splitlines()) >= 5
+    whole = subprocess.run([*cmd, "--decimate", "1"], env=jack, capture_output=True, text=True, timeout=300)
+    assert whole.returncode == 0 and "reads every" not in whole.stderr, whole.stderr
+    bad = subprocess.run([*cmd, "--decimate", "0"], env=jack, capture_output=True, text=True, timeout=60)
+    assert bad.returncode == 2 and "--decimate must be 'auto' or an integer >= 1, got '0'" in bad.stderr

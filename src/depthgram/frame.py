@@ -11,7 +11,7 @@ from __future__ import annotations
 import math
 import warnings
 from collections.abc import Iterable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -210,6 +210,26 @@ class Frame:
     def invalid_fraction(self) -> float:
         """Share of pixels without a reading."""
         return 1.0 - float(np.count_nonzero(self.valid)) / self.valid.size
+
+    def decimated(self, step: int) -> Frame:
+        """Every ``step``-th pixel of each ``step``-th row, with the intrinsics to match.
+
+        The readings are kept as they are, not averaged: a mean of pixels across an outline
+        would be a depth no surface has (a flying pixel), and the sensor model's noise still
+        describes each kept pixel. Pixel ``(i, j)`` of the result is pixel ``(step i, step j)``.
+        """
+        if step < 1:
+            raise InputError(f"{self.name or 'frame'}: decimation step must be >= 1, got {step}")
+        if step == 1:
+            return self
+        k = self.intrinsics
+        return replace(
+            self,
+            depth=np.ascontiguousarray(self.depth[::step, ::step]),
+            valid=np.ascontiguousarray(self.valid[::step, ::step]),
+            intrinsics=None if k is None else Intrinsics(k.fx / step, k.fy / step, k.cx / step, k.cy / step),
+            meta={**self.meta, "decimated": step},
+        )
 
 
 def implausible_depth(depth_mm: NDArray[np.floating], valid: NDArray[np.bool_]) -> tuple[str, bool] | None:

@@ -39,6 +39,14 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--wav", default=None, metavar="FILE", help="also write exactly what was played to this WAV")
     p.add_argument("--seconds", type=float, default=None, metavar="S", help="stop after S seconds (a camera)")
     p.add_argument(
+        "--decimate",
+        default="auto",
+        metavar="N",
+        help="read every N-th pixel of every N-th row (default auto: the largest N that keeps at least "
+        "320 pixels a row; 1 reads them all). The ear cannot tell the directions apart that a finer "
+        "image would, and the loop's CPU share falls with the pixels",
+    )
+    p.add_argument(
         "--binaural",
         nargs="?",
         const="kemar",
@@ -61,6 +69,21 @@ def _device(text: str | None) -> int | str | None:
     if text is None:
         return None
     return int(text) if text.strip().lstrip("-").isdigit() else text
+
+
+def decimation(text: str, width: int) -> int:
+    """Return the step of ``--decimate`` for frames ``width`` pixels wide (``auto`` keeps >= 320 a row)."""
+    from depthgram.errors import InputError
+
+    if text == "auto":
+        return max(1, width // 320)
+    try:
+        step = int(text)
+    except ValueError:
+        step = 0
+    if step < 1:
+        raise InputError(f"--decimate must be 'auto' or an integer >= 1, got {text!r}")
+    return step
 
 
 def run(args: argparse.Namespace) -> int:
@@ -87,10 +110,21 @@ def run(args: argparse.Namespace) -> int:
     pipe = Pipeline(load_config(args))
     fps = getattr(src, "fps", None) or args.fps
     period = 1.0 / fps if fps else 1.0 / 30  # a source with no rate (a camera) is taken as it comes
-    frames = prefetch(src, ahead=2)
-    first = next(frames, None)
-    if first is None:
+    if args.decimate != "auto":
+        decimation(args.decimate, 1)  # a bad value fails before the source is read
+    raw = iter(src)
+    whole = next(raw, None)
+    if whole is None:
         raise InputError(f"{args.input}: no frame to play")
+    step = decimation(args.decimate, whole.size[0])
+    first = whole.decimated(step)
+    if step > 1:
+        print(
+            f"listen: reads every {step} pixels of every {step} rows: {whole.size[0]}x{whole.size[1]} "
+            f"as {first.size[0]}x{first.size[1]} (--decimate 1 reads them all)",
+            file=sys.stderr,
+        )
+    frames = prefetch((f.decimated(step) for f in raw), ahead=2)
     pipe.warm_up(first)
 
     log = open(args.log, "w", encoding="utf-8") if args.log else None  # closed in the finally below
