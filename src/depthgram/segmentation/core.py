@@ -481,18 +481,31 @@ def _cut_raised(
     cfg: SegmentConfig,
     min_px: int,
 ) -> _Stack:
-    """Cut what lies on each horizontal support above its noise into objects of their own (in place).
+    """Cut what lies on each support above its noise into objects of their own (in place).
+
+    The supports are the horizontal ones and the facing objects as large as a dominant plane
+    (``cfg.plane_min_area`` of the frame).
 
     The pieces (:func:`depthgram.segmentation.raised.raised_pieces`) take ids after the last
     support's; their statistics come out of their support's row, which stays additive.
     """
     tops = [i for c, i in stack.supports if c == HORIZONTAL]
-    if not tops:
+    # a plane facing the camera and as large as a dominant plane is a support too: a table seen
+    # from above (an arm camera), where flat things lying on it are the whole scene
+    broad = [i for i in range(1, stack.first_support) if stack.attrs[i - 1, 0] >= cfg.plane_min_area * depth.size]
+    if not tops and not broad:
         return stack
-    pieces, of_support = raised_pieces(
-        labels, depth, ok, classes == HORIZONTAL, tops, stack.boxes[tops], sensor, min_px=min_px,
-        k_sigma=cfg.raised_sigmas,
-    )  # fmt: skip
+    pieces = np.zeros(depth.shape, np.int32)
+    of_support: list[int] = []
+    for ids, fitted in ((tops, classes == HORIZONTAL), (broad, classes == FACING)):
+        if not ids:
+            continue
+        found, of = raised_pieces(
+            labels, depth, ok, fitted, ids, stack.boxes[ids], sensor, min_px=min_px, k_sigma=cfg.raised_sigmas
+        )
+        got = found > 0
+        pieces[got] = found[got] + np.int32(len(of_support))
+        of_support += of
     k = len(of_support)
     if not k:
         return stack

@@ -218,14 +218,17 @@ def _block_plane(
         return None
     mid = _middle(above)
     spread = 1.4826 * _middle(np.abs(above - mid))
-    keep = np.abs(above - mid) < np.maximum(2.5 * spread, limit)
-    for _ in range(2):
+    # one-sided: nothing on a support lies below it, and what lies on it (a quarter of a table
+    # seen from above may be dishes and books) tilts a fit toward itself; a symmetric cut of a
+    # tilted fit drops the support's own far side as well
+    keep = above - mid < np.maximum(2.5 * spread, limit)
+    for _ in range(_ROUNDS):
         if int(keep.sum()) < 3:
             break
         d = design[keep]
         coef = _solve3(d.T @ d, d.T @ mq[keep])
         above = 1000.0 / np.maximum(design @ coef, 1e-12) - z
-        keep = np.abs(above) < limit
+        keep = above < limit
     return coef
 
 
@@ -256,9 +259,9 @@ def _plane_fit(on: NDArray[np.bool_], z_box: NDArray[np.float32], sensor: Sensor
             res = above[keep]
             mid = float(np.median(res))
             spread = 1.4826 * float(np.median(np.abs(res - mid)))
-            new_keep = np.abs(above - mid) < np.maximum(2.5 * spread, noise)
+            new_keep = above - mid < np.maximum(2.5 * spread, noise)  # one-sided, as in _block_plane
         else:
-            new_keep = np.abs(above) < noise
+            new_keep = above < noise
         if int(new_keep.sum()) < 3:
             break
         keep = new_keep
