@@ -6,10 +6,13 @@ walls were given (a table seen from above must never be a ``ceiling``; the kinds
 :mod:`depthgram.scene.kinds`). With and without the exact gravity handed to the pipeline
 (without it, gravity is estimated from the supports seen from above).
 
-    .venv/bin/python benchmarks/mountings.py [--size 640x480] [--frames 3] [--raised 4]
+    .venv/bin/python benchmarks/mountings.py [--size 640x480] [--frames 3] [--raised 4] [--peers]
 
 ``--raised K`` sets ``[segment] raised_sigmas`` (flat objects cut out of the supports, off by
-default).
+default). ``--peers`` adds, on the arm cameras' tabletops, what a user would otherwise pick, each
+tuned on the same frames (``benchmarks/real.py``'s grids; ``--quick-peers`` one setting each):
+Open3D plane removal + DBSCAN and scikit-image ``felzenszwalb``, beside depthgram with and without
+``raised_sigmas = 4``, found / mean IoU / milliseconds a frame.
 """
 
 from __future__ import annotations
@@ -17,6 +20,8 @@ from __future__ import annotations
 import argparse
 import sys
 import warnings
+from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -59,14 +64,61 @@ def score(scene: str, sensor: str, size: tuple[int, int], frames: int, with_grav
     return f"{found:>2d}/{iou.size:<3d} {iou.mean():.2f}   {', '.join(sorted(table_kinds)) or '-':16s} {room}"
 
 
+def peers(size: tuple[int, int], frames: int, quick: bool) -> None:
+    """Print found / mean IoU / ms a frame of depthgram and the peers on ``arm_down`` and ``arm_45``."""
+    import time
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+    from benchmarks import real
+
+    print(f"{'scene':11s} {'sensor':6s} {'method':30s} found  IoU    ms/frame  setting")
+    for scene in ("arm_down", "arm_45"):
+        for sensor in ("tof", "sl"):
+            lfs, wanted = [], []
+            for sim in simulate(scene, frames, size=size, sensor=sensor, seed=1):
+                ids = [o.id for o in sim.truth if o.kind == "object" and o.name != "table"]
+                truth = np.where(np.isin(sim.instances, ids), sim.instances, 0).astype(np.int32)
+                f = sim.frame
+                assert f.intrinsics is not None
+                lfs.append(real.LabelledFrame(f.name, f.depth, f.valid, truth, f.intrinsics))
+                wanted.append(ids)
+            methods = real.methods(quick=quick)
+            methods.insert(1, real.Method("depthgram raised_sigmas = 4", _raised_labels))
+            for m in methods:
+                setting = real.tune(m, lfs, progress=False)
+                m.run(lfs[0], setting)  # compiled kernels and imports before the clock
+                ious: list[float] = []
+                t0 = time.perf_counter()
+                for lf, ids in zip(lfs, wanted, strict=True):
+                    ev = evaluate(m.run(lf, setting), lf.truth, valid=lf.valid, truth_ids=ids, iou_found=0.5)
+                    ious += [o.iou for o in ev.objects]
+                ms = 1e3 * (time.perf_counter() - t0) / len(lfs)
+                iou = np.asarray(ious)
+                found = int(np.count_nonzero(iou >= 0.5))
+                row = f"{scene:11s} {sensor:6s} {m.name:30s} {found:>2d}/{iou.size:<3d} {iou.mean():.2f}   {ms:8.0f}"
+                print(f"{row}  {setting or ''}", flush=True)
+
+
+def _raised_labels(f: Any, params: dict[str, Any]) -> Any:
+    """depthgram's default with flat things cut out of the supports (``raised_sigmas = 4``)."""
+    from benchmarks import real
+
+    return real.depthgram_labels(f, {"raised_sigmas": 4.0, **params})
+
+
 def main(argv: list[str] | None = None) -> int:
     """Print one row per scene, sensor model and gravity."""
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--size", default="640x480", help="frame size WxH (px)")
     p.add_argument("--frames", type=int, default=3, help="frames per scene")
     p.add_argument("--raised", type=float, default=0.0, help="[segment] raised_sigmas (0: off, the default)")
+    p.add_argument("--peers", action="store_true", help="also the peers on the arm cameras' tabletops")
+    p.add_argument("--quick-peers", action="store_true", help="the peers with one setting each (no tuning)")
     args = p.parse_args(argv)
     w, h = (int(v) for v in args.size.lower().split("x"))
+    if args.peers or args.quick_peers:
+        peers((w, h), args.frames, args.quick_peers)
+        print()
     print(f"{'scene':11s} {'sensor':6s} {'gravity':8s} found  IoU    table's kinds    floor's and walls' kinds")
     for scene in SCENES:
         for sensor in ("tof", "sl"):
