@@ -8,6 +8,7 @@ facing object meets a support without a depth jump, and say which faces belong t
 
 from __future__ import annotations
 
+import cv2
 import numpy as np
 from numba import njit
 from numpy.typing import NDArray
@@ -33,7 +34,10 @@ def front_faces(
     its upper edge borders the support farther behind (a depth jump). Facing objects have ids
     ``1..len(widths) - 1`` and bounding-box widths ``widths`` (px, index 0 unused). Returns
     ``{facing id: support id}`` for faces whose upper edge touches the support, without a
-    depth jump, over at least ``min_contact`` of the face's width.
+    depth jump, over at least ``min_contact`` of the face's width, lying on or behind the
+    support's plane continued (an object standing on it rises in front: a can or a box whose
+    side the orientation field, with a wrong focal length, partly classes as horizontal), and
+    not one of several faces under separate pieces of the support (coplanar tops joined).
 
     ``boxes`` (inclusive x0, y0, x1, y1 of each of ``horizontal_ids``, holding all its pixels)
     limits the pass to the supports' boxes, with the same counts; ``n_ids``, one past the
@@ -43,7 +47,12 @@ def front_faces(
     if n_facing == 0 or horizontal_ids.size == 0:
         return {}
     widths = np.asarray(widths, np.float64)
-    return _faces(labels, depth_mm, horizontal_ids, boxes, n_ids, jump_rel, min_contact, widths, widths, False)
+    found = _faces(labels, depth_mm, horizontal_ids, boxes, n_ids, jump_rel, min_contact, widths, widths, False)
+    found = {f: s for f, s in found.items() if _below_plane(labels, depth_mm, f, s, horizontal_ids, boxes)}
+    # faces under separate pieces of one support: the tops of several objects joined as one
+    # plane (two boxes of one height), not the front of one support: none of them is folded
+    apart = {s for s in set(found.values()) if _pieces_under(labels, found, s) > 1}
+    return {f: s for f, s in found.items() if s not in apart}
 
 
 def side_faces(
@@ -75,6 +84,68 @@ def side_faces(
     heights = np.asarray(heights, np.float64)
     mean_depth = np.asarray(mean_depth, np.float64)
     return _faces(labels, depth_mm, vertical_ids, boxes, n_ids, jump_rel, min_contact, heights, mean_depth, True)
+
+
+#: a front face lies on or below its support's plane continued: in 1/Z, at most this fraction
+#: in front of it (its median pixel); an object standing on the support rises in front of it
+FRONT_MAX_RISE = 0.01
+
+
+def _below_plane(
+    labels: NDArray[np.int32],
+    depth_mm: NDArray[np.float32],
+    face: int,
+    support: int,
+    support_ids: NDArray[np.int32],
+    boxes: NDArray[np.int64] | None,
+) -> bool:
+    """Whether facing object ``face`` lies on or behind the plane of ``support`` continued.
+
+    A plane's 1/Z is affine in pixel coordinates whatever the focal length: the support's
+    pixels fit it, and a front face under the support's edge (a table's front, a box's
+    front) lies on or below that plane, seen from above: behind it along each ray. An object
+    standing on the support lies above it, in front (a larger 1/Z).
+    """
+    if boxes is not None:
+        k = int(np.nonzero(np.asarray(support_ids) == support)[0][0])
+        x0, y0, x1, y1 = (int(v) for v in boxes[k])
+    else:
+        x0, y0, x1, y1 = 0, 0, labels.shape[1] - 1, labels.shape[0] - 1
+    sub = labels[y0 : y1 + 1, x0 : x1 + 1]
+    ys, xs = np.nonzero(sub == support)
+    if ys.size > 4000:  # a plane needs few pixels
+        pick = np.linspace(0, ys.size - 1, 4000).astype(np.intp)
+        ys, xs = ys[pick], xs[pick]
+    z = depth_mm[ys + y0, xs + x0].astype(np.float64)
+    good = z > 0
+    if good.sum() < 3:
+        return True
+    a = np.column_stack([xs[good] + x0, ys[good] + y0, np.ones(int(good.sum()))]).astype(np.float64)
+    coef, *_ = np.linalg.lstsq(a, 1000.0 / z[good], rcond=None)
+    fy, fx = np.nonzero(labels == face)
+    zf = depth_mm[fy, fx].astype(np.float64)
+    fine = zf > 0
+    if not fine.any():
+        return True
+    plane = coef[0] * fx[fine] + coef[1] * fy[fine] + coef[2]
+    rise = np.median((1000.0 / zf[fine] - plane) / np.maximum(np.abs(plane), 1e-9))
+    return bool(rise <= FRONT_MAX_RISE)
+
+
+def _pieces_under(labels: NDArray[np.int32], found: dict[int, int], support: int) -> int:
+    """How many separate (8-connected) pieces of ``support`` the faces folded into it meet above."""
+    faces = [f for f, s in found.items() if s == support]
+    if len(faces) < 2:
+        return 1
+    mask = (labels == support).astype(np.uint8)
+    _, piece = cv2.connectedComponents(mask, connectivity=8)
+    met = set()
+    for f in faces:
+        # the support pixels right above the face's pixels: the piece they mostly belong to
+        above = piece[:-1][(labels[1:] == f) & (mask[:-1] > 0)]
+        if above.size:
+            met.add(int(np.bincount(above).argmax()))
+    return len(met)
 
 
 def _faces(
