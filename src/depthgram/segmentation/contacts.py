@@ -8,6 +8,8 @@ facing object meets a support without a depth jump, and say which faces belong t
 
 from __future__ import annotations
 
+import math
+
 import cv2
 import numpy as np
 from numba import njit
@@ -26,6 +28,7 @@ def front_faces(
     min_contact: float = 0.5,
     boxes: NDArray[np.int64] | None = None,
     n_ids: int | None = None,
+    face_boxes: NDArray[np.int64] | None = None,
 ) -> dict[int, int]:
     """Facing objects that are the front face of a horizontal support right above them.
 
@@ -41,14 +44,15 @@ def front_faces(
 
     ``boxes`` (inclusive x0, y0, x1, y1 of each of ``horizontal_ids``, holding all its pixels)
     limits the pass to the supports' boxes, with the same counts; ``n_ids``, one past the
-    largest id in ``labels``, spares a pass finding it.
+    largest id in ``labels``, spares a pass finding it. ``face_boxes`` (inclusive boxes indexed
+    by facing id, holding all its pixels) lets the plane test read each face inside its box.
     """
     n_facing = widths.size - 1
     if n_facing == 0 or horizontal_ids.size == 0:
         return {}
     widths = np.asarray(widths, np.float64)
     found = _faces(labels, depth_mm, horizontal_ids, boxes, n_ids, jump_rel, min_contact, widths, widths, False)
-    found = {f: s for f, s in found.items() if _below_plane(labels, depth_mm, f, s, horizontal_ids, boxes)}
+    found = {f: s for f, s in found.items() if _below_plane(labels, depth_mm, f, s, horizontal_ids, boxes, face_boxes)}
     # faces under separate pieces of one support: the tops of several objects joined as one
     # plane (two boxes of one height), not the front of one support: none of them is folded
     apart = {s for s in set(found.values()) if _pieces_under(labels, found, s) > 1}
@@ -98,6 +102,7 @@ def _below_plane(
     support: int,
     support_ids: NDArray[np.int32],
     boxes: NDArray[np.int64] | None,
+    face_boxes: NDArray[np.int64] | None = None,
 ) -> bool:
     """Whether facing object ``face`` lies on or behind the plane of ``support`` continued.
 
@@ -106,23 +111,26 @@ def _below_plane(
     front) lies on or below that plane, seen from above: behind it along each ray. An object
     standing on the support lies above it, in front (a larger 1/Z).
     """
+    h, w = labels.shape
     if boxes is not None:
         k = int(np.nonzero(np.asarray(support_ids) == support)[0][0])
         x0, y0, x1, y1 = (int(v) for v in boxes[k])
     else:
-        x0, y0, x1, y1 = 0, 0, labels.shape[1] - 1, labels.shape[0] - 1
-    sub = labels[y0 : y1 + 1, x0 : x1 + 1]
-    ys, xs = np.nonzero(sub == support)
-    if ys.size > 4000:  # a plane needs few pixels
-        pick = np.linspace(0, ys.size - 1, 4000).astype(np.intp)
-        ys, xs = ys[pick], xs[pick]
-    z = depth_mm[ys + y0, xs + x0].astype(np.float64)
+        x0, y0, x1, y1 = 0, 0, w - 1, h - 1
+    # a plane needs few pixels: the support read on a grid of at most about 2000 cells (a pass
+    # over all its pixels cost more than the rest of the test)
+    step = max(1, math.ceil(math.sqrt((x1 - x0 + 1) * (y1 - y0 + 1) / 2000.0)))
+    ys, xs = np.nonzero(labels[y0 : y1 + 1 : step, x0 : x1 + 1 : step] == support)
+    ys, xs = ys * step + y0, xs * step + x0
+    z = depth_mm[ys, xs].astype(np.float64)
     good = z > 0
     if good.sum() < 3:
         return True
-    a = np.column_stack([xs[good] + x0, ys[good] + y0, np.ones(int(good.sum()))]).astype(np.float64)
-    coef, *_ = np.linalg.lstsq(a, 1000.0 / z[good], rcond=None)
-    fy, fx = np.nonzero(labels == face)
+    a = np.column_stack([xs[good], ys[good], np.ones(int(good.sum()))]).astype(np.float64)
+    coef, *_ = np.linalg.lstsq(a, 1000.0 / z[good], rcond=None)  # (LAPACK's SVD: a line of pixels fits too)
+    fx0, fy0, fx1, fy1 = (0, 0, w - 1, h - 1) if face_boxes is None else (int(v) for v in face_boxes[face])
+    fy, fx = np.nonzero(labels[fy0 : fy1 + 1, fx0 : fx1 + 1] == face)
+    fy, fx = fy + fy0, fx + fx0
     zf = depth_mm[fy, fx].astype(np.float64)
     fine = zf > 0
     if not fine.any():

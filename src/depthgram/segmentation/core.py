@@ -542,6 +542,7 @@ def _fold_faces(
         jump_rel=cfg.jump_rel,
         boxes=boxes[tops],
         n_ids=stack.next_id,
+        face_boxes=boxes,
     )
     area = stack.attrs[:, 0]
     max_area = cfg.side_max_area * depth.size
