@@ -8,14 +8,14 @@ facing object meets a support without a depth jump, and say which faces belong t
 
 from __future__ import annotations
 
-import math
-
 import cv2
 import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-__all__ = ["front_faces", "side_faces"]
+from depthgram.segmentation.plane_sums import plane_sums_in_boxes, planes_from_sums
+
+__all__ = ["front_faces", "side_faces", "support_planes"]
 
 
 def front_faces(
@@ -29,6 +29,7 @@ def front_faces(
     boxes: NDArray[np.int64] | None = None,
     n_ids: int | None = None,
     face_boxes: NDArray[np.int64] | None = None,
+    planes: NDArray[np.float64] | None = None,
 ) -> dict[int, int]:
     """Facing objects that are the front face of a horizontal support right above them.
 
@@ -46,16 +47,27 @@ def front_faces(
     limits the pass to the supports' boxes, with the same counts; ``n_ids``, one past the
     largest id in ``labels``, spares a pass finding it. ``face_boxes`` (inclusive boxes indexed
     by facing id, holding all its pixels) lets the plane test read each face inside its box.
+    ``planes`` (one ``1/Z = a x + b y + c`` per support, :func:`support_planes`), when the
+    caller has fitted them, spares fitting them again.
     """
     n_facing = widths.size - 1
     if n_facing == 0 or horizontal_ids.size == 0:
         return {}
     widths = np.asarray(widths, np.float64)
     found = _faces(labels, depth_mm, horizontal_ids, boxes, n_ids, jump_rel, min_contact, widths, widths, False)
-    found = {f: s for f, s in found.items() if _below_plane(labels, depth_mm, f, s, horizontal_ids, boxes, face_boxes)}
+    if not found:
+        return found
+    if boxes is None:
+        h, w = labels.shape
+        boxes = np.tile(np.array([0, 0, w - 1, h - 1], np.int64), (horizontal_ids.size, 1))
+    if planes is None:
+        planes = support_planes(labels, depth_mm, horizontal_ids, boxes)
+    found = _below_planes(labels, depth_mm, found, horizontal_ids, planes, face_boxes)
     # faces under separate pieces of one support: the tops of several objects joined as one
     # plane (two boxes of one height), not the front of one support: none of them is folded
-    apart = {s for s in set(found.values()) if _pieces_under(labels, found, s) > 1}
+    # (a support with one face has one piece under it: no labelling)
+    row = {int(s): k for k, s in enumerate(np.asarray(horizontal_ids).tolist())}
+    apart = {s for s in set(found.values()) if _pieces_under(labels, found, s, boxes[row[s]]) > 1}
     return {f: s for f, s in found.items() if s not in apart}
 
 
@@ -91,66 +103,95 @@ def side_faces(
 
 
 #: a front face lies on or below its support's plane continued: in 1/Z, at most this fraction
-#: in front of it (its median pixel); an object standing on the support rises in front of it
+#: in front of it (its mean 1/Z against the plane at its centroid); an object standing on the
+#: support rises in front of it
 FRONT_MAX_RISE = 0.01
 
 
-def _below_plane(
+def support_planes(
+    labels: NDArray[np.int32], depth_mm: NDArray[np.float32], ids: NDArray[np.int32], boxes: NDArray[np.int64]
+) -> NDArray[np.float64]:
+    """Least-squares planes ``1/Z = a x + b y + c`` of the labels ``ids`` in pixel coordinates.
+
+    Parameters
+    ----------
+    labels : ndarray of int32, shape (H, W)
+        Label map; every labelled pixel has a reading.
+    depth_mm : ndarray of float32, shape (H, W)
+        Depth (mm).
+    ids : ndarray of int32, shape (K,)
+        The labels fitted.
+    boxes : ndarray of int64, shape (K, 4)
+        Inclusive (x0, y0, x1, y1) of each of ``ids``, holding all its pixels.
+
+    Returns
+    -------
+    ndarray of float64, shape (K, 3)
+        ``(a, b, c)`` per label, 1/Z in 1/mm. A plane's 1/Z is affine in pixel coordinates
+        whatever the intrinsics, so no focal length is read: the fit is
+        :func:`~depthgram.segmentation.plane_sums.plane_sums_in_boxes` with unit focal lengths.
+    """
+    ids = np.asarray(ids, np.intp)
+    if ids.size == 0:
+        return np.zeros((0, 3), np.float64)
+    sums = plane_sums_in_boxes(labels, int(ids.max()), ids, boxes, depth_mm, 1.0, 1.0, 0.0, 0.0)
+    normal, off, _ = planes_from_sums(sums[np.concatenate(([0], ids))])
+    # n . X + d = 0 with X = Z (x, y, 1): 1/Z = -(n . (x, y, 1)) / d
+    return -normal[1:] / off[1:, None]
+
+
+def _below_planes(
     labels: NDArray[np.int32],
     depth_mm: NDArray[np.float32],
-    face: int,
-    support: int,
+    found: dict[int, int],
     support_ids: NDArray[np.int32],
-    boxes: NDArray[np.int64] | None,
-    face_boxes: NDArray[np.int64] | None = None,
-) -> bool:
-    """Whether facing object ``face`` lies on or behind the plane of ``support`` continued.
+    planes: NDArray[np.float64],
+    face_boxes: NDArray[np.int64] | None,
+) -> dict[int, int]:
+    """The faces of ``found`` lying on or behind their support's plane continued.
 
-    A plane's 1/Z is affine in pixel coordinates whatever the focal length: the support's
-    pixels fit it, and a front face under the support's edge (a table's front, a box's
-    front) lies on or below that plane, seen from above: behind it along each ray. An object
-    standing on the support lies above it, in front (a larger 1/Z).
+    A front face under a support's edge (a table's front, a box's front) lies on or below the
+    support's plane (``planes``, one ``1/Z = a x + b y + c`` per ``support_ids``), seen from
+    above: behind it along each ray. An object standing on the support lies above it, in
+    front (a larger 1/Z). The plane being affine, its mean over a face's pixels is its value at
+    the face's centroid: one pass over each face's box gives the face's count, centroid and
+    mean 1/Z, and the test is then a few operations per face.
     """
-    h, w = labels.shape
-    if boxes is not None:
-        k = int(np.nonzero(np.asarray(support_ids) == support)[0][0])
-        x0, y0, x1, y1 = (int(v) for v in boxes[k])
+    faces = np.array(sorted(found), np.intp)
+    if face_boxes is None:
+        h, w = labels.shape
+        fboxes = np.tile(np.array([0, 0, w - 1, h - 1], np.int64), (faces.size, 1))
     else:
-        x0, y0, x1, y1 = 0, 0, w - 1, h - 1
-    # a plane needs few pixels: the support read on a grid of at most about 2000 cells (a pass
-    # over all its pixels cost more than the rest of the test)
-    step = max(1, math.ceil(math.sqrt((x1 - x0 + 1) * (y1 - y0 + 1) / 2000.0)))
-    ys, xs = np.nonzero(labels[y0 : y1 + 1 : step, x0 : x1 + 1 : step] == support)
-    ys, xs = ys * step + y0, xs * step + x0
-    z = depth_mm[ys, xs].astype(np.float64)
-    good = z > 0
-    if good.sum() < 3:
-        return True
-    a = np.column_stack([xs[good], ys[good], np.ones(int(good.sum()))]).astype(np.float64)
-    coef, *_ = np.linalg.lstsq(a, 1000.0 / z[good], rcond=None)  # (LAPACK's SVD: a line of pixels fits too)
-    fx0, fy0, fx1, fy1 = (0, 0, w - 1, h - 1) if face_boxes is None else (int(v) for v in face_boxes[face])
-    fy, fx = np.nonzero(labels[fy0 : fy1 + 1, fx0 : fx1 + 1] == face)
-    fy, fx = fy + fy0, fx + fx0
-    zf = depth_mm[fy, fx].astype(np.float64)
-    fine = zf > 0
-    if not fine.any():
-        return True
-    plane = coef[0] * fx[fine] + coef[1] * fy[fine] + coef[2]
-    rise = np.median((1000.0 / zf[fine] - plane) / np.maximum(np.abs(plane), 1e-9))
-    return bool(rise <= FRONT_MAX_RISE)
+        fboxes = np.asarray(face_boxes, np.int64)[faces]
+    sums = plane_sums_in_boxes(labels, int(faces.max()), faces, fboxes, depth_mm, 1.0, 1.0, 0.0, 0.0)
+    row = {int(s): k for k, s in enumerate(np.asarray(support_ids).tolist())}
+    kept = {}
+    for f in faces.tolist():
+        count, sx, sy, sq = sums[f, 5], sums[f, 2], sums[f, 4], sums[f, 8]
+        a, b, c = planes[row[found[f]]]
+        plane = a * sx / count + b * sy / count + c
+        if sq / count - plane <= FRONT_MAX_RISE * abs(plane):
+            kept[f] = found[f]
+    return kept
 
 
-def _pieces_under(labels: NDArray[np.int32], found: dict[int, int], support: int) -> int:
-    """How many separate (8-connected) pieces of ``support`` the faces folded into it meet above."""
+def _pieces_under(labels: NDArray[np.int32], found: dict[int, int], support: int, box: NDArray[np.int64]) -> int:
+    """How many separate (8-connected) pieces of ``support`` the faces folded into it meet above.
+
+    ``box`` (inclusive x0, y0, x1, y1) holds all the support's pixels: the pieces are labelled
+    inside it and the row below it, where a face's pixels right under the support lie.
+    """
     faces = [f for f, s in found.items() if s == support]
     if len(faces) < 2:
         return 1
-    mask = (labels == support).astype(np.uint8)
+    x0, y0, x1, y1 = (int(v) for v in box)
+    sub = labels[y0 : min(y1 + 1, labels.shape[0] - 1) + 1, x0 : x1 + 1]
+    mask = (sub == support).astype(np.uint8)
     _, piece = cv2.connectedComponents(mask, connectivity=8)
     met = set()
     for f in faces:
         # the support pixels right above the face's pixels: the piece they mostly belong to
-        above = piece[:-1][(labels[1:] == f) & (mask[:-1] > 0)]
+        above = piece[:-1][(sub[1:] == f) & (mask[:-1] > 0)]
         if above.size:
             met.add(int(np.bincount(above).argmax()))
     return len(met)

@@ -382,8 +382,8 @@ def _slices(
     stack = _stack_supports(labels, fsums, fboxes, support_maps, cam)
     if cfg.method == "surfaces" and cfg.raised_sigmas > 0 and sensor is not None:
         stack = _cut_raised(labels, depth, ok, classes, stack, sensor, bands, cam, cfg, min_px)
-    below, beneath = _below_camera(labels, depth, cam, stack)
-    fronts = _fold_faces(labels, depth, stack, below, cfg)
+    below, beneath, planes = _below_camera(labels, depth, cam, stack)
+    fronts = _fold_faces(labels, depth, stack, below, planes, cfg)
     labels, specs, rows, boxes = _compound_objects(
         labels, depth, stack, fronts, below, beneath, bands, intrinsics, cam, cfg, part_scale
     )
@@ -521,12 +521,15 @@ def _fold_faces(
     depth: NDArray[np.float32],
     stack: _Stack,
     below: dict[int, float],
+    planes: dict[int, NDArray[np.float64]],
     cfg: SegmentConfig,
 ) -> dict[int, int]:
     """Return ``{face id: support id}`` and add each face's statistics to its support's (in place).
 
     A front face stands below a support seen from above (a table's front under its top); a
     side face is a small vertical support beside a facing object (a box at an angle).
+    ``planes`` are the horizontal supports' (:func:`_below_camera`): a front face lies behind
+    its support's plane continued.
     """
     n_facing = stack.first_support - 1
     boxes = stack.boxes
@@ -543,6 +546,7 @@ def _fold_faces(
         boxes=boxes[tops],
         n_ids=stack.next_id,
         face_boxes=boxes,
+        planes=np.array([planes[i] for i in tops], np.float64).reshape(-1, 3),
     )
     area = stack.attrs[:, 0]
     max_area = cfg.side_max_area * depth.size
@@ -645,11 +649,13 @@ _BENEATH_MM = 150.0
 
 def _below_camera(
     labels: NDArray[np.int32], depth: NDArray[np.float32], cam: Intrinsics, stack: _Stack
-) -> tuple[dict[int, float], dict[int, float]]:
-    """Return each support's height below the camera and, for horizontal ones, the readings beneath it.
+) -> tuple[dict[int, float], dict[int, float], dict[int, NDArray[np.float64]]]:
+    """Return each support's height below the camera and, for horizontal ones, the readings beneath it and its plane.
 
     The height is in mm (negative above the camera: a ceiling); the readings beneath are the
-    share of the frame's readings seen beneath the support's plane.
+    share of the frame's readings seen beneath the support's plane; the plane is ``(a, b, c)``
+    of ``1/Z = a x + b y + c`` in pixels (1/mm), the one
+    :func:`~depthgram.segmentation.contacts.support_planes` fits, for the front faces' test.
 
     The centroid's Y says it for a level camera only: a camera pitched down at a table sees the
     table's centroid above its optical axis. The support's fitted plane says it for any pitch:
@@ -662,7 +668,7 @@ def _below_camera(
     # (each row's sums and solve are those of a plane fit on the whole map)
     horizontal = [i for c, i in stack.supports if c == HORIZONTAL]
     if not horizontal:
-        return out, {}
+        return out, {}, {}
     ids = np.array(horizontal, np.intp)
     # each support's own box (inclusive) holds all its pixels: the frame outside is not read
     n = stack.next_id - 1
@@ -672,7 +678,12 @@ def _below_camera(
         out[i] = float(off[j]) if normal[j, 1] < 0 else -float(off[j])
     # every 4th pixel in 3-D: enough to tell whether anything lies beneath a plane
     shares = shares_beneath(depth, 4, cam, normal[1:], off[1:], _BENEATH_MM)
-    return out, dict(zip(horizontal, shares.tolist(), strict=True))
+    # the same planes in pixels: n . X + d = 0 with X = Z (u', v', 1) is 1/Z = -(n . (u', v', 1)) / d,
+    # and u' = (x - cx) / fx (the fit is affine-invariant: the planes of contacts.support_planes)
+    coef = -normal[1:] / off[1:, None]
+    a, b = coef[:, 0] / cam.fx, coef[:, 1] / cam.fy
+    pixel = np.column_stack([a, b, coef[:, 2] - a * cam.cx - b * cam.cy])
+    return out, dict(zip(horizontal, shares.tolist(), strict=True)), dict(zip(horizontal, pixel, strict=True))
 
 
 def _add_support_planes(
