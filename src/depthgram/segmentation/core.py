@@ -13,7 +13,7 @@ from depthgram.frame import Frame, Intrinsics, check_array_units
 from depthgram.segmentation.attributes import ObjectSpec, Stats, attribute_rows, make_objects, objects_from_rows
 from depthgram.segmentation.coarse import grid_frame, grid_step, to_full_resolution
 from depthgram.segmentation.config import SegmentConfig
-from depthgram.segmentation.contacts import front_faces, side_faces
+from depthgram.segmentation.contacts import front_faces, planes_in_pixels, side_faces
 from depthgram.segmentation.coplanar import class_window, coplanar_groups
 from depthgram.segmentation.creases import crease_scale_px, crease_state, inverse_depth
 from depthgram.segmentation.histogram import Bands, bin_index, depth_bands, log_bin_counts
@@ -521,7 +521,7 @@ def _fold_faces(
     depth: NDArray[np.float32],
     stack: _Stack,
     below: dict[int, float],
-    planes: dict[int, NDArray[np.float64]],
+    planes: dict[int, tuple[float, float, float]],
     cfg: SegmentConfig,
 ) -> dict[int, int]:
     """Return ``{face id: support id}`` and add each face's statistics to its support's (in place).
@@ -545,7 +545,7 @@ def _fold_faces(
         jump_rel=cfg.jump_rel,
         boxes=boxes[tops],
         n_ids=stack.next_id,
-        face_boxes=boxes,
+        face_sums=stack.sums,
         planes=np.array([planes[i] for i in tops], np.float64).reshape(-1, 3),
     )
     area = stack.attrs[:, 0]
@@ -649,7 +649,7 @@ _BENEATH_MM = 150.0
 
 def _below_camera(
     labels: NDArray[np.int32], depth: NDArray[np.float32], cam: Intrinsics, stack: _Stack
-) -> tuple[dict[int, float], dict[int, float], dict[int, NDArray[np.float64]]]:
+) -> tuple[dict[int, float], dict[int, float], dict[int, tuple[float, float, float]]]:
     """Return each support's height below the camera and, for horizontal ones, the readings beneath it and its plane.
 
     The height is in mm (negative above the camera: a ceiling); the readings beneath are the
@@ -678,12 +678,9 @@ def _below_camera(
         out[i] = float(off[j]) if normal[j, 1] < 0 else -float(off[j])
     # every 4th pixel in 3-D: enough to tell whether anything lies beneath a plane
     shares = shares_beneath(depth, 4, cam, normal[1:], off[1:], _BENEATH_MM)
-    # the same planes in pixels: n . X + d = 0 with X = Z (u', v', 1) is 1/Z = -(n . (u', v', 1)) / d,
-    # and u' = (x - cx) / fx (the fit is affine-invariant: the planes of contacts.support_planes)
-    coef = -normal[1:] / off[1:, None]
-    a, b = coef[:, 0] / cam.fx, coef[:, 1] / cam.fy
-    pixel = np.column_stack([a, b, coef[:, 2] - a * cam.cx - b * cam.cy])
-    return out, dict(zip(horizontal, shares.tolist(), strict=True)), dict(zip(horizontal, pixel, strict=True))
+    # the same planes in pixels for the front faces' test, without a second fit
+    planes = planes_in_pixels(normal[1:], off[1:], cam.fx, cam.fy, cam.cx, cam.cy)
+    return out, dict(zip(horizontal, shares.tolist(), strict=True)), dict(zip(horizontal, planes, strict=True))
 
 
 def _add_support_planes(
