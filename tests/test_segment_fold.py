@@ -72,7 +72,7 @@ def test_a_front_face_folds_only_behind_its_supports_plane(leaning: bool) -> Non
     sums, boxes = label_stats_fused(labels, 3, depth, np.zeros(depth.shape, np.float32))
     fit = plane_sums_in_boxes(labels, 3, np.array([3], np.intp), boxes[[3]], depth, 160.0, 160.0, 20.0, 0.0)
     normal, off, _ = planes_from_sums(fit[[0, 3]])
-    planes = np.array(planes_in_pixels(normal[1:], off[1:], 160.0, 160.0, 20.0, 0.0))
+    planes = {3: planes_in_pixels(normal[1:].tolist(), off[1:].tolist(), 160.0, 160.0, 20.0, 0.0)[0]}
     given = front_faces(
         labels, depth, widths, np.array([3], np.int32), jump_rel=0.05, boxes=boxes[[3]], face_sums=sums, planes=planes
     )
@@ -94,5 +94,5 @@ def test_support_planes_are_the_same_fit_at_any_focal_length(seed: int) -> None:
     fx, cx, cy = rng.uniform(50, 900), rng.uniform(0, w), rng.uniform(0, h)
     fit = plane_sums_in_boxes(labels, 2, np.array([1, 2], np.intp), boxes, depth, fx, 1.3 * fx, cx, cy)
     normal, off, _ = planes_from_sums(fit)
-    converted = planes_in_pixels(normal[1:], off[1:], fx, 1.3 * fx, cx, cy)
+    converted = planes_in_pixels(normal[1:].tolist(), off[1:].tolist(), fx, 1.3 * fx, cx, cy)
     np.testing.assert_allclose(support_planes(labels, depth, np.array([1, 2], np.int32), boxes), converted, rtol=1e-6)

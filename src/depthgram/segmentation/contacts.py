@@ -8,6 +8,8 @@ facing object meets a support without a depth jump, and say which faces belong t
 
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
+
 import cv2
 import numpy as np
 from numba import njit
@@ -30,7 +32,7 @@ def front_faces(
     boxes: NDArray[np.int64] | None = None,
     n_ids: int | None = None,
     face_sums: NDArray[np.float64] | None = None,
-    planes: NDArray[np.float64] | None = None,
+    planes: Mapping[int, Sequence[float]] | None = None,
 ) -> dict[int, int]:
     """Facing objects that are the front face of a horizontal support right above them.
 
@@ -48,8 +50,9 @@ def front_faces(
     limits the pass to the supports' boxes, with the same counts; ``n_ids``, one past the
     largest id in ``labels``, spares a pass finding it. ``face_sums`` (the statistics table of
     :mod:`depthgram.segmentation.label.stats`, a row per facing id at least) and ``planes``
-    (one ``1/Z = a x + b y + c`` per support in pixels, 1/mm, :func:`support_planes`), when the
-    caller has them, spare a pass computing them: the plane test then reads no pixel.
+    (``{support id: (a, b, c)}`` of ``1/Z = a x + b y + c`` in pixels, 1/mm, as
+    :func:`support_planes` fits them), when the caller has them, spare a pass computing them:
+    the plane test then reads no pixel.
     """
     n_facing = widths.size - 1
     if n_facing == 0 or horizontal_ids.size == 0:
@@ -62,16 +65,18 @@ def front_faces(
         h, w = labels.shape
         boxes = np.tile(np.array([0, 0, w - 1, h - 1], np.int64), (horizontal_ids.size, 1))
     if planes is None:
-        planes = support_planes(labels, depth_mm, horizontal_ids, boxes)
+        fit = support_planes(labels, depth_mm, horizontal_ids, boxes)
+        planes = dict(zip(horizontal_ids.tolist(), fit.tolist(), strict=True))
     if face_sums is None:
         top = int(labels.max(initial=0)) if n_ids is None else n_ids - 1
         face_sums, _ = label_stats_fused(labels, top, depth_mm, np.zeros(labels.shape, np.float32))
-    row = {s: k for k, s in enumerate(np.asarray(horizontal_ids).tolist())}
-    coef = np.asarray(planes, np.float64).tolist()
-    found = _behind_planes(found, face_sums, [coef[row[s]] for s in found.values()])
+    found = _behind_planes(found, face_sums, planes)
     # faces under separate pieces of one support: the tops of several objects joined as one
     # plane (two boxes of one height), not the front of one support: none of them is folded
     # (a support with one face has one piece under it: labelled only under two faces or more)
+    if len(found) < 2:
+        return found
+    row = {s: k for k, s in enumerate(horizontal_ids.tolist())}
     under = list(found.values())
     apart = {s for s in set(under) if under.count(s) > 1 and _pieces_under(labels, found, s, boxes[row[s]]) > 1}
     return {f: s for f, s in found.items() if s not in apart}
@@ -142,12 +147,12 @@ def support_planes(
         return np.zeros((0, 3), np.float64)
     sums = plane_sums_in_boxes(labels, int(which.max()), which, boxes, depth_mm, 1.0, 1.0, 0.0, 0.0)
     normal, off, _ = planes_from_sums(sums[np.concatenate(([0], which))])
-    return np.array(planes_in_pixels(normal[1:], off[1:]), np.float64).reshape(-1, 3)
+    return np.array(planes_in_pixels(normal[1:].tolist(), off[1:].tolist()), np.float64).reshape(-1, 3)
 
 
 def planes_in_pixels(
-    normal: NDArray[np.float64],
-    off: NDArray[np.float64],
+    normal: Sequence[Sequence[float]],
+    off: Sequence[float],
     fx: float = 1.0,
     fy: float = 1.0,
     cx: float = 0.0,
@@ -157,7 +162,7 @@ def planes_in_pixels(
 
     Parameters
     ----------
-    normal, off : ndarray of float64, shapes (K, 3) and (K,)
+    normal, off : sequences of K (nx, ny, nz) and K d (lists: ``ndarray.tolist()``)
         Planes ``n . X + d = 0`` as :func:`~depthgram.segmentation.plane_sums.planes_from_sums`
         gives them from sums taken with ``u' = (x - cx) / fx``, ``v' = (y - cy) / fy``.
     fx, fy, cx, cy : float
@@ -172,24 +177,27 @@ def planes_in_pixels(
     out = []
     # X = Z (u', v', 1) on n . X + d = 0: 1/Z = -(n . (u', v', 1)) / d. Python floats: a few
     # planes a frame, for which numpy's calls would cost more than the arithmetic
-    for (nx, ny, nz), d in zip(np.asarray(normal).tolist(), np.asarray(off).tolist(), strict=True):
+    for (nx, ny, nz), d in zip(normal, off, strict=True):
         a, b = -nx / (d * fx), -ny / (d * fy)
         out.append((a, b, -nz / d - a * cx - b * cy))
     return out
 
 
-def _behind_planes(found: dict[int, int], sums: NDArray[np.float64], planes: list[list[float]]) -> dict[int, int]:
+def _behind_planes(
+    found: dict[int, int], sums: NDArray[np.float64], planes: Mapping[int, Sequence[float]]
+) -> dict[int, int]:
     """Return the faces of ``found`` lying on or behind their support's plane continued.
 
     A front face under a support's edge (a table's front, a box's front) lies on or below the
-    support's plane (``planes``, the ``1/Z = a x + b y + c`` of each face's support in the
-    order of ``found``), seen from above: behind it along each ray. An object standing on the
+    support's plane (``planes``, the ``(a, b, c)`` of ``1/Z = a x + b y + c`` per support id),
+    seen from above: behind it along each ray. An object standing on the
     support lies above it, in front (a larger 1/Z). Each face's statistics row (``sums``) gives
     its pixel count, centroid and the moments of its depth, so no pixel is read: the plane
     being affine, its mean over the face is its value at the centroid.
     """
     kept = {}
-    for (f, s), (a, b, c) in zip(found.items(), planes, strict=True):
+    for f, s in found.items():
+        a, b, c = planes[s]
         # Python floats: numpy scalars' arithmetic would cost more than the test itself
         r = sums[f].tolist()
         n, szz, sx, sy = r[COUNT], r[SUM_ZZ], r[SUM_X], r[SUM_Y]

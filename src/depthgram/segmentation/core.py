@@ -546,7 +546,7 @@ def _fold_faces(
         boxes=boxes[tops],
         n_ids=stack.next_id,
         face_sums=stack.sums,
-        planes=np.array([planes[i] for i in tops], np.float64).reshape(-1, 3),
+        planes=planes,
     )
     area = stack.attrs[:, 0]
     max_area = cfg.side_max_area * depth.size
@@ -674,12 +674,14 @@ def _below_camera(
     n = stack.next_id - 1
     sums = plane_sums_in_boxes(labels, n, ids, stack.boxes[ids], depth, cam.fx, cam.fy, cam.cx, cam.cy)
     normal, off, _ = planes_from_sums(sums[np.concatenate(([0], ids))])
-    for j, i in enumerate(horizontal, start=1):
-        out[i] = float(off[j]) if normal[j, 1] < 0 else -float(off[j])
+    # Python floats: a few planes, for which numpy's scalars cost more than the arithmetic
+    normals, offsets = normal[1:].tolist(), off[1:].tolist()
+    for i, (_, ny, _), d in zip(horizontal, normals, offsets, strict=True):
+        out[i] = d if ny < 0 else -d
     # every 4th pixel in 3-D: enough to tell whether anything lies beneath a plane
     shares = shares_beneath(depth, 4, cam, normal[1:], off[1:], _BENEATH_MM)
     # the same planes in pixels for the front faces' test, without a second fit
-    planes = planes_in_pixels(normal[1:], off[1:], cam.fx, cam.fy, cam.cx, cam.cy)
+    planes = planes_in_pixels(normals, offsets, cam.fx, cam.fy, cam.cx, cam.cy)
     return out, dict(zip(horizontal, shares.tolist(), strict=True)), dict(zip(horizontal, planes, strict=True))
 
 
