@@ -96,3 +96,16 @@ def test_support_planes_are_the_same_fit_at_any_focal_length(seed: int) -> None:
     normal, off, _ = planes_from_sums(fit)
     converted = planes_in_pixels(normal[1:].tolist(), off[1:].tolist(), fx, 1.3 * fx, cx, cy)
     np.testing.assert_allclose(support_planes(labels, depth, np.array([1, 2], np.int32), boxes), converted, rtol=1e-6)
+
+
+@pytest.mark.parametrize("joined", [False, True])
+def test_faces_under_separate_pieces_of_one_support_are_not_folded(joined: bool) -> None:
+    # two table fronts (1 and 2) under one support 3: one top, or two tops of one plane apart
+    # (two boxes of one height classed as one support): the latter's faces stay objects
+    labels, depth = _table_and_face(leaning=False)
+    labels[50:, 24:] = 2
+    if not joined:
+        labels[25:50, 16:24] = 0
+    widths = np.array([0.0, 24.0, 16.0])
+    fronts = front_faces(labels, depth, widths, np.array([3], np.int32), jump_rel=0.05)
+    assert fronts == ({1: 3, 2: 3} if joined else {})
