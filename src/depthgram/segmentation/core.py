@@ -13,7 +13,7 @@ from depthgram.frame import Frame, Intrinsics, check_array_units
 from depthgram.segmentation.attributes import ObjectSpec, Stats, attribute_rows, make_objects, objects_from_rows
 from depthgram.segmentation.coarse import grid_frame, grid_step, to_full_resolution
 from depthgram.segmentation.config import SegmentConfig
-from depthgram.segmentation.contacts import front_faces, side_faces
+from depthgram.segmentation.contacts import front_faces, planes_in_pixels, side_faces
 from depthgram.segmentation.coplanar import class_window, coplanar_groups
 from depthgram.segmentation.creases import crease_scale_px, crease_state, inverse_depth
 from depthgram.segmentation.histogram import Bands, bin_index, depth_bands, log_bin_counts
@@ -382,8 +382,8 @@ def _slices(
     stack = _stack_supports(labels, fsums, fboxes, support_maps, cam)
     if cfg.method == "surfaces" and cfg.raised_sigmas > 0 and sensor is not None:
         stack = _cut_raised(labels, depth, ok, classes, stack, sensor, bands, cam, cfg, min_px)
-    below, beneath = _below_camera(labels, depth, cam, stack)
-    fronts = _fold_faces(labels, depth, stack, below, cfg)
+    below, beneath, planes = _below_camera(labels, depth, cam, stack)
+    fronts = _fold_faces(labels, depth, stack, below, planes, cfg)
     labels, specs, rows, boxes = _compound_objects(
         labels, depth, stack, fronts, below, beneath, bands, intrinsics, cam, cfg, part_scale
     )
@@ -534,12 +534,15 @@ def _fold_faces(
     depth: NDArray[np.float32],
     stack: _Stack,
     below: dict[int, float],
+    planes: dict[int, tuple[float, float, float]],
     cfg: SegmentConfig,
 ) -> dict[int, int]:
     """Return ``{face id: support id}`` and add each face's statistics to its support's (in place).
 
     A front face stands below a support seen from above (a table's front under its top); a
     side face is a small vertical support beside a facing object (a box at an angle).
+    ``planes`` are the horizontal supports' (:func:`_below_camera`): a front face lies behind
+    its support's plane continued.
     """
     n_facing = stack.first_support - 1
     boxes = stack.boxes
@@ -555,6 +558,8 @@ def _fold_faces(
         jump_rel=cfg.jump_rel,
         boxes=boxes[tops],
         n_ids=stack.next_id,
+        face_sums=stack.sums,
+        planes=planes,
     )
     area = stack.attrs[:, 0]
     max_area = cfg.side_max_area * depth.size
@@ -657,11 +662,13 @@ _BENEATH_MM = 150.0
 
 def _below_camera(
     labels: NDArray[np.int32], depth: NDArray[np.float32], cam: Intrinsics, stack: _Stack
-) -> tuple[dict[int, float], dict[int, float]]:
-    """Return each support's height below the camera and, for horizontal ones, the readings beneath it.
+) -> tuple[dict[int, float], dict[int, float], dict[int, tuple[float, float, float]]]:
+    """Return each support's height below the camera and, for horizontal ones, the readings beneath it and its plane.
 
     The height is in mm (negative above the camera: a ceiling); the readings beneath are the
-    share of the frame's readings seen beneath the support's plane.
+    share of the frame's readings seen beneath the support's plane; the plane is ``(a, b, c)``
+    of ``1/Z = a x + b y + c`` in pixels (1/mm), the one
+    :func:`~depthgram.segmentation.contacts.support_planes` fits, for the front faces' test.
 
     The centroid's Y says it for a level camera only: a camera pitched down at a table sees the
     table's centroid above its optical axis. The support's fitted plane says it for any pitch:
@@ -674,17 +681,21 @@ def _below_camera(
     # (each row's sums and solve are those of a plane fit on the whole map)
     horizontal = [i for c, i in stack.supports if c == HORIZONTAL]
     if not horizontal:
-        return out, {}
+        return out, {}, {}
     ids = np.array(horizontal, np.intp)
     # each support's own box (inclusive) holds all its pixels: the frame outside is not read
     n = stack.next_id - 1
     sums = plane_sums_in_boxes(labels, n, ids, stack.boxes[ids], depth, cam.fx, cam.fy, cam.cx, cam.cy)
     normal, off, _ = planes_from_sums(sums[np.concatenate(([0], ids))])
-    for j, i in enumerate(horizontal, start=1):
-        out[i] = float(off[j]) if normal[j, 1] < 0 else -float(off[j])
+    # Python floats: a few planes, for which numpy's scalars cost more than the arithmetic
+    normals, offsets = normal[1:].tolist(), off[1:].tolist()
+    for i, (_, ny, _), d in zip(horizontal, normals, offsets, strict=True):
+        out[i] = d if ny < 0 else -d
     # every 4th pixel in 3-D: enough to tell whether anything lies beneath a plane
     shares = shares_beneath(depth, 4, cam, normal[1:], off[1:], _BENEATH_MM)
-    return out, dict(zip(horizontal, shares.tolist(), strict=True))
+    # the same planes in pixels for the front faces' test, without a second fit
+    planes = planes_in_pixels(normals, offsets, cam.fx, cam.fy, cam.cx, cam.cy)
+    return out, dict(zip(horizontal, shares.tolist(), strict=True)), dict(zip(horizontal, planes, strict=True))
 
 
 def _add_support_planes(
