@@ -572,11 +572,16 @@ class Tracker:
         dt = self._dt
         cfg_border = self.config.border_px
         pairs = {}
+        # Under the camera's motion, each object's image scale from its own radial motion: its
+        # predicted change less the camera's part (the still change), which the motion holds.
+        own_scales: dict[int, float] = {}
         for i, c in zip(rows.tolist(), cols.tolist(), strict=True):
             t = self._tracks[i]
             if not (cost[i, c] < FORBIDDEN and t["missed"] == 0):
                 continue
             o = objects[c]
+            if camera is not None:
+                own_scales[o.id] = _scale(t["z_fit"], t["v"] * dt - still[c])
             pairs[o.id] = (
                 self._last[i].id,
                 o.bbox_xy,
@@ -591,7 +596,7 @@ class Tracker:
             return out, still
         if shift is None:
             shift = self._shift(prev.depth_mm, pixels.depth_mm)
-        change = core_depth_change(prev, pixels, pairs, shift, camera=camera, helper=helper)
+        change = core_depth_change(prev, pixels, pairs, shift, camera=camera, helper=helper, own_scales=own_scales)
         for c, o in enumerate(objects):
             out[c] = change.get(o.id, math.nan)
         return out, still
