@@ -176,9 +176,9 @@ class _Core:
     itself, by the scale of that own motion about the box's centre: a ball closing on a still
     camera at 600 mm/s read 640 mm/s under the camera's motion without it, since at a fixed pixel
     the depth of an approaching convex surface changes faster than its centre's (towards its
-    outline, the ray meets it ever further from the centre). The previous depth is read bilinearly, from four pixels that all
-    belong to the track's previous segment: on a steep flank (a cylinder's side) half a pixel is
-    tens of millimetres.
+    outline, the ray meets it ever further from the centre). The previous depth is read
+    bilinearly, from four pixels that all belong to the track's previous segment: on a steep
+    flank (a cylinder's side) half a pixel is tens of millimetres.
     """
 
     def __init__(
