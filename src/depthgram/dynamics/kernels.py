@@ -61,6 +61,8 @@ class CostParams(NamedTuple):
     w_area: float
     w_iou: float
     w_label: float
+    accel_sigma: float  # the filter's process noise (mm/s^2): how far a coasting depth may stray
+    innovation_gate: float  # standard deviations of that uncertainty a coasting track's depth gate spans
 
 
 class StepParams(NamedTuple):
@@ -149,6 +151,7 @@ PREDICTION_FIELDS: tuple[tuple[str, str], ...] = (
     ("y1", "predicted bbox (px)"),
     ("label", "depth label as last seen"),
     ("elapsed", "time since the last detection (s)"),
+    ("zs", "standard deviation of the Kalman filter's predicted depth (mm); NaN: no filter"),
 )
 PREDICTION_DTYPE = np.dtype([(name, np.float64) for name, _ in PREDICTION_FIELDS])
 
@@ -177,6 +180,7 @@ def cost_kernel(
     center_rate = params.max_center_rate
     growth = params.gate_growth
     dz_rate = params.max_depth_rate
+    gate_k = params.innovation_gate
     log_ratio = params.log_max_area_ratio
     min_iou = params.min_iou
     w_c, w_z, w_a, w_iou, w_label = params.w_center, params.w_depth, params.w_area, params.w_iou, params.w_label
@@ -187,6 +191,14 @@ def cost_kernel(
         t = pred[i]
         r = center_rate * dt * diagonal_px * (1.0 + growth * max(t.elapsed - dt, 0.0))
         zg = t.z * dz_rate * max(t.elapsed, dt)
+        if t.elapsed > 1.5 * dt and np.isfinite(t.zs):
+            # A track coasting with a filter: its depth gate widens with the time missed as far
+            # as the filter's predicted depth may stray (``innovation_gate`` of its standard
+            # deviations, which grows with the unmodelled acceleration), never below the
+            # one-frame gate. The linear widening let a ball hidden behind a box for ten frames
+            # (structured light, 640 x 480) take a sliver of the box's side 745 mm nearer than
+            # its prediction (4 sigma: 276 mm).
+            zg = min(zg, max(t.z * dz_rate * dt, gate_k * t.zs))
         area_t = max(t.area, 1.0)
         bt_area = (t.x1 - t.x0) * (t.y1 - t.y0)
         for j in range(no):
@@ -309,6 +321,7 @@ def predict_cost(
 ) -> NDArray[np.float64]:
     """Predict each of the first ``n`` tracks forward by the time since its last detection, then cost all pairs."""
     pred = np.empty(n, PREDICTION_DTYPE)
+    qa = p.accel_sigma * p.accel_sigma
     for i in range(n):
         t = tracks[i]
         q = pred[i]
@@ -334,6 +347,9 @@ def predict_cost(
             q.z = t.z_fit + v * el
         q.area = t.area
         q.label = t.label
+        # the filter's depth variance predicted over this frame's step (as estimate() does)
+        pzz = t.kf_pzz + 2.0 * dt * t.kf_pzv + dt * dt * t.kf_pvv + qa * dt**4 / 4.0
+        q.zs = np.sqrt(pzz) if t.kf_n >= 2 and pzz >= 0.0 else np.nan
     return cost_kernel(pred, objs, diagonal_px, dt, p)
 
 
