@@ -30,7 +30,7 @@ and shift side by side) and ``--depth plain`` give the figures.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Collection, Mapping, Sequence
 from concurrent.futures import Executor
 
 import numpy as np
@@ -277,6 +277,7 @@ def core_depth_change(
     prefer: float = 0.8,
     helper: Executor | None = None,
     own_scales: Mapping[int, float] | None = None,
+    moving: Collection[int] | None = None,
 ) -> dict[int, float]:
     """Mean depth change of each object's core from the previous frame (mm).
 
@@ -317,6 +318,10 @@ def core_depth_change(
         motion alone, the camera's part taken out (its depth then plus its own change, over its
         depth then): applied about the principal point after the ``camera``'s motion. Default
         1 (the object stands still).
+    moving : collection of int, optional
+        This frame's ids of objects known to move on their own: their own image motion is
+        taken unless the frame's lines the core up clearly better (spread below ``prefer``
+        times the own motion's), the mirror of the rule for the rest.
 
     Returns
     -------
@@ -358,9 +363,12 @@ def core_depth_change(
                 n, mean, spread = n2, mean2, spread2
                 ok = n * k >= min_px and n * k >= min_share * area
             first = 2
+        # an object moving on its own: its own image motion first, the frame's only where it
+        # lines the core up clearly better (the mirror of the rule for the still world)
+        bar = 1.0 / prefer if moving is not None and oid in moving else prefer
         for j in range(first, m):
             n2, mean2, spread2, _ = read[c, j]
-            if n2 * k >= min_px and n2 * k >= min_share * area and (not ok or spread2 < prefer * spread):
+            if n2 * k >= min_px and n2 * k >= min_share * area and (not ok or spread2 < bar * spread):
                 n, mean, spread, ok = n2, mean2, spread2 / prefer, True
         if ok:
             out[oid] = mean

@@ -575,6 +575,7 @@ class Tracker:
         # Under the camera's motion, each object's image scale from its own radial motion: its
         # predicted change less the camera's part (the still change), which the motion holds.
         own_scales: dict[int, float] = {}
+        moving: set[int] = set()
         for i, c in zip(rows.tolist(), cols.tolist(), strict=True):
             t = self._tracks[i]
             if not (cost[i, c] < FORBIDDEN and t["missed"] == 0):
@@ -582,6 +583,11 @@ class Tracker:
             o = objects[c]
             if camera is not None:
                 own_scales[o.id] = _scale(t["z_fit"], t["v"] * dt - still[c])
+                # its own radial velocity, the camera's part taken out, counts (estimate(): two
+                # readings, two of its sigmas from standing still)
+                own_v = t["own_v"]
+                if t["own_n"] >= 2 and abs(own_v) > self._estimate_params.own_min_sigmas * math.sqrt(t["own_var"]):
+                    moving.add(o.id)
             pairs[o.id] = (
                 self._last[i].id,
                 o.bbox_xy,
@@ -596,7 +602,9 @@ class Tracker:
             return out, still
         if shift is None:
             shift = self._shift(prev.depth_mm, pixels.depth_mm)
-        change = core_depth_change(prev, pixels, pairs, shift, camera=camera, helper=helper, own_scales=own_scales)
+        change = core_depth_change(
+            prev, pixels, pairs, shift, camera=camera, helper=helper, own_scales=own_scales, moving=moving
+        )
         for c, o in enumerate(objects):
             out[c] = change.get(o.id, math.nan)
         return out, still
