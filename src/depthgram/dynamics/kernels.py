@@ -151,7 +151,7 @@ PREDICTION_FIELDS: tuple[tuple[str, str], ...] = (
     ("y1", "predicted bbox (px)"),
     ("label", "depth label as last seen"),
     ("elapsed", "time since the last detection (s)"),
-    ("zs", "standard deviation of the Kalman filter's predicted depth (mm); NaN: no filter"),
+    ("zs", "how far the depth may stray from the prediction by the Kalman filter (mm); NaN: no filter"),
 )
 PREDICTION_DTYPE = np.dtype([(name, np.float64) for name, _ in PREDICTION_FIELDS])
 
@@ -180,7 +180,6 @@ def cost_kernel(
     center_rate = params.max_center_rate
     growth = params.gate_growth
     dz_rate = params.max_depth_rate
-    gate_k = params.innovation_gate
     log_ratio = params.log_max_area_ratio
     min_iou = params.min_iou
     w_c, w_z, w_a, w_iou, w_label = params.w_center, params.w_depth, params.w_area, params.w_iou, params.w_label
@@ -198,7 +197,7 @@ def cost_kernel(
             # one-frame gate. The linear widening let a ball hidden behind a box for ten frames
             # (structured light, 640 x 480) take a sliver of the box's side 745 mm nearer than
             # its prediction (4 sigma: 276 mm).
-            zg = min(zg, max(t.z * dz_rate * dt, gate_k * t.zs))
+            zg = min(zg, max(t.z * dz_rate * dt, t.zs))
         area_t = max(t.area, 1.0)
         bt_area = (t.x1 - t.x0) * (t.y1 - t.y0)
         for j in range(no):
@@ -318,10 +317,17 @@ def predict_cost(
     t_now: float,
     dt: float,
     p: CostParams,
+    filter_gate: bool = True,
 ) -> NDArray[np.float64]:
-    """Predict each of the first ``n`` tracks forward by the time since its last detection, then cost all pairs."""
+    """Predict each of the first ``n`` tracks forward by the time since its last detection, then cost all pairs.
+
+    ``filter_gate``: a coasting track's depth gate widens as its filter's depth uncertainty
+    (:func:`cost_kernel`); False where the camera moved in the previous frame, whose motion
+    the filter of a hidden track does not hold (it filters the object's own part).
+    """
     pred = np.empty(n, PREDICTION_DTYPE)
     qa = p.accel_sigma * p.accel_sigma
+    gate_k = p.innovation_gate
     for i in range(n):
         t = tracks[i]
         q = pred[i]
@@ -349,7 +355,11 @@ def predict_cost(
         q.label = t.label
         # the filter's depth variance predicted over this frame's step (as estimate() does)
         pzz = t.kf_pzz + 2.0 * dt * t.kf_pzv + dt * dt * t.kf_pvv + qa * dt**4 / 4.0
-        q.zs = np.sqrt(pzz) if t.kf_n >= 2 and pzz >= 0.0 else np.nan
+        # the gate's half-width: innovation_gate of that deviation, plus how far the prediction
+        # above is from the filter's own (the queue's slope against the filter's velocity)
+        kz = t.kf_z + dt * t.kf_v
+        ok = filter_gate and t.kf_n >= 2 and pzz >= 0.0 and np.isfinite(kz)
+        q.zs = gate_k * np.sqrt(pzz) + abs(q.z - kz) if ok else np.nan
     return cost_kernel(pred, objs, diagonal_px, dt, p)
 
 

@@ -289,6 +289,7 @@ class Tracker:
         self._last: list[SceneObject] = []
         self._motion: list[Motion] = []
         self._pixels: FramePixels | None = None  # the previous frame's, when given
+        self._camera_moved = False  # whether the camera's motion was found in the last update
         self._ego = EgoMotion()
         # this frame's image motion when prepare() found it ahead of update(): (depth, camera, shift)
         self._prepared: tuple[object, CameraMotion | None, tuple[float, float] | None] | None = None
@@ -481,7 +482,9 @@ class Tracker:
             self._qt = np.concatenate([self._qt, np.zeros((more, self._qt.shape[1]))])
             self._qz = np.concatenate([self._qz, np.zeros((more, self._qz.shape[1]))])
         tracks = self._tracks
-        cost = predict_cost(tracks, n, f, math.hypot(width, height), t_now, self._dt, self._cost_params)
+        cost = predict_cost(
+            tracks, n, f, math.hypot(width, height), t_now, self._dt, self._cost_params, not self._camera_moved
+        )
         if n and m:
             rows, cols = linear_sum_assignment(cost)
         else:
@@ -559,6 +562,7 @@ class Tracker:
             camera, shift = prepared[1], prepared[2]
         else:
             camera, shift = self._camera_motion(pixels.depth_mm, pixels.intrinsics), None
+        self._camera_moved = camera is not None
         if prev is None:
             return out, still
         if camera is not None:
