@@ -52,6 +52,7 @@ def cost_params(config: TrackerConfig) -> CostParams:
         max_depth_rate=float(c.max_depth_rate), log_max_area_ratio=math.log(c.max_area_ratio),
         min_iou=float(c.min_iou), w_center=float(c.w_center), w_depth=float(c.w_depth),
         w_area=float(c.w_area), w_iou=float(c.w_iou), w_label=float(c.w_label),
+        accel_sigma=float(c.accel_sigma), innovation_gate=float(c.innovation_gate),
     )  # fmt: skip
 
 
@@ -80,6 +81,8 @@ def match_cost(
     rates: the center gate is ``max_center_rate * dt_s`` of the diagonal, widened by
     ``gate_growth`` per second missed, the depth gate ``max_depth_rate`` times the time since
     the track's last detection, so that the same physical motion passes at any frame rate.
+    (The tracker's own tracks with a Kalman filter widen the depth gate while they coast only
+    as far as the filter's predicted depth may stray, :func:`cost_kernel`.)
 
     Parameters
     ----------
@@ -122,6 +125,7 @@ def match_cost(
     pred["x0"], pred["y0"], pred["x1"], pred["y1"] = f(track_bbox, (nt, 4)).T
     pred["z"], pred["area"] = f(track_depth, (nt,)), f(track_area, (nt,))
     pred["label"], pred["elapsed"] = f(track_label, (nt,)), f(track_elapsed_s, (nt,))
+    pred["zs"] = np.nan  # no filter: the depth gate widens at max_depth_rate
     objs = np.zeros(no, OBJECT_DTYPE)
     center = f(obj_center, (no, 2))
     objs["cx"], objs["cy"] = center[:, 0], center[:, 1]

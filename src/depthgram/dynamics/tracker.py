@@ -289,6 +289,7 @@ class Tracker:
         self._last: list[SceneObject] = []
         self._motion: list[Motion] = []
         self._pixels: FramePixels | None = None  # the previous frame's, when given
+        self._camera_moved = False  # whether the camera's motion was found in the last update
         self._ego = EgoMotion()
         # this frame's image motion when prepare() found it ahead of update(): (depth, camera, shift)
         self._prepared: tuple[object, CameraMotion | None, tuple[float, float] | None] | None = None
@@ -481,7 +482,9 @@ class Tracker:
             self._qt = np.concatenate([self._qt, np.zeros((more, self._qt.shape[1]))])
             self._qz = np.concatenate([self._qz, np.zeros((more, self._qz.shape[1]))])
         tracks = self._tracks
-        cost = predict_cost(tracks, n, f, math.hypot(width, height), t_now, self._dt, self._cost_params)
+        cost = predict_cost(
+            tracks, n, f, math.hypot(width, height), t_now, self._dt, self._cost_params, not self._camera_moved
+        )
         if n and m:
             rows, cols = linear_sum_assignment(cost)
         else:
@@ -559,6 +562,7 @@ class Tracker:
             camera, shift = prepared[1], prepared[2]
         else:
             camera, shift = self._camera_motion(pixels.depth_mm, pixels.intrinsics), None
+        self._camera_moved = camera is not None
         if prev is None:
             return out, still
         if camera is not None:
@@ -572,11 +576,22 @@ class Tracker:
         dt = self._dt
         cfg_border = self.config.border_px
         pairs = {}
+        # Under the camera's motion, each object's image scale from its own radial motion: its
+        # predicted change less the camera's part (the still change), which the motion holds.
+        own_scales: dict[int, float] = {}
+        moving: set[int] = set()
         for i, c in zip(rows.tolist(), cols.tolist(), strict=True):
             t = self._tracks[i]
             if not (cost[i, c] < FORBIDDEN and t["missed"] == 0):
                 continue
             o = objects[c]
+            if camera is not None:
+                own_scales[o.id] = _scale(t["z_fit"], t["v"] * dt - still[c])
+                # its own radial velocity, the camera's part taken out, counts (estimate(): two
+                # readings, two of its sigmas from standing still)
+                own_v = t["own_v"]
+                if t["own_n"] >= 2 and abs(own_v) > self._estimate_params.own_min_sigmas * math.sqrt(t["own_var"]):
+                    moving.add(o.id)
             pairs[o.id] = (
                 self._last[i].id,
                 o.bbox_xy,
@@ -591,7 +606,9 @@ class Tracker:
             return out, still
         if shift is None:
             shift = self._shift(prev.depth_mm, pixels.depth_mm)
-        change = core_depth_change(prev, pixels, pairs, shift, camera=camera, helper=helper)
+        change = core_depth_change(
+            prev, pixels, pairs, shift, camera=camera, helper=helper, own_scales=own_scales, moving=moving
+        )
         for c, o in enumerate(objects):
             out[c] = change.get(o.id, math.nan)
         return out, still
