@@ -110,8 +110,7 @@ def run(args: argparse.Namespace) -> int:
     pipe = Pipeline(load_config(args))
     fps = getattr(src, "fps", None) or args.fps
     period = 1.0 / fps if fps else 1.0 / 30  # a source with no rate (a camera) is taken as it comes
-    if args.decimate != "auto":
-        decimation(args.decimate, 1)  # a bad value fails before the source is read
+    decimation(args.decimate, 1)  # a bad value fails before the source is read
     raw = iter(src)
     whole = next(raw, None)
     if whole is None:
