@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import math
 import warnings
 from pathlib import Path
@@ -109,11 +110,54 @@ def test_the_pipeline_uses_the_estimate_and_says_so() -> None:
     assert cam["intrinsics_source"] == "estimated"
     assert_allclose(cam["intrinsics"]["fx"], 580.0, rtol=0.05)
     assert_allclose((cam["intrinsics"]["cx"], cam["intrinsics"]["cy"]), (319.5, 239.5))
-    # given intrinsics are never second-guessed
+    # given intrinsics within 1.4 times the scene's focal length are not second-guessed
     with warnings.catch_warnings():
         warnings.simplefilter("error", IntrinsicsWarning)
         given = list(Pipeline(intrinsics=Intrinsics(700.0, 700.0, 320.0, 240.0)).run(frames))
     assert given[0].to_record()["camera"]["intrinsics"]["fx"] == 700.0
+
+
+@pytest.mark.parametrize("factor", [0.6, 1.6])
+def test_intrinsics_for_another_camera_are_overruled_by_the_scene(factor: float) -> None:
+    # a user's focal length 0.6 or 1.6 times the true one (the colour camera's calibration, a
+    # profile of the bare depth camera): the scene's right angles win, with a warning naming
+    # the given values and the way to keep them; the principal point given stays
+    depths = [render_tabletop(580.0, 45.0, seed=i) for i in range(3)]
+    frames = [Frame(d, d > 0, index=i, name=f"f{i}") for i, d in enumerate(depths)]
+    wrong = Intrinsics(580.0 * factor, 580.0 * factor, 321.0, 238.0)
+    with pytest.warns(IntrinsicsWarning, match=rf"fx = {wrong.fx:.0f}.*disagree with the scene.*--trust-intrinsics"):
+        results = list(Pipeline(intrinsics=wrong).run(frames))
+    cam = results[0].to_record()["camera"]
+    assert cam["intrinsics_source"] == "estimated"
+    assert f"overruling given fx = {wrong.fx:.0f} px" in cam["intrinsics_from"]
+    for r in results:
+        k = r.frame.intrinsics
+        assert k is not None and r.frame.intrinsics_source == "estimated"
+        assert_allclose((k.fx, k.fy), (580.0, 580.0), rtol=0.05)
+        assert (k.cx, k.cy) == (321.0, 238.0)
+    # trusted, they are used as given, silently
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", IntrinsicsWarning)
+        kept = list(Pipeline(intrinsics=wrong, check_intrinsics=False).run(frames))
+    assert kept[0].to_record()["camera"]["intrinsics"]["fx"] == round(wrong.fx, 3)
+    assert all(r.frame.intrinsics == wrong for r in kept)
+
+
+def test_the_command_line_keeps_trusted_intrinsics(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    from depthgram.cli import main
+
+    folder = tmp_path / "frames"
+    folder.mkdir()
+    for i in range(2):
+        cv2.imwrite(str(folder / f"{i:03d}.png"), render_tabletop(580.0, 45.0, seed=i).astype(np.uint16))
+    fx = ["--intrinsics", "928", "928", "319.5", "239.5"]
+    for extra, want in (([], "estimated"), (["--trust-intrinsics"], "given")):
+        out = tmp_path / f"scene{len(extra)}.jsonl"
+        assert main(["describe", str(folder), *fx, *extra, "--quiet", "--json", str(out)]) == 0
+        first = json.loads(out.read_text().splitlines()[0])
+        assert first["camera"]["intrinsics_source"] == want
+    err = capsys.readouterr().err
+    assert err.count("disagree with the scene") == 1
 
 
 def test_info_says_the_focal_length_the_pipeline_will_use(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

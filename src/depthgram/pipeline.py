@@ -27,7 +27,7 @@ from depthgram.act import plan as plan_scene
 from depthgram.dynamics import FramePixels, Tracker, TrackerConfig
 from depthgram.dynamics import warm_up as warm_up_dynamics
 from depthgram.errors import InputError
-from depthgram.focal_length import RecordingFocal
+from depthgram.focal_length import FocalCheck, RecordingFocal
 from depthgram.frame import Frame, Gravity, Intrinsics, as_gravity
 from depthgram.scene import TreeConfig, build_tree, to_sentence, tree_to_dict
 from depthgram.scene.kinds import GravityKinds
@@ -293,6 +293,10 @@ def _object_record(o: SceneObject, node: Mapping[str, Any], m: Motion | None) ->
 
 #: Frames between two estimates of the sensor model in a stream.
 _SENSOR_EVERY = 30
+#: Intrinsics sources a person chose, held against the scene (:class:`FocalCheck`): a device's,
+#: a bag's and the simulator's own calibration are the frames' by construction.
+_CHECKED = ("given", "file", "profile")
+
 #: Unrelated successive pairs that, once they are at least half of the pairs seen, make a source
 #: without timestamps a folder of stills (:meth:`Pipeline._still_reason`).
 _STILLS_EVIDENCE = 2
@@ -323,9 +327,15 @@ class Pipeline:
         Which way is down in camera coordinates (``--gravity``), put on every frame.
     tilt_deg : float, optional
         The camera looks down by this many degrees (``--tilt``), instead of ``gravity``.
+    check_intrinsics : bool
+        Hold intrinsics a person chose (given, a calibration file or sidecar, a profile) against
+        the focal length the scene shows (:class:`depthgram.focal_length.FocalCheck`): more
+        than 1.4 times off, the scene's wins, with a warning. False (``--trust-intrinsics``)
+        uses them as they are.
 
-    Frames without intrinsics are segmented with a guess (a 64-degree field of view), with an
-    :class:`~depthgram.sources.camera.IntrinsicsWarning` naming the options that tell the camera.
+    Frames without intrinsics take the focal length their scene shows, else a guess (a 64-degree
+    field of view), with an :class:`~depthgram.sources.camera.IntrinsicsWarning` naming the
+    options that tell the camera.
 
     Examples
     --------
@@ -344,8 +354,10 @@ class Pipeline:
         camera: str | Path | Camera | None = None,
         gravity: Gravity | tuple[float, float, float] | None = None,
         tilt_deg: float | None = None,
+        check_intrinsics: bool = True,
     ) -> None:
         self.config = config or Config()
+        self.check_intrinsics = check_intrinsics
         self.track = track
         self.camera = resolve_camera(intrinsics, camera)
         self.gravity = as_gravity(gravity, tilt_deg)
@@ -353,6 +365,7 @@ class Pipeline:
         self._warned_guess = False
         self._warned_estimate = False
         self._focal = RecordingFocal()  # the focal length read from the scene, once found
+        self._focal_check = FocalCheck()  # the user's intrinsics against the scene
         self._tracker = Tracker(self.config.tracker)
         self._where = ""
         self._sensor: SensorModel | None = None
@@ -372,6 +385,7 @@ class Pipeline:
         self._untimed_pairs = [0, 0]
         self._said_camera = None
         self._focal = RecordingFocal()
+        self._focal_check = FocalCheck()
         self._kinds = GravityKinds()
 
     def _calibrated(self, frame: Frame) -> Frame:
@@ -386,6 +400,8 @@ class Pipeline:
             changes["gravity"] = self.gravity
         if changes:
             frame = dataclasses.replace(frame, **changes)  # type: ignore[arg-type]
+        if self.check_intrinsics and frame.intrinsics is not None and frame.intrinsics_source in _CHECKED:
+            frame = self._checked(frame, frame.intrinsics)
         if frame.intrinsics is None:
             k = self._scene_focal(frame)
             if k is not None:
@@ -402,6 +418,27 @@ class Pipeline:
                 stacklevel=2,
             )
         return frame
+
+    def _checked(self, frame: Frame, given: Intrinsics) -> Frame:
+        """Return ``frame`` with the scene's focal length where it overrules the user's; warn when it does."""
+        k, overruled = self._focal_check.read(frame.depth, frame.valid, given)
+        if overruled is not None:
+            origin = frame.meta.get("intrinsics_from") or {"given": "--intrinsics"}.get(frame.intrinsics_source, "")
+            warnings.warn(
+                f"{frame.name or f'frame {frame.index}'}: the camera's intrinsics ({frame.intrinsics_source}"
+                f"{f', {origin}' if origin else ''}: fx = {given.fx:.0f}, fy = {given.fy:.0f} px) disagree with the "
+                f"scene: the right angles between a support seen {overruled.tilt_deg:.0f} degrees from face-on and "
+                f"what rises from it say fx = fy = {overruled.intrinsics.fx:.0f} px ({k.fx / given.fx:.2f} times "
+                "theirs; are they for another camera or resolution?); using the scene's focal length. If yours are "
+                "right, pass --trust-intrinsics (in Python: Pipeline(check_intrinsics=False))",
+                IntrinsicsWarning,
+                stacklevel=3,
+            )
+        if k is given:
+            return frame
+        overruling = f"the scene (overruling {frame.intrinsics_source} fx = {given.fx:.0f} px)"
+        meta = {**frame.meta, "intrinsics_from": overruling}
+        return dataclasses.replace(frame, intrinsics=k, intrinsics_source="estimated", meta=meta)
 
     def _scene_focal(self, frame: Frame) -> Intrinsics | None:
         """Return the intrinsics read from the scene for a frame without any; tell the user once."""

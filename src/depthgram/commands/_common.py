@@ -8,7 +8,7 @@ from collections.abc import Iterator
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
-    from depthgram.pipeline import Config, SceneResult
+    from depthgram.pipeline import Config, Pipeline, SceneResult
     from depthgram.sources import Source
 
 
@@ -39,12 +39,17 @@ def add_pipeline_arguments(
 
 def pipeline_results(args: argparse.Namespace, desc: str) -> tuple[Source, Iterator[SceneResult]]:
     """Open the input, run the configured pipeline over it, with a progress bar."""
-    from depthgram.pipeline import Pipeline
-
     src = open_input(args)
-    pipe = Pipeline(load_config(args))
+    pipe = make_pipeline(args)
     results = pipe.run(src, workers=getattr(args, "workers", 1))
     return src, progress(results, total=source_len(src), desc=desc, quiet=args.quiet)
+
+
+def make_pipeline(args: argparse.Namespace) -> Pipeline:
+    """Return the pipeline the arguments configure (--config, --method, --stills, --trust-intrinsics)."""
+    from depthgram.pipeline import Pipeline
+
+    return Pipeline(load_config(args), check_intrinsics=not getattr(args, "trust_intrinsics", False))
 
 
 def _positive_int(text: str) -> int:
@@ -153,6 +158,11 @@ def add_reading_arguments(p: argparse.ArgumentParser) -> None:
         metavar="FILE_OR_PROFILE",
         help="calibration file (ROS camera_info or OpenCV/Kalibr YAML, Open3D JSON, 3x3 matrix text) or a "
         "camera profile (kinect-v1, xtion, realsense-d435, azure-kinect-nfov, ...: intrinsics and sensor model)",
+    )
+    g.add_argument(
+        "--trust-intrinsics",
+        action="store_true",
+        help="use --intrinsics/--camera as they are, even where the scene's right angles say another focal length",
     )
     g.add_argument(
         "--gravity",

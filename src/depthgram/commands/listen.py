@@ -10,7 +10,7 @@ import sys
 import time
 from pathlib import Path
 
-from depthgram.commands._common import add_pipeline_arguments, load_config, open_input
+from depthgram.commands._common import add_pipeline_arguments, load_config, make_pipeline, open_input
 
 NAME = "listen"
 HELP = "play the scene's sound live on the audio device, from a camera, a recording at its own rate or sim:"
@@ -91,7 +91,6 @@ def run(args: argparse.Namespace) -> int:
     from depthgram._optional import needs_extra
     from depthgram.errors import InputError
     from depthgram.pacing import Pacer
-    from depthgram.pipeline import Pipeline
     from depthgram.sound import SoundMapping
     from depthgram.sound.live import AudioProcess, percentiles
     from depthgram.sources.prefetch import prefetch
@@ -107,7 +106,7 @@ def run(args: argparse.Namespace) -> int:
             raise InputError(f"{opt} {path}: folder {Path(path).resolve().parent} does not exist")
     mapping = SoundMapping.preset(args.preset) if args.preset else load_config(args).sound
     src = open_input(args)
-    pipe = Pipeline(load_config(args))
+    pipe = make_pipeline(args)
     fps = getattr(src, "fps", None) or args.fps
     period = 1.0 / fps if fps else 1.0 / 30  # a source with no rate (a camera) is taken as it comes
     decimation(args.decimate, 1)  # a bad value fails before the source is read

@@ -8,7 +8,7 @@ import itertools
 import sys
 import time
 
-from depthgram.commands._common import add_pipeline_arguments, load_config, open_input, progress, source_len
+from depthgram.commands._common import add_pipeline_arguments, make_pipeline, open_input, progress, source_len
 
 NAME = "run"
 HELP = "play a recording at its frame rate (or --fast) and report per-frame latency and dropped frames"
@@ -34,14 +34,13 @@ def run(args: argparse.Namespace) -> int:
     import numpy as np
 
     from depthgram.pacing import Pacer
-    from depthgram.pipeline import Pipeline
     from depthgram.sources.prefetch import prefetch
 
     if args.read_ahead < 0:
         print(f"depthgram run: --read-ahead must be >= 0, got {args.read_ahead}", file=sys.stderr)
         return 2
     src = open_input(args)
-    pipe = Pipeline(load_config(args))
+    pipe = make_pipeline(args)
     fps = getattr(src, "fps", None) or args.fps
     period = None if args.fast or not fps else 1.0 / fps
     latencies: list[float] = []

@@ -162,11 +162,10 @@ def run_foxglove(args: argparse.Namespace) -> int:
     import gc
     import time
 
-    from depthgram.commands._common import load_config, open_input
+    from depthgram.commands._common import make_pipeline, open_input
     from depthgram.errors import InputError
     from depthgram.export.foxglove_live import FoxgloveServer
     from depthgram.pacing import Pacer
-    from depthgram.pipeline import Pipeline
     from depthgram.sources.prefetch import prefetch
     from depthgram.views.player import check_speed
 
@@ -179,7 +178,7 @@ def run_foxglove(args: argparse.Namespace) -> int:
             file=sys.stderr,
         )
     src = open_input(args)
-    pipe = Pipeline(load_config(args))
+    pipe = make_pipeline(args)
     fps = float(args.fps or getattr(src, "fps", None) or 30.0)
     server = FoxgloveServer(args.host, args.port)
     host = f"[{args.host}]" if ":" in args.host else args.host
