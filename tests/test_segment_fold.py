@@ -109,3 +109,21 @@ def test_faces_under_separate_pieces_of_one_support_are_not_folded(joined: bool)
     widths = np.array([0.0, 24.0, 16.0])
     fronts = front_faces(labels, depth, widths, np.array([3], np.int32), jump_rel=0.05)
     assert fronts == ({1: 3, 2: 3} if joined else {})
+
+
+@pytest.mark.parametrize("sensor", ["tof", "sl"])
+def test_a_box_seen_from_above_is_one_object_with_its_side(sensor: str) -> None:
+    # arm_down: the box in the corner shows its top and a side running away beside it. The top
+    # folds into the strip of horizontal pixels at its edge; its side, a small vertical support
+    # beside the top, joins the same compound instead of becoming a wall of its own
+    from depthgram.segmentation import segment
+    from depthgram.sensor import simulate
+
+    sim = next(iter(simulate("arm_down", 1, size=(640, 480), sensor=sensor, seed=1)))
+    seg = segment(sim.frame)
+    box = next(o.id for o in sim.truth if o.name == "box")
+    got = {o.truth_id: o.iou for o in evaluate(seg.labels, sim.instances, valid=sim.frame.valid).objects}
+    assert got[box] >= 0.85, got
+    ids, counts = np.unique(seg.labels[sim.instances == box], return_counts=True)
+    assert counts.max() >= 0.9 * counts.sum(), dict(zip(ids.tolist(), counts.tolist()))
+    assert not any(o.kind == "wall" for o in seg.objects)

@@ -540,8 +540,10 @@ def _fold_faces(
     """Return ``{face id: support id}`` and add each face's statistics to its support's (in place).
 
     A front face stands below a support seen from above (a table's front under its top); a
-    side face is a small vertical support beside a facing object (a box at an angle).
-    ``planes`` are the horizontal supports' (:func:`_below_camera`): a front face lies behind
+    side face is a small vertical support beside a facing object (a box at an angle); beside a
+    facing object already folded into a support, the side folds into that support too (a box
+    seen from above: top, the strip at its edge the orientation field calls horizontal, side),
+    so the returned ids include such supports. ``planes`` are the horizontal supports' (:func:`_below_camera`): a front face lies behind
     its support's plane continued.
     """
     n_facing = stack.first_support - 1
@@ -580,10 +582,25 @@ def _fold_faces(
             n_ids=stack.next_id,
         )
         for f, sup in side.items():
-            fronts.setdefault(f, sup)
+            top = fronts.setdefault(f, sup)
+            if top != sup:
+                # a box seen from above: its top folded into a strip of horizontal pixels at its
+                # edge and its side runs away beside it: the side joins the same compound
+                fronts.setdefault(sup, top)
+        if any(f >= stack.first_support for f in fronts):
+            fronts = {f: _root(fronts, s) for f, s in fronts.items()}
     if fronts:
         add_rows(stack.sums, boxes, np.array(list(fronts), np.intp), np.array(list(fronts.values()), np.intp))
     return fronts
+
+
+def _root(fronts: dict[int, int], i: int) -> int:
+    """The support ``i`` ends in through supports folded into others (a side into a top)."""
+    seen = {i}
+    while i in fronts and fronts[i] not in seen:
+        i = fronts[i]
+        seen.add(i)
+    return i
 
 
 def _compound_objects(
@@ -606,7 +623,8 @@ def _compound_objects(
     (indexed as :func:`~depthgram.segmentation.attributes.objects_from_rows` reads them), to
     be built once by the caller. ``part_scale``: see :func:`_slices`.
     """
-    supports = stack.supports
+    # a support folded into another (a box's side into its top) is no object of its own
+    supports = [(c, i) for c, i in stack.supports if i not in fronts]
     with_front = set(fronts.values())
     n_facing = stack.first_support - 1
     before = stack.attrs
