@@ -125,5 +125,5 @@ def test_a_box_seen_from_above_is_one_object_with_its_side(sensor: str) -> None:
     got = {o.truth_id: o.iou for o in evaluate(seg.labels, sim.instances, valid=sim.frame.valid).objects}
     assert got[box] >= 0.85, got
     ids, counts = np.unique(seg.labels[sim.instances == box], return_counts=True)
-    assert counts.max() >= 0.9 * counts.sum(), dict(zip(ids.tolist(), counts.tolist()))
+    assert counts.max() >= 0.9 * counts.sum(), dict(zip(ids.tolist(), counts.tolist(), strict=True))
     assert not any(o.kind == "wall" for o in seg.objects)

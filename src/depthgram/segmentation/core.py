@@ -543,8 +543,8 @@ def _fold_faces(
     side face is a small vertical support beside a facing object (a box at an angle); beside a
     facing object already folded into a support, the side folds into that support too (a box
     seen from above: top, the strip at its edge the orientation field calls horizontal, side),
-    so the returned ids include such supports. ``planes`` are the horizontal supports' (:func:`_below_camera`): a front face lies behind
-    its support's plane continued.
+    so the returned ids include such supports. ``planes`` are the horizontal supports'
+    (:func:`_below_camera`): a front face lies behind its support's plane continued.
     """
     n_facing = stack.first_support - 1
     boxes = stack.boxes
@@ -595,7 +595,7 @@ def _fold_faces(
 
 
 def _root(fronts: dict[int, int], i: int) -> int:
-    """The support ``i`` ends in through supports folded into others (a side into a top)."""
+    """Return the support ``i`` ends in through supports folded into others (a side into a top)."""
     seen = {i}
     while i in fronts and fronts[i] not in seen:
         i = fronts[i]
