@@ -17,8 +17,10 @@ from __future__ import annotations
 import argparse
 import itertools
 import os
+import re
 import shutil
 import subprocess
+import tempfile
 import time
 from collections.abc import Iterator, Sequence
 from pathlib import Path
@@ -31,27 +33,62 @@ SEVEN_SCENES = ROOT.parent / "shared" / "data" / "7scenes_redkitchen_seq"
 SR, BLOCK = 48000, 256
 
 
-def _jack(realtime: bool) -> subprocess.Popen[bytes] | None:
+def _jack(realtime: bool, log: Path) -> subprocess.Popen[bytes] | None:
     """Start a JACK dummy server for this process and its children; None when jackd is missing.
 
     ``realtime``: ``jackd -R`` (its driver and clients' process threads SCHED_FIFO), as an audio
     system runs; else ``--no-realtime``, where even an idle client underflows on a loaded machine.
+    The server's messages go to ``log`` (:func:`_xruns` reads them).
     """
     if shutil.which("jackd") is None or shutil.which("jack_lsp") is None:
         return None
     os.environ["JACK_DEFAULT_SERVER"] = f"depthgram-bench-{os.getpid()}"
     os.environ["JACK_NO_AUDIO_RESERVATION"] = "1"
-    proc = subprocess.Popen(
-        ["jackd", "-R" if realtime else "--no-realtime", "-d", "dummy", "-r", str(SR), "-p", str(BLOCK)],
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.DEVNULL,
-    )
+    with log.open("wb") as out:
+        proc = subprocess.Popen(
+            ["jackd", "-R" if realtime else "--no-realtime", "-d", "dummy", "-r", str(SR), "-p", str(BLOCK)],
+            stdout=out,
+            stderr=subprocess.STDOUT,
+        )
     for _ in range(100):
         if "system:playback_1" in subprocess.run(["jack_lsp"], capture_output=True, text=True).stdout:
             return proc
         time.sleep(0.1)
     proc.kill()
     return None
+
+
+def _control_client() -> subprocess.Popen[bytes] | None:
+    """Start ``jack_metro`` (a C client of the jackd2 examples) on the server beside ours, or None.
+
+    A control: a compiled client doing almost nothing, at the same priority. Where it, too, has
+    cycles it had not finished, the machine (a virtual one's scheduling), not our callback, is late.
+    """
+    if shutil.which("jack_metro") is None:
+        return None
+    return subprocess.Popen(
+        ["jack_metro", "-b", "120", "-n", "metro"], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL
+    )
+
+
+def _xruns(log: Path) -> dict[str, Any]:
+    """What the JACK server logged of its xruns: its dummy driver's late wake-ups and unfinished clients.
+
+    jackd2's timed (dummy) driver logs ``JackTimedDriver::Process XRun = N usec`` when its own
+    timer thread woke ``N`` us after the cycle's time, and the engine ``JackEngine::XRun: client
+    = NAME was not finished`` for each client still busy when a cycle began. PortAudio reports
+    every server xrun to its callback as an output underflow, whichever client (or the driver)
+    was late.
+    """
+    text = log.read_text(errors="replace") if log.exists() else ""
+    late = [int(m) for m in re.findall(r"JackTimedDriver::Process XRun = (\d+) usec", text)]
+    unfinished = re.findall(r"JackEngine::XRun: client = (.+?) was not finished", text)
+    return {
+        "driver_late": len(late),
+        "driver_late_us": (min(late), max(late)) if late else None,
+        "ours_unfinished": sum(1 for c in unfinished if c.startswith("PortAudio")),
+        "control_unfinished": sum(1 for c in unfinished if c == "metro"),
+    }
 
 
 def _frames(seconds: float) -> tuple[str, Iterator[Any]]:
@@ -232,6 +269,11 @@ def live(seconds: float, device: int | str | None, realtime: bool = True, decima
     }
 
 
+def _us(us: int) -> str:
+    """A duration in us, written in ms from 1 ms."""
+    return f"{us} us" if us < 1000 else f"{us / 1e3:.1f} ms"
+
+
 def _by_minute(marks: list[tuple[float, int]]) -> list[int]:
     """Underflows in each minute of the stream, from (seconds, count so far) marks."""
     out: list[int] = []
@@ -281,19 +323,22 @@ def main(argv: Sequence[str] | None = None) -> int:
             f"  binaural (KEMAR, 256 taps), the same voices: {b['block_us']:.0f} us a block, "
             f"{100 * b['share']:.1f} % of one core"
         )
-    jack = None
+    jack = control = None
+    log = Path(tempfile.mkdtemp(prefix="depthgram-jackd-")) / "jackd.log"
     if args.device is None:
-        jack = _jack(args.server == "realtime")
+        jack = _jack(args.server == "realtime", log)
         if jack is None:
             print("listen: no --device and no jackd (Debian jackd2) to start a dummy device: live part skipped")
             return 0
+        control = _control_client()
     device = int(args.device) if args.device and args.device.isdigit() else args.device
     try:
         r = live(seconds, device, args.realtime, args.decimate)
     finally:
-        if jack is not None:
-            jack.terminate()
-            jack.wait(timeout=10)
+        for proc in (control, jack):
+            if proc is not None:
+                proc.terminate()
+                proc.wait(timeout=10)
     lat, cb = r["latency"], r["callback"]
     mode = "-R" if args.server == "realtime" else "--no-realtime"
     where = args.device or f"JACK dummy (jackd {mode} -d dummy -r 48000 -p 256)"
@@ -321,6 +366,19 @@ def main(argv: Sequence[str] | None = None) -> int:
         + f" (Pipeline.process alone {proc['p50']:.1f} / {proc['p95']:.1f} / {proc['max']:.1f})"
     )
     print(f"  underflows {r['underflows']} in {r['blocks']} blocks (target 0); by minute {r['underflows_by_minute']}")
+    if jack is not None:
+        x = _xruns(log)
+        span = x["driver_late_us"]
+        print(
+            f"  the JACK server's log: its dummy driver woke late {x['driver_late']} times"
+            + (f" (by {span[0]} us to {_us(span[1])})" if span else "")
+            + f"; cycles a client had not finished: ours (PortAudio) {x['ours_unfinished']}, "
+            + (
+                f"jack_metro (a C client doing nothing, the control) {x['control_unfinished']}"
+                if control is not None
+                else "no control client (jack_metro missing)"
+            )
+        )
     slow = r["slow_callbacks_s"]
     print(f"  callbacks longer than a block: {len(slow)}" + (f", at {slow[:12]} s into the stream" if slow else ""))
     print(
