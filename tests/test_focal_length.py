@@ -158,6 +158,11 @@ def test_the_command_line_keeps_trusted_intrinsics(tmp_path: Path, capsys: pytes
         assert first["camera"]["intrinsics_source"] == want
     err = capsys.readouterr().err
     assert err.count("disagree with the scene") == 1
+    # info says what describe will use
+    for extra, want in (([], "overruling given fx = 928 px"), (["--trust-intrinsics"], "(given)")):
+        assert main(["info", str(folder), *fx, *extra]) == 0
+        line = next(x for x in capsys.readouterr().out.splitlines() if x.startswith("intrinsics"))
+        assert want in line, line
 
 
 def test_info_says_the_focal_length_the_pipeline_will_use(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

@@ -86,12 +86,14 @@ def _with_scene_focal(info: SourceInfo, args: argparse.Namespace) -> SourceInfo:
     """Return ``info`` with the focal length read from the first frame's scene, when it shows it.
 
     What ``describe`` and the other pipeline commands will use for a source without intrinsics
-    (:func:`depthgram.focal_length.estimate_focal_length`), so that ``info`` says the same.
+    (:func:`depthgram.focal_length.estimate_focal_length`), or instead of intrinsics a person
+    chose that the scene contradicts (:class:`depthgram.focal_length.FocalCheck`), so that
+    ``info`` says the same.
     """
     import dataclasses
 
     from depthgram.commands._common import open_input
-    from depthgram.focal_length import estimate_focal_length
+    from depthgram.focal_length import FocalCheck, estimate_focal_length
 
     src = open_input(args)
     frames = iter(src)
@@ -101,7 +103,24 @@ def _with_scene_focal(info: SourceInfo, args: argparse.Namespace) -> SourceInfo:
         close = getattr(frames, "close", None)
         if close is not None:
             close()
-    found = None if first is None else estimate_focal_length(first.depth, first.valid)
+    if first is None:
+        return info
+    given = info.intrinsics
+    if given is not None:
+        # intrinsics a person chose, held against the scene as the pipeline holds them
+        k, overruled = FocalCheck().read(first.depth, first.valid, given)
+        if overruled is None:
+            return info
+        return dataclasses.replace(
+            info,
+            intrinsics=k,
+            intrinsics_source="estimated",
+            intrinsics_from=(
+                f"the scene of frame 0, overruling {info.intrinsics_source or 'given'} fx = {given.fx:.0f} px "
+                "(--trust-intrinsics keeps them)"
+            ),
+        )
+    found = estimate_focal_length(first.depth, first.valid)
     if found is None:
         return info
     return dataclasses.replace(
@@ -130,7 +149,9 @@ def run(args: argparse.Namespace) -> int:
         src = open_input(args)
     # Same rule as the other commands: no bar in logs or pipes.
     info = src.info(progress=(n or 0) > _PROGRESS_FROM and sys.stderr.isatty())
-    if info.intrinsics is None and not src.live and info.frames:
+    checked = ("given", "file", "profile")
+    chosen = info.intrinsics is not None and info.intrinsics_source in checked and not args.trust_intrinsics
+    if (info.intrinsics is None or chosen) and not src.live and info.frames:
         info = _with_scene_focal(info, args)
     if json_to is not None:
         with Output(json_to, "--json") as out:
