@@ -31,6 +31,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, replace
 
+import cv2
 import numpy as np
 from numpy.typing import NDArray
 
@@ -69,6 +70,13 @@ FLOOR_MIN_MM = 800.0
 #: make it raised (a table top), not the floor.
 _BENEATH_MM = 150.0
 _BENEATH_SHARE = 0.01
+#: Most share of the readings around a large upright facing segment's outline lying beyond its plane
+#: (by more than :data:`_BENEATH_MM`) for it to be a wall: a wall's outline meets the floor, the
+#: ceiling, the next wall or what stands before it; a person's is seen against the wall behind.
+_BEYOND_OUTLINE_SHARE = 0.5
+#: Least share of the frame of a facing segment tested as a piece of a wall (:func:`_wall_pieces`).
+_MIN_PIECE_SHARE = 0.002
+_PIECE_SAMPLES = 300
 #: Samples of the frame the planes are fitted on.
 _SAMPLES = 3000
 #: Frames an estimated gravity is remembered in a stream.
@@ -237,6 +245,7 @@ def name_kinds(
     sin_level = math.sin(math.radians(LEVEL_DEG))
     new = dict(kinds)
     ups: list[int] = []
+    upright: list[int] = []  # large flat facing segments upright to gravity: walls unless seen against more
     for j, i in enumerate(ids):
         o = by_id[i]
         facing = o.kind == "object"
@@ -257,12 +266,83 @@ def name_kinds(
             if not facing:
                 new[i] = "wall" if large and o.kind != "compound" else "compound"
             elif big and large:
-                new[i] = "wall"
+                upright.append(j)
         elif not facing:
             new[i] = "compound"  # oblique to gravity: no floor, wall or ceiling
+    for j in upright:
+        # a wall meets what is around it (floor, ceiling, the next wall) or is hidden by what
+        # stands before it; a large flat thing standing before a wall (a person, a door ajar) is
+        # seen against what lies behind it along most of its outline
+        if _outline_beyond(seg.labels, depth, cam, by_id[ids[j]], planes, j) < _BEYOND_OUTLINE_SHARE:
+            new[ids[j]] = "wall"
     if ups:
         _name_floors(ups, ids, by_id, new, height, planes, depth, cam, size)
+    walls = [j for j, i in enumerate(ids) if new[i] == "wall"]
+    if walls:
+        new.update(_wall_pieces(seg, depth, cam, planes, walls, set(ids)))
     return _renamed(seg, new), g
+
+
+def _outline_beyond(
+    labels: NDArray[np.int32], depth: NDArray[np.float32], cam: Intrinsics, o: SceneObject, planes: _Planes, j: int
+) -> float:
+    """Share of the readings just outside ``o``'s outline lying beyond its plane (row ``j``) by :data:`_BENEATH_MM`."""
+    h, w = labels.shape
+    x0, y0, x1, y1 = o.bbox_xy
+    x0, y0, x1, y1 = max(x0 - 1, 0), max(y0 - 1, 0), min(x1 + 1, w), min(y1 + 1, h)
+    mask = (labels[y0:y1, x0:x1] == o.id).astype(np.uint8)
+    ring = (cv2.dilate(mask, np.ones((3, 3), np.uint8)) > mask) & (depth[y0:y1, x0:x1] > 0)
+    ys, xs = np.nonzero(ring)
+    if ys.size == 0:
+        return 0.0
+    z = depth[y0:y1, x0:x1][ys, xs].astype(np.float64)
+    pts = np.stack([((xs + x0) - cam.cx) / cam.fx * z, ((ys + y0) - cam.cy) / cam.fy * z, z], axis=1)
+    beyond = pts @ planes.normal[j] + planes.offset[j] < -_BENEATH_MM
+    return float(np.count_nonzero(beyond)) / ys.size
+
+
+def _wall_pieces(
+    seg: Segmentation, depth: NDArray[np.float32], cam: Intrinsics, planes: _Planes, walls: list[int], seen: set[int]
+) -> dict[int, str]:
+    """Return ``{id: "wall"}`` for the small facing segments lying in a wall's plane.
+
+    A nearer object cuts a wall into pieces (the back wall under a table, beside a cupboard);
+    the pieces too small to be named a support on their own (:data:`LOW_SHARE`) are the same
+    wall where their readings lie in its plane, within the fit's tolerance (a piece's own fit is
+    too loose: a strip under a table turns its normal 20 degrees). Only walls: a flat thing lying
+    on a floor or a table stands above its plane by less than that tolerance at a few metres,
+    and it must stay an object (something to step over).
+    """
+    least = max(_MIN_PIECE_SHARE * depth.size, 1.0)
+    small = [o for o in seg.objects if o.kind == "object" and o.id not in seen and o.area >= least]
+    out: dict[int, str] = {}
+    for o in small:
+        # a piece of a wall has its centroid in the wall's plane: most pieces are not read further
+        c = o.centroid_mm
+        if c is None or not any(
+            abs(float(planes.normal[j] @ np.asarray(c)) + float(planes.offset[j])) <= _TOL_REL * c[2] + _TOL_MM
+            for j in walls
+        ):
+            continue
+        # inside the piece's box, on a grid fine enough for about _PIECE_SAMPLES of its pixels
+        # (the frame's grid leaves a strip a few rows high with a handful)
+        x0, y0, x1, y1 = o.bbox_xy
+        st = max(1, math.isqrt(max(1, o.area // _PIECE_SAMPLES)))
+        lab = seg.labels[y0:y1:st, x0:x1:st]
+        zf = depth[y0:y1:st, x0:x1:st]
+        ys, xs = np.nonzero((lab == o.id) & (zf > 0))
+        if ys.size < 10:
+            continue
+        z = zf[ys, xs].astype(np.float64)
+        u = ((xs * st + x0) - cam.cx) / cam.fx
+        v = ((ys * st + y0) - cam.cy) / cam.fy
+        pts = np.stack([u * z, v * z, z], axis=1)
+        tol = _TOL_REL * z + _TOL_MM
+        for j in walls:
+            if np.count_nonzero(np.abs(pts @ planes.normal[j] + planes.offset[j]) <= tol) >= _PLANAR_SHARE * z.size:
+                out[o.id] = "wall"
+                break
+    return out
 
 
 def _name_floors(
