@@ -93,8 +93,6 @@ def raised_pieces(
     h, w = depth_mm.shape
     out = np.zeros((h, w), np.int32)
     of_support: list[int] = []
-    win = (window_px, window_px)
-    square = np.ones(win, np.uint8)
     pad = window_px + 4
     for sid, box in zip(support_ids, boxes, strict=True):
         # the support's own box (inclusive), grown by the windows and the ring: nothing else is read
@@ -109,58 +107,91 @@ def raised_pieces(
         ons = (lab[::s, ::s] == sid) & hor[::s, ::s]
         if int(np.count_nonzero(ons)) * s * s < max(_MIN_SUPPORT_PX, min_px):
             continue
-        coef = _block_plane(ons, z_box[::s, ::s], s, lab.shape, sensor, k_sigma)
-        if coef is None:
+        fit = _block_plane(ons, z_box[::s, ::s], s, lab.shape, sensor, k_sigma, margin_px=2 * window_px + 4)
+        if fit is None:
             continue
-        on = (lab == sid) & val & hor
+        coef, regions = fit
         if coef.size == 0:
-            coef = _plane_fit(on, z_box, sensor)
-        height = _height_over(on, z_box, coef)
-        # each window's mean height and depth over the support's readings in it
-        count = cv2.boxFilter(on.astype(np.float32), -1, win, normalize=False)
-        n = np.maximum(count, 1.0)
-        mean = cv2.boxFilter(height, -1, win, normalize=False) / n
-        zmean = cv2.boxFilter(np.where(on, z_box, 0).astype(np.float32), -1, win, normalize=False) / n
-        limit = k_sigma * sensor.sigma(zmean) / np.sqrt(n) + sensor.step(zmean)
-        # holes (a structured-light camera's sieve of dropouts) are bridged: a window counts
-        # wherever a quarter of it has the support's readings
-        area = cv2.morphologyEx(on.astype(np.uint8), cv2.MORPH_CLOSE, square).astype(bool)
-        area &= count >= window_px * window_px / 4
-        high = cv2.morphologyEx((area & (mean > limit)).astype(np.uint8), cv2.MORPH_OPEN, np.ones((3, 3), np.uint8))
-        k, comp, stats, _ = cv2.connectedComponentsWithStats(high, connectivity=8)
-        if k <= 1:
-            continue
-        flat = area & (np.abs(mean) <= limit)
-        hh, ww = on.shape
-        ring_kernel = np.ones((7, 7), np.uint8)
-        for j in range(1, k):
-            if stats[j, cv2.CC_STAT_AREA] < min_px:
-                continue
-            x, y, bw, bh = (int(v) for v in stats[j, :4])
-            # the piece's box grown by the ring's width: the ring is read there only
-            x0, y0, x1, y1 = max(x - 4, 0), max(y - 4, 0), min(x + bw + 4, ww), min(y + bh + 4, hh)
-            piece = comp[y0:y1, x0:x1] == j
-            ring = cv2.dilate(piece.astype(np.uint8), ring_kernel).astype(bool) & ~piece
-            if flat[y0:y1, x0:x1][ring].sum() < ring_share * max(int(ring.sum()), 1):
-                continue
-            on_here = on[y0:y1, x0:x1]
-            inside_height = height[y0:y1, x0:x1]
-            # its edge where the readings pass half its height: the window's mean reaches past it
-            half = 0.5 * float(np.median(inside_height[piece & on_here]))
-            mine = piece & on_here & (inside_height > half)
-            if int(mine.sum()) < min_px:
-                continue
-            # a step over the ring, not a swell of the surface: a real camera's depth bends by a
-            # few resolutions over a table (lens and baseline calibration), smoothly, so that the
-            # ring of a swell rises with it; an object lying on the table steps up from a flat ring
-            near = ring & on_here
-            around = float(np.median(inside_height[near])) if near.any() else 0.0
-            z_piece = float(np.median(z_box[y0:y1, x0:x1][mine]))
-            if float(np.median(inside_height[mine])) - around < step_resolutions * float(sensor.resolution(z_piece)):
-                continue
-            of_support.append(sid)
-            out[by0 + y0 : by0 + y1, bx0 + x0 : bx0 + x1][mine] = len(of_support)
+            coef = _plane_fit((lab == sid) & val & hor, z_box, sensor)
+        for x0, y0, x1, y1 in regions:
+            sub = (slice(y0, y1), slice(x0, x1))
+            on = (lab[sub] == sid) & val[sub] & hor[sub]
+            height = _height_over(on, z_box[sub], coef, (x0, y0), lab.shape)
+            for (py, px), mine in _pieces(
+                on, z_box[sub], height, sensor, min_px=min_px, k_sigma=k_sigma, window_px=window_px,
+                ring_share=ring_share, step_resolutions=step_resolutions,
+            ):  # fmt: skip
+                of_support.append(sid)
+                out[by0 + y0 + py.start : by0 + y0 + py.stop, bx0 + x0 + px.start : bx0 + x0 + px.stop][mine] = len(
+                    of_support
+                )
     return out, of_support
+
+
+def _pieces(
+    on: NDArray[np.bool_],
+    z_box: NDArray[np.float32],
+    height: NDArray[np.float32],
+    sensor: SensorModel,
+    *,
+    min_px: int,
+    k_sigma: float,
+    window_px: int,
+    ring_share: float,
+    step_resolutions: float,
+) -> list[tuple[tuple[slice, slice], NDArray[np.bool_]]]:
+    """Return the pieces of ``on`` standing above the plane, each as its box (slices) and mask in it.
+
+    ``height``: each reading's height (mm) over the support's plane; the parameters are
+    :func:`raised_pieces`'.
+    """
+    found: list[tuple[tuple[slice, slice], NDArray[np.bool_]]] = []
+    win = (window_px, window_px)
+    square = np.ones(win, np.uint8)
+    # each window's mean height and depth over the support's readings in it
+    count = cv2.boxFilter(on.astype(np.float32), -1, win, normalize=False)
+    n = np.maximum(count, 1.0)
+    mean = cv2.boxFilter(height, -1, win, normalize=False) / n
+    zmean = cv2.boxFilter(np.where(on, z_box, 0).astype(np.float32), -1, win, normalize=False) / n
+    limit = k_sigma * sensor.sigma(zmean) / np.sqrt(n) + sensor.step(zmean)
+    # holes (a structured-light camera's sieve of dropouts) are bridged: a window counts
+    # wherever a quarter of it has the support's readings
+    area = cv2.morphologyEx(on.astype(np.uint8), cv2.MORPH_CLOSE, square).astype(bool)
+    area &= count >= window_px * window_px / 4
+    high = cv2.morphologyEx((area & (mean > limit)).astype(np.uint8), cv2.MORPH_OPEN, np.ones((3, 3), np.uint8))
+    k, comp, stats, _ = cv2.connectedComponentsWithStats(high, connectivity=8)
+    if k <= 1:
+        return found
+    flat = area & (np.abs(mean) <= limit)
+    hh, ww = on.shape
+    ring_kernel = np.ones((7, 7), np.uint8)
+    for j in range(1, k):
+        if stats[j, cv2.CC_STAT_AREA] < min_px:
+            continue
+        x, y, bw, bh = (int(v) for v in stats[j, :4])
+        # the piece's box grown by the ring's width: the ring is read there only
+        x0, y0, x1, y1 = max(x - 4, 0), max(y - 4, 0), min(x + bw + 4, ww), min(y + bh + 4, hh)
+        piece = comp[y0:y1, x0:x1] == j
+        ring = cv2.dilate(piece.astype(np.uint8), ring_kernel).astype(bool) & ~piece
+        if flat[y0:y1, x0:x1][ring].sum() < ring_share * max(int(ring.sum()), 1):
+            continue
+        on_here = on[y0:y1, x0:x1]
+        inside_height = height[y0:y1, x0:x1]
+        # its edge where the readings pass half its height: the window's mean reaches past it
+        half = 0.5 * float(np.median(inside_height[piece & on_here]))
+        mine = piece & on_here & (inside_height > half)
+        if int(mine.sum()) < min_px:
+            continue
+        # a step over the ring, not a swell of the surface: a real camera's depth bends by a
+        # few resolutions over a table (lens and baseline calibration), smoothly, so that the
+        # ring of a swell rises with it; an object lying on the table steps up from a flat ring
+        near = ring & on_here
+        around = float(np.median(inside_height[near])) if near.any() else 0.0
+        z_piece = float(np.median(z_box[y0:y1, x0:x1][mine]))
+        if float(np.median(inside_height[mine])) - around < step_resolutions * float(sensor.resolution(z_piece)):
+            continue
+        found.append(((slice(y0, y1), slice(x0, x1)), mine))
+    return found
 
 
 def _block_plane(
@@ -170,8 +201,9 @@ def _block_plane(
     shape: tuple[int, int],
     sensor: SensorModel,
     k_sigma: float,
-) -> NDArray[np.float64] | None:
-    """Return the support's plane (``1000/Z = a u + b v + c``, box-centred), or None when nothing stands above it.
+    margin_px: int,
+) -> tuple[NDArray[np.float64], list[tuple[int, int, int, int]]] | None:
+    """Return the support's plane (``1000/Z = a u + b v + c``, box-centred) and where to look, or None.
 
     ``ons`` and ``zs``: the support's readings and depths of every ``s``-th pixel of its box of
     ``shape`` (about :data:`_GATE_SAMPLES`); an empty plane when they make too few blocks. They
@@ -185,14 +217,15 @@ def _block_plane(
     on the support pulls that fit up by its share of it, less than its height: when no block
     stands out nothing does (None, and no reading is looked at again, as on most frames).
     Otherwise the plane is fitted again on the blocks within 2.5 MADs of it, then on those
-    within their noise.
+    within their noise, and only the boxes around the blocks standing above that plane
+    (:func:`_regions`, box pixels) are read at full resolution: None when there are none.
     """
     h, w = shape
     gh0, gw0 = ons.shape
     b = max(2, round(math.sqrt(gh0 * gw0 / _GATE_BLOCKS)))
     gh, gw = gh0 // b, gw0 // b
     if gh * gw < 12:
-        return np.zeros(0)  # too few blocks: the caller fits the readings themselves
+        return np.zeros(0), [(0, 0, w, h)]  # too few blocks: the caller fits the readings themselves
     m = ons[: gh * b, : gw * b].astype(np.float32)
     q = np.float32(1000.0) / np.maximum(zs[: gh * b, : gw * b], np.float32(1.0))
     means = cv2.resize(cv2.merge([m, np.multiply(m, q, dtype=np.float32)]), (gw, gh), interpolation=cv2.INTER_AREA)
@@ -229,7 +262,77 @@ def _block_plane(
         coef = _solve3(d.T @ d, d.T @ mq[keep])
         above = 1000.0 / np.maximum(design @ coef, 1e-12) - z
         keep = above < limit
-    return coef
+    regions = _regions(means, coef, b, s, shape, sensor, k_sigma, margin_px)
+    return (coef, regions) if regions else None
+
+
+def _regions(
+    means: NDArray[np.float32],
+    coef: NDArray[np.float64],
+    b: int,
+    s: int,
+    shape: tuple[int, int],
+    sensor: SensorModel,
+    k_sigma: float,
+    margin_px: int,
+) -> list[tuple[int, int, int, int]]:
+    """Return the boxes (x0, y0, x1, y1, exclusive, box pixels) around the blocks standing above the plane.
+
+    ``means``: each block's share of samples on the support and its mean of ``share * 1000/Z``
+    (:func:`_block_plane`), blocks of ``b`` x ``b`` samples every ``s`` pixels. A block with a
+    quarter of its samples on the support stands above the plane when its mean does by its
+    noise (``k_sigma`` of its mean's sigma plus one step) and by one resolution; the blocks
+    next to one are read too (a piece covering part of them), and ``margin_px`` around (the
+    windows and the ring). Overlapping boxes are merged, so that a piece is read whole once.
+    """
+    h, w = shape
+    gh, gw = means.shape[:2]
+    share = means[:, :, 0]
+    part = share >= np.float32(0.25)
+    cell = float(s * b)
+    centre = s * (b - 1) / 2.0
+    mu = (np.arange(gw) * cell + (centre - (w - 1) / 2.0))[None, :]
+    mv = (np.arange(gh) * cell + (centre - (h - 1) / 2.0))[:, None]
+    mq = means[:, :, 1] / np.maximum(share, np.float32(1e-6))
+    z = 1000.0 / np.maximum(mq, 1e-12)
+    z2 = z * z
+    sigma = sensor.sigma_0 + sensor.sigma_2 * z2
+    n = np.maximum(share * (b * b), 1.0)
+    limit = k_sigma * sigma / np.sqrt(n) + (sensor.step_0 + sensor.step_2 * z2)
+    gate = np.maximum(limit, 2.0 * sigma)
+    plane = coef[0] * mu + coef[1] * mv + coef[2]
+    above = 1000.0 / np.maximum(plane, 1e-12) - z
+    stands = (part & (above > gate)).astype(np.uint8)
+    if not stands.any():
+        return []
+    stands = cv2.dilate(stands, np.ones((3, 3), np.uint8))
+    k, _, stats, _ = cv2.connectedComponentsWithStats(stands, connectivity=8)
+    boxes = []
+    for c0, r0, bw, bh in stats[1:k, :4].tolist():
+        # the samples' grid leaves the box's last pixels out of the blocks: a block at the end
+        # reaches the box's end
+        x1 = w if c0 + bw >= gw else (c0 + bw) * s * b + margin_px
+        y1 = h if r0 + bh >= gh else (r0 + bh) * s * b + margin_px
+        boxes.append([max(c0 * s * b - margin_px, 0), max(r0 * s * b - margin_px, 0), min(x1, w), min(y1, h)])
+    return _merged(boxes)
+
+
+def _merged(boxes: list[list[int]]) -> list[tuple[int, int, int, int]]:
+    """Return the boxes (x0, y0, x1, y1, exclusive) with overlapping ones merged into their union's box."""
+    merged = True
+    while merged and len(boxes) > 1:
+        merged = False
+        for i in range(len(boxes)):
+            for j in range(i + 1, len(boxes)):
+                a, c = boxes[i], boxes[j]
+                if a[0] < c[2] and c[0] < a[2] and a[1] < c[3] and c[1] < a[3]:
+                    boxes[i] = [min(a[0], c[0]), min(a[1], c[1]), max(a[2], c[2]), max(a[3], c[3])]
+                    del boxes[j]
+                    merged = True
+                    break
+            if merged:
+                break
+    return [(a[0], a[1], a[2], a[3]) for a in boxes]
 
 
 def _plane_fit(on: NDArray[np.bool_], z_box: NDArray[np.float32], sensor: SensorModel) -> NDArray[np.float64]:
@@ -268,9 +371,19 @@ def _plane_fit(on: NDArray[np.bool_], z_box: NDArray[np.float32], sensor: Sensor
     return coef
 
 
-def _height_over(on: NDArray[np.bool_], z_box: NDArray[np.float32], coef: NDArray[np.float64]) -> NDArray[np.float32]:
-    """Depth (mm) by which each reading of ``on`` lies nearer than the plane ``coef`` (0 elsewhere)."""
-    cu, cv = (on.shape[1] - 1) / 2.0, (on.shape[0] - 1) / 2.0
+def _height_over(
+    on: NDArray[np.bool_],
+    z_box: NDArray[np.float32],
+    coef: NDArray[np.float64],
+    origin: tuple[int, int],
+    shape: tuple[int, int],
+) -> NDArray[np.float32]:
+    """Depth (mm) by which each reading of ``on`` lies nearer than the plane ``coef`` (0 elsewhere).
+
+    ``on`` and ``z_box`` are a part of the support's box of ``shape`` starting at its pixel
+    ``origin`` (x, y): the plane is centred on the box.
+    """
+    cu, cv = (shape[1] - 1) / 2.0 - origin[0], (shape[0] - 1) / 2.0 - origin[1]
     u = (np.arange(on.shape[1], dtype=np.float32) - np.float32(cu))[None, :]
     v = (np.arange(on.shape[0], dtype=np.float32) - np.float32(cv))[:, None]
     plane = np.float32(coef[0]) * u + np.float32(coef[1]) * v + np.float32(coef[2])
