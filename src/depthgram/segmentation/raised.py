@@ -228,7 +228,8 @@ def _block_plane(
         return np.zeros(0), [(0, 0, w, h)]  # too few blocks: the caller fits the readings themselves
     m = ons[: gh * b, : gw * b].astype(np.float32)
     q = np.float32(1000.0) / np.maximum(zs[: gh * b, : gw * b], np.float32(1.0))
-    means = cv2.resize(cv2.merge([m, np.multiply(m, q, dtype=np.float32)]), (gw, gh), interpolation=cv2.INTER_AREA)
+    merged = cv2.merge([m, np.multiply(m, q, dtype=np.float32)])
+    means = np.asarray(cv2.resize(merged, (gw, gh), interpolation=cv2.INTER_AREA), np.float32)
     full = means[:, :, 0] >= np.float32(0.999)
     rows, cols = np.nonzero(full)
     if rows.size < 6:
