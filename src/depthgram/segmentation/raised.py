@@ -22,6 +22,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from depthgram.segmentation._kernels.raised import FEW_BLOCKS, PLANE, block_gate
 from depthgram.segmentation.noise_model import SensorModel
 
 __all__ = ["raised_pieces"]
@@ -35,6 +36,9 @@ _FIT_READINGS = 1000
 #: samples (every s-th reading) and blocks of them the plane and the gate read (:func:`_block_plane`)
 _GATE_SAMPLES = 2500
 _GATE_BLOCKS = 300
+#: fewest samples of the smallest piece when a support is cut on every t-th reading
+#: (:func:`_sampled_pieces`): t is the largest step that leaves it that many
+_PIECE_SAMPLES = 16
 
 
 def raised_pieces(
@@ -100,32 +104,82 @@ def raised_pieces(
         bx1, by1 = min(int(box[2]) + pad + 1, w), min(int(box[3]) + pad + 1, h)
         lab, z_box = labels[by0:by1, bx0:bx1], depth_mm[by0:by1, bx0:bx1]
         val, hor = valid[by0:by1, bx0:bx1], horizontal[by0:by1, bx0:bx1]
-        # the plane and whether anything may stand above it, from blocks of every s-th reading:
-        # a frame whose supports are bare (most) costs a few calls on a few thousand samples
-        s = max(1, round(math.sqrt(lab.size / _GATE_SAMPLES)))
-        # a horizontal pixel has a reading (the orientation classes are facing without one)
-        ons = (lab[::s, ::s] == sid) & hor[::s, ::s]
-        if int(np.count_nonzero(ons)) * s * s < max(_MIN_SUPPORT_PX, min_px):
+        coef = _block_plane(labels, sid, horizontal, depth_mm, (bx0, by0, bx1, by1), sensor, k_sigma, min_px)
+        if coef is None:
             continue
-        fit = _block_plane(ons, z_box[::s, ::s], s, lab.shape, sensor, k_sigma, margin_px=2 * window_px + 4)
-        if fit is None:
-            continue
-        coef, regions = fit
         if coef.size == 0:
             coef = _plane_fit((lab == sid) & val & hor, z_box, sensor)
-        for x0, y0, x1, y1 in regions:
-            sub = (slice(y0, y1), slice(x0, x1))
-            on = (lab[sub] == sid) & val[sub] & hor[sub]
-            height = _height_over(on, z_box[sub], coef, (x0, y0), lab.shape)
-            for (py, px), mine in _pieces(
-                on, z_box[sub], height, sensor, min_px=min_px, k_sigma=k_sigma, window_px=window_px,
+        t = max(1, math.isqrt(min_px // _PIECE_SAMPLES))
+        if t > 1:
+            # cut on every t-th reading (the cut's cost is its pixel count), the pieces' pixels
+            # then taken at full resolution (:func:`_sampled_pieces`)
+            found = _sampled_pieces(
+                lab == sid, val, hor, z_box, coef, t, sensor, min_px=min_px, k_sigma=k_sigma,
                 ring_share=ring_share, step_resolutions=step_resolutions,
-            ):  # fmt: skip
-                of_support.append(sid)
-                out[by0 + y0 + py.start : by0 + y0 + py.stop, bx0 + x0 + px.start : bx0 + x0 + px.stop][mine] = len(
-                    of_support
-                )
+            )  # fmt: skip
+        else:
+            on = (lab == sid) & val & hor
+            height = _height_over(on, z_box, coef, (0, 0), lab.shape)
+            got = _pieces(
+                on, z_box, height, sensor, min_px=min_px, k_sigma=k_sigma, window_px=window_px,
+                ring_share=ring_share, step_resolutions=step_resolutions,
+            )  # fmt: skip
+            found = [(where, mine) for where, mine, _ in got]
+        for (py, px), mine in found:
+            of_support.append(sid)
+            out[by0 + py.start : by0 + py.stop, bx0 + px.start : bx0 + px.stop][mine] = len(of_support)
     return out, of_support
+
+
+def _sampled_pieces(
+    mask: NDArray[np.bool_],
+    val: NDArray[np.bool_],
+    hor: NDArray[np.bool_],
+    z_box: NDArray[np.float32],
+    coef: NDArray[np.float64],
+    t: int,
+    sensor: SensorModel,
+    *,
+    min_px: int,
+    k_sigma: float,
+    ring_share: float,
+    step_resolutions: float,
+) -> list[tuple[tuple[slice, slice], NDArray[np.bool_]]]:
+    """Return the pieces of a support found on every ``t``-th reading of its box, with their full-resolution pixels.
+
+    The cut of :func:`_pieces` on the samples, in windows of 3 x 3 samples (which bridge a
+    structured-light camera's dropouts as the full resolution's 5 x 5 do) and a ring one
+    sample wide; a piece's pixels are then the support's readings of its samples' cells (and
+    one cell around: the samples' edge is a cell off the readings') standing above half its
+    median height. ``mask``, ``val``, ``hor``: the support's pixels, the readings and the
+    horizontal class in its box; the other parameters are :func:`raised_pieces`'.
+    """
+    h, w = mask.shape
+    sub = (slice(None, None, t), slice(None, None, t))
+    on_t = mask[sub] & val[sub] & hor[sub]
+    z_t = z_box[sub]
+    height_t = _height_over(on_t, z_t, coef, (0, 0), (h, w), step=t)
+    got = _pieces(
+        on_t, z_t, height_t, sensor, min_px=max(1, math.ceil(min_px / (t * t))), k_sigma=k_sigma, window_px=3,
+        ring_share=ring_share, step_resolutions=step_resolutions, ring_px=1, open_px=1,
+    )  # fmt: skip
+    found = []
+    cell = np.ones((2 * t + 1, 2 * t + 1), np.uint8)
+    for (py, px), mine_t, half in got:
+        y0, y1 = max(py.start * t - t, 0), min(py.stop * t + t, h)
+        x0, x1 = max(px.start * t - t, 0), min(px.stop * t + t, w)
+        cells = np.zeros((y1 - y0, x1 - x0), np.uint8)
+        grid = np.repeat(np.repeat(mine_t.view(np.uint8), t, axis=0), t, axis=1)
+        oy, ox = py.start * t - y0, px.start * t - x0
+        gh, gw = min(grid.shape[0], cells.shape[0] - oy), min(grid.shape[1], cells.shape[1] - ox)
+        cells[oy : oy + gh, ox : ox + gw] = grid[:gh, :gw]
+        here = (slice(y0, y1), slice(x0, x1))
+        on = mask[here] & val[here] & hor[here]
+        height = _height_over(on, z_box[here], coef, (x0, y0), (h, w))
+        mine = cv2.dilate(cells, cell).view(bool) & on & (height > half)
+        if int(np.count_nonzero(mine)) >= min_px:
+            found.append((here, mine))
+    return found
 
 
 def _pieces(
@@ -139,13 +193,16 @@ def _pieces(
     window_px: int,
     ring_share: float,
     step_resolutions: float,
-) -> list[tuple[tuple[slice, slice], NDArray[np.bool_]]]:
-    """Return the pieces of ``on`` standing above the plane, each as its box (slices) and mask in it.
+    ring_px: int = 3,
+    open_px: int = 3,
+) -> list[tuple[tuple[slice, slice], NDArray[np.bool_], float]]:
+    """Return the pieces of ``on`` standing above the plane: each one's box (slices), mask in it and half height (mm).
 
-    ``height``: each reading's height (mm) over the support's plane; the parameters are
-    :func:`raised_pieces`'.
+    ``height``: each reading's height (mm) over the support's plane; ``ring_px``: the ring's
+    width (px); ``open_px``: the side of the opening that drops slivers of the windows' test
+    (1: none); the other parameters are :func:`raised_pieces`'.
     """
-    found: list[tuple[tuple[slice, slice], NDArray[np.bool_]]] = []
+    found: list[tuple[tuple[slice, slice], NDArray[np.bool_], float]] = []
     win = (window_px, window_px)
     square = np.ones(win, np.uint8)
     # each window's mean height and depth over the support's readings in it
@@ -158,19 +215,22 @@ def _pieces(
     # wherever a quarter of it has the support's readings
     area = cv2.morphologyEx(on.astype(np.uint8), cv2.MORPH_CLOSE, square).astype(bool)
     area &= count >= window_px * window_px / 4
-    high = cv2.morphologyEx((area & (mean > limit)).astype(np.uint8), cv2.MORPH_OPEN, np.ones((3, 3), np.uint8))
+    high = (area & (mean > limit)).view(np.uint8)
+    if open_px > 1:
+        high = np.asarray(cv2.morphologyEx(high, cv2.MORPH_OPEN, np.ones((open_px, open_px), np.uint8)), np.uint8)
     k, comp, stats, _ = cv2.connectedComponentsWithStats(high, connectivity=8)
     if k <= 1:
         return found
     flat = area & (np.abs(mean) <= limit)
     hh, ww = on.shape
-    ring_kernel = np.ones((7, 7), np.uint8)
+    ring_kernel = np.ones((2 * ring_px + 1, 2 * ring_px + 1), np.uint8)
+    grow = ring_px + 1
     for j in range(1, k):
         if stats[j, cv2.CC_STAT_AREA] < min_px:
             continue
         x, y, bw, bh = (int(v) for v in stats[j, :4])
         # the piece's box grown by the ring's width: the ring is read there only
-        x0, y0, x1, y1 = max(x - 4, 0), max(y - 4, 0), min(x + bw + 4, ww), min(y + bh + 4, hh)
+        x0, y0, x1, y1 = max(x - grow, 0), max(y - grow, 0), min(x + bw + grow, ww), min(y + bh + grow, hh)
         piece = comp[y0:y1, x0:x1] == j
         ring = cv2.dilate(piece.astype(np.uint8), ring_kernel).astype(bool) & ~piece
         if flat[y0:y1, x0:x1][ring].sum() < ring_share * max(int(ring.sum()), 1):
@@ -190,150 +250,52 @@ def _pieces(
         z_piece = float(np.median(z_box[y0:y1, x0:x1][mine]))
         if float(np.median(inside_height[mine])) - around < step_resolutions * float(sensor.resolution(z_piece)):
             continue
-        found.append(((slice(y0, y1), slice(x0, x1)), mine))
+        found.append(((slice(y0, y1), slice(x0, x1)), mine, half))
     return found
 
 
 def _block_plane(
-    ons: NDArray[np.bool_],
-    zs: NDArray[np.float32],
-    s: int,
-    shape: tuple[int, int],
+    labels: NDArray[np.int32],
+    sid: int,
+    horizontal: NDArray[np.bool_],
+    depth_mm: NDArray[np.float32],
+    box: tuple[int, int, int, int],
     sensor: SensorModel,
     k_sigma: float,
-    margin_px: int,
-) -> tuple[NDArray[np.float64], list[tuple[int, int, int, int]]] | None:
-    """Return the support's plane (``1000/Z = a u + b v + c``, box-centred) and where to look, or None.
+    min_px: int,
+) -> NDArray[np.float64] | None:
+    """Return the support's plane (``1000/Z = a u + b v + c``, box-centred), or None when nothing stands above it.
 
-    ``ons`` and ``zs``: the support's readings and depths of every ``s``-th pixel of its box of
-    ``shape`` (about :data:`_GATE_SAMPLES`); an empty plane when they make too few blocks. They
-    are averaged over square blocks (about :data:`_GATE_BLOCKS`; OpenCV's area resize), of
-    which those wholly on the support are read: a plane is linear in inverse depth, so such a
-    block's mean inverse depth is the plane's at its centre, and noise averages down by the
-    root of its count. A block standing above the blocks' least-squares plane by ``k_sigma``
-    of its mean's noise plus one quantisation step, and by one of the sensor's resolutions,
-    says something may lie on the support (a piece is kept when it stands three resolutions
-    over its ring, :func:`raised_pieces`, so a block half covered by one stands out). What lies
-    on the support pulls that fit up by its share of it, less than its height: when no block
-    stands out nothing does (None, and no reading is looked at again, as on most frames).
-    Otherwise the plane is fitted again on the blocks within 2.5 MADs of it, then on those
-    within their noise, and only the boxes around the blocks standing above that plane
-    (:func:`_regions`, box pixels) are read at full resolution: None when there are none.
+    ``box``: (x0, y0, x1, y1, exclusive) of the support ``sid``'s pixels, grown by the windows
+    and the ring. Every s-th pixel of it is read (about :data:`_GATE_SAMPLES`): None when too few
+    are the support's horizontal readings, an empty plane when they make too few blocks (the
+    caller fits the readings themselves). They are averaged over square blocks (about
+    :data:`_GATE_BLOCKS`), of which those wholly on the support are read: a plane is linear in
+    inverse depth, so such a block's mean inverse depth is the plane's at its centre, and noise
+    averages down by the root of its count. A block standing above the blocks' least-squares
+    plane by ``k_sigma`` of its mean's noise plus one quantisation step, and by one of the
+    sensor's resolutions, says something may lie on the support (a piece is kept when it
+    stands three resolutions over its ring, :func:`raised_pieces`, so a block half covered by
+    one stands out). What lies on the support pulls that fit up by its share of it, less than
+    its height: when no block stands out nothing does (None, and no reading is looked at
+    again, as on most frames). Otherwise the plane is fitted again on the blocks within 2.5
+    MADs of it (one-sided: nothing on a support lies below it, and what lies on it, a quarter
+    of a table seen from above in dishes and books, tilts a fit toward itself; a symmetric cut
+    of a tilted fit drops the support's own far side as well), then on those within their
+    noise; None when no block stands above that plane either. The loops are compiled
+    (:func:`depthgram.segmentation._kernels.raised.block_gate`): numpy's calls on a few hundred
+    blocks cost more than their arithmetic.
     """
-    h, w = shape
-    gh0, gw0 = ons.shape
-    b = max(2, round(math.sqrt(gh0 * gw0 / _GATE_BLOCKS)))
-    gh, gw = gh0 // b, gw0 // b
-    if gh * gw < 12:
-        return np.zeros(0), [(0, 0, w, h)]  # too few blocks: the caller fits the readings themselves
-    m = ons[: gh * b, : gw * b].astype(np.float32)
-    q = np.float32(1000.0) / np.maximum(zs[: gh * b, : gw * b], np.float32(1.0))
-    merged = cv2.merge([m, np.multiply(m, q, dtype=np.float32)])
-    means = np.asarray(cv2.resize(merged, (gw, gh), interpolation=cv2.INTER_AREA), np.float32)
-    full = means[:, :, 0] >= np.float32(0.999)
-    rows, cols = np.nonzero(full)
-    if rows.size < 6:
-        return None
-    mq = means[rows, cols, 1].astype(np.float64)
-    centre = s * (b - 1) / 2.0
-    mu = cols * float(s * b) + (centre - (w - 1) / 2.0)
-    mv = rows * float(s * b) + (centre - (h - 1) / 2.0)
-    z = 1000.0 / mq
-    # the sensor's sigma and step at each block's depth (SensorModel.sigma, .step and
-    # .resolution written out: their calls cost more than the arithmetic on a few hundred blocks)
-    z2 = z * z
-    sigma = sensor.sigma_0 + sensor.sigma_2 * z2
-    limit = (k_sigma / b) * sigma + (sensor.step_0 + sensor.step_2 * z2)
-    gate = np.maximum(limit, 2.0 * sigma)  # the resolution: the larger of a step and two sigmas
-    design = np.stack([mu, mv, np.ones_like(mu)], axis=1)
-    coef = _solve3(design.T @ design, design.T @ mq)
-    above = 1000.0 / np.maximum(design @ coef, 1e-12) - z
-    if not bool((above > gate).any()):
-        return None
-    mid = _middle(above)
-    spread = 1.4826 * _middle(np.abs(above - mid))
-    # one-sided: nothing on a support lies below it, and what lies on it (a quarter of a table
-    # seen from above may be dishes and books) tilts a fit toward itself; a symmetric cut of a
-    # tilted fit drops the support's own far side as well
-    keep = above - mid < np.maximum(2.5 * spread, limit)
-    for _ in range(_ROUNDS):
-        if int(keep.sum()) < 3:
-            break
-        d = design[keep]
-        coef = _solve3(d.T @ d, d.T @ mq[keep])
-        above = 1000.0 / np.maximum(design @ coef, 1e-12) - z
-        keep = above < limit
-    regions = _regions(means, coef, b, s, shape, sensor, k_sigma, margin_px)
-    return (coef, regions) if regions else None
-
-
-def _regions(
-    means: NDArray[np.float32],
-    coef: NDArray[np.float64],
-    b: int,
-    s: int,
-    shape: tuple[int, int],
-    sensor: SensorModel,
-    k_sigma: float,
-    margin_px: int,
-) -> list[tuple[int, int, int, int]]:
-    """Return the boxes (x0, y0, x1, y1, exclusive, box pixels) around the blocks standing above the plane.
-
-    ``means``: each block's share of samples on the support and its mean of ``share * 1000/Z``
-    (:func:`_block_plane`), blocks of ``b`` x ``b`` samples every ``s`` pixels. A block with a
-    quarter of its samples on the support stands above the plane when its mean does by its
-    noise (``k_sigma`` of its mean's sigma plus one step) and by one resolution; the blocks
-    next to one are read too (a piece covering part of them), and ``margin_px`` around (the
-    windows and the ring). Overlapping boxes are merged, so that a piece is read whole once.
-    """
-    h, w = shape
-    gh, gw = means.shape[:2]
-    share = means[:, :, 0]
-    part = share >= np.float32(0.25)
-    cell = float(s * b)
-    centre = s * (b - 1) / 2.0
-    mu = (np.arange(gw) * cell + (centre - (w - 1) / 2.0))[None, :]
-    mv = (np.arange(gh) * cell + (centre - (h - 1) / 2.0))[:, None]
-    mq = means[:, :, 1] / np.maximum(share, np.float32(1e-6))
-    z = 1000.0 / np.maximum(mq, 1e-12)
-    z2 = z * z
-    sigma = sensor.sigma_0 + sensor.sigma_2 * z2
-    n = np.maximum(share * (b * b), 1.0)
-    limit = k_sigma * sigma / np.sqrt(n) + (sensor.step_0 + sensor.step_2 * z2)
-    gate = np.maximum(limit, 2.0 * sigma)
-    plane = coef[0] * mu + coef[1] * mv + coef[2]
-    above = 1000.0 / np.maximum(plane, 1e-12) - z
-    stands = (part & (above > gate)).astype(np.uint8)
-    if not stands.any():
-        return []
-    stands = cv2.dilate(stands, np.ones((3, 3), np.uint8))
-    k, _, stats, _ = cv2.connectedComponentsWithStats(stands, connectivity=8)
-    boxes = []
-    for c0, r0, bw, bh in stats[1:k, :4].tolist():
-        # the samples' grid leaves the box's last pixels out of the blocks: a block at the end
-        # reaches the box's end
-        x1 = w if c0 + bw >= gw else (c0 + bw) * s * b + margin_px
-        y1 = h if r0 + bh >= gh else (r0 + bh) * s * b + margin_px
-        boxes.append([max(c0 * s * b - margin_px, 0), max(r0 * s * b - margin_px, 0), min(x1, w), min(y1, h)])
-    return _merged(boxes)
-
-
-def _merged(boxes: list[list[int]]) -> list[tuple[int, int, int, int]]:
-    """Return the boxes (x0, y0, x1, y1, exclusive) with overlapping ones merged into their union's box."""
-    merged = True
-    while merged and len(boxes) > 1:
-        merged = False
-        for i in range(len(boxes)):
-            for j in range(i + 1, len(boxes)):
-                a, c = boxes[i], boxes[j]
-                if a[0] < c[2] and c[0] < a[2] and a[1] < c[3] and c[1] < a[3]:
-                    boxes[i] = [min(a[0], c[0]), min(a[1], c[1]), max(a[2], c[2]), max(a[3], c[3])]
-                    del boxes[j]
-                    merged = True
-                    break
-            if merged:
-                break
-    return [(a[0], a[1], a[2], a[3]) for a in boxes]
+    x0, y0, x1, y1 = box
+    s = max(1, round(math.sqrt((x1 - x0) * (y1 - y0) / _GATE_SAMPLES)))
+    noise = np.array([sensor.sigma_0, sensor.sigma_2, sensor.step_0, sensor.step_2], np.float64)
+    status, coef = block_gate(
+        labels, int(sid), horizontal, depth_mm, np.array(box, np.int64), s, float(_GATE_BLOCKS),
+        float(max(_MIN_SUPPORT_PX, min_px)), noise, float(k_sigma), _ROUNDS,
+    )  # fmt: skip
+    if status == PLANE:
+        return coef
+    return np.zeros(0) if status == FEW_BLOCKS else None
 
 
 def _plane_fit(on: NDArray[np.bool_], z_box: NDArray[np.float32], sensor: SensorModel) -> NDArray[np.float64]:
@@ -378,35 +340,17 @@ def _height_over(
     coef: NDArray[np.float64],
     origin: tuple[int, int],
     shape: tuple[int, int],
+    step: int = 1,
 ) -> NDArray[np.float32]:
     """Depth (mm) by which each reading of ``on`` lies nearer than the plane ``coef`` (0 elsewhere).
 
-    ``on`` and ``z_box`` are a part of the support's box of ``shape`` starting at its pixel
-    ``origin`` (x, y): the plane is centred on the box.
+    ``on`` and ``z_box`` are every ``step``-th pixel of a part of the support's box of ``shape``
+    starting at its pixel ``origin`` (x, y): the plane is centred on the box.
     """
     cu, cv = (shape[1] - 1) / 2.0 - origin[0], (shape[0] - 1) / 2.0 - origin[1]
-    u = (np.arange(on.shape[1], dtype=np.float32) - np.float32(cu))[None, :]
-    v = (np.arange(on.shape[0], dtype=np.float32) - np.float32(cv))[:, None]
+    u = (np.arange(0, on.shape[1] * step, step, dtype=np.float32) - np.float32(cu))[None, :]
+    v = (np.arange(0, on.shape[0] * step, step, dtype=np.float32) - np.float32(cv))[:, None]
     plane = np.float32(coef[0]) * u + np.float32(coef[1]) * v + np.float32(coef[2])
     with np.errstate(divide="ignore", invalid="ignore"):
         height = np.float32(1000.0) / plane - z_box
     return np.where(on & (plane > 0), height, np.float32(0.0)).astype(np.float32)
-
-
-def _middle(x: NDArray[np.float64]) -> float:
-    """Return the upper median of ``x`` (one partition: numpy's median call costs more than its work here)."""
-    k = x.size // 2
-    return float(np.partition(x, k)[k])
-
-
-def _solve3(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Solve the 3 x 3 system ``a x = b`` by Cramer's rule (numpy's solve costs more than its work here)."""
-    (a0, a1, a2), (b0, b1, b2), (c0, c1, c2) = a.tolist()
-    y0, y1, y2 = b.tolist()
-    det = a0 * (b1 * c2 - b2 * c1) - a1 * (b0 * c2 - b2 * c0) + a2 * (b0 * c1 - b1 * c0)
-    if abs(det) < 1e-300:
-        return np.zeros(3)
-    x0 = y0 * (b1 * c2 - b2 * c1) - a1 * (y1 * c2 - b2 * y2) + a2 * (y1 * c1 - b1 * y2)
-    x1 = a0 * (y1 * c2 - b2 * y2) - y0 * (b0 * c2 - b2 * c0) + a2 * (b0 * y2 - y1 * c0)
-    x2 = a0 * (b1 * y2 - y1 * c1) - a1 * (b0 * y2 - y1 * c0) + y0 * (b0 * c1 - b1 * c0)
-    return np.array([x0 / det, x1 / det, x2 / det])
