@@ -126,7 +126,7 @@ def raised_pieces(
             # cut on every t-th reading (the cut's cost is its pixel count), the pieces' pixels
             # then taken at full resolution (:func:`_sampled_pieces`)
             found = _sampled_pieces(
-                lab == sid, val, hor, z_box, coef, t, sensor, min_px=min_px, k_sigma=k_sigma,
+                lab, sid, val, hor, z_box, coef, t, sensor, min_px=min_px, k_sigma=k_sigma,
                 ring_share=ring_share, step_resolutions=step_resolutions,
             )  # fmt: skip
         else:
@@ -144,7 +144,8 @@ def raised_pieces(
 
 
 def _sampled_pieces(
-    mask: NDArray[np.bool_],
+    lab: NDArray[np.int32],
+    sid: int,
     val: NDArray[np.bool_],
     hor: NDArray[np.bool_],
     z_box: NDArray[np.float32],
@@ -163,12 +164,12 @@ def _sampled_pieces(
     structured-light camera's dropouts as the full resolution's 5 x 5 do) and a ring one
     sample wide; a piece's pixels are then the support's readings of its samples' cells (and
     one cell around: the samples' edge is a cell off the readings') standing above half its
-    median height. ``mask``, ``val``, ``hor``: the support's pixels, the readings and the
+    median height. ``lab``, ``val``, ``hor``: the labels (the support's are ``sid``), the readings and the
     horizontal class in its box; the other parameters are :func:`raised_pieces`'.
     """
-    h, w = mask.shape
+    h, w = lab.shape
     sub = (slice(None, None, t), slice(None, None, t))
-    on_t = mask[sub] & val[sub] & hor[sub]
+    on_t = (lab[sub] == sid) & val[sub] & hor[sub]
     z_t = z_box[sub]
     height_t = _height_over(on_t, z_t, coef, (0, 0), (h, w), step=t)
     got = _pieces(
@@ -186,7 +187,7 @@ def _sampled_pieces(
         gh, gw = min(grid.shape[0], cells.shape[0] - oy), min(grid.shape[1], cells.shape[1] - ox)
         cells[oy : oy + gh, ox : ox + gw] = grid[:gh, :gw]
         here = (slice(y0, y1), slice(x0, x1))
-        on = mask[here] & val[here] & hor[here]
+        on = (lab[here] == sid) & val[here] & hor[here]
         height = _height_over(on, z_box[here], coef, (x0, y0), (h, w))
         mine = cv2.dilate(cells, cell).view(bool) & on & (height > half)
         if int(np.count_nonzero(mine)) >= min_px:
