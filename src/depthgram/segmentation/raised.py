@@ -235,6 +235,7 @@ def _pieces(
     if k <= 1:
         return found
     flat = area & (np.abs(mean) <= limit)
+    n_on = np.count_nonzero(on)
     hh, ww = on.shape
     ring_kernel = np.ones((2 * ring_px + 1, 2 * ring_px + 1), np.uint8)
     grow = ring_px + 1
@@ -252,7 +253,10 @@ def _pieces(
         # its edge where the readings pass half its height: the window's mean reaches past it
         half = 0.5 * _median(inside_height[piece & on_here])
         mine = piece & on_here & (inside_height > half)
-        if np.count_nonzero(mine) < min_px:
+        n_mine = np.count_nonzero(mine)
+        # more than half of the support standing above its plane is the support: the plane was
+        # fitted on the rest (a robust fit's breakdown point), nothing lies on it
+        if n_mine < min_px or 2 * n_mine > n_on:
             continue
         # a step over the ring, not a swell of the surface: a real camera's depth bends by a
         # few resolutions over a table (lens and baseline calibration), smoothly, so that the
