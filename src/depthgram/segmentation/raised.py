@@ -102,12 +102,13 @@ def raised_pieces(
     Returns
     -------
     pieces : ndarray of int32, shape (H, W)
-        0, or the piece 1..k of each pixel (pixels with a reading only).
+        0, or the piece 1..k of each pixel (pixels with a reading only); read-only when there
+        is no piece.
     of_support : list of int
         The support id each piece was cut from (``of_support[j - 1]`` for piece ``j``).
     """
     h, w = depth_mm.shape
-    out = np.zeros((h, w), np.int32)
+    out: NDArray[np.int32] | None = None  # most frames cut nothing: no frame-sized map then
     of_support: list[int] = []
     pad = window_px + 4
     for sid, box in zip(support_ids, boxes, strict=True):
@@ -139,7 +140,12 @@ def raised_pieces(
             found = [(where, mine) for where, mine, _ in got]
         for (py, px), mine in found:
             of_support.append(sid)
+            if out is None:
+                out = np.zeros((h, w), np.int32)
             out[by0 + py.start : by0 + py.stop, bx0 + px.start : bx0 + px.stop][mine] = len(of_support)
+    if out is None:
+        # read-only zeros without a frame's memory
+        return np.broadcast_to(np.int32(0), (h, w)), of_support
     return out, of_support
 
 
@@ -304,10 +310,10 @@ def _block_plane(
     """
     x0, y0, x1, y1 = box
     s = max(1, round(math.sqrt((x1 - x0) * (y1 - y0) / _GATE_SAMPLES)))
-    noise = np.array([sensor.sigma_0, sensor.sigma_2, sensor.step_0, sensor.step_2], np.float64)
     status, coef = block_gate(
-        labels, int(sid), horizontal, depth_mm, np.array(box, np.int64), s, float(_GATE_BLOCKS),
-        float(max(_MIN_SUPPORT_PX, min_px)), noise, float(k_sigma), _ROUNDS,
+        labels, int(sid), horizontal, depth_mm, x0, y0, x1, y1, s, float(_GATE_BLOCKS),
+        float(max(_MIN_SUPPORT_PX, min_px)), float(sensor.sigma_0), float(sensor.sigma_2), float(sensor.step_0),
+        float(sensor.step_2), float(k_sigma), _ROUNDS,
     )  # fmt: skip
     if status == PLANE:
         return coef

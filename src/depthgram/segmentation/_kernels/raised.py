@@ -63,17 +63,23 @@ def block_gate(
     sid: int,
     horizontal: NDArray[np.bool_],
     depth: NDArray[np.float32],
-    box: NDArray[np.int64],
+    x0: int,
+    y0: int,
+    x1: int,
+    y1: int,
     s: int,
     target_blocks: float,
     min_readings: float,
-    sensor: NDArray[np.float64],
+    sigma_0: float,
+    sigma_2: float,
+    step_0: float,
+    step_2: float,
     k_sigma: float,
     rounds: int,
 ) -> tuple[int, NDArray[np.float64]]:
     # every s-th pixel of the box (x0, y0, x1, y1, exclusive) on the support and horizontal,
-    # averaged over blocks of b x b samples, as raised._block_plane describes
-    x0, y0, x1, y1 = box[0], box[1], box[2], box[3]
+    # averaged over blocks of b x b samples, as raised._block_plane describes (the sensor's
+    # sigma and step are sigma_0 + sigma_2 Z^2 and step_0 + step_2 Z^2, mm)
     h, w = y1 - y0, x1 - x0
     gh0, gw0 = (h + s - 1) // s, (w + s - 1) // s
     n_on = 0
@@ -118,8 +124,8 @@ def block_gate(
         return NOTHING, np.zeros(3)
     mq, mu, mv = mq[:n], mu[:n], mv[:n]
     z = 1000.0 / mq
-    sigma = sensor[0] + sensor[1] * z * z
-    limit = (k_sigma / b) * sigma + (sensor[2] + sensor[3] * z * z)
+    sigma = sigma_0 + sigma_2 * z * z
+    limit = (k_sigma / b) * sigma + (step_0 + step_2 * z * z)
     gate = np.maximum(limit, 2.0 * sigma)
     keep = np.ones(n, np.bool_)
     coef = _fit(mu, mv, mq, keep)
