@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from numpy.testing import assert_allclose
 
 from depthgram.segmentation import evaluate, segment
@@ -19,7 +20,8 @@ def _plane_depth(h: int, w: int) -> np.ndarray:
     return (1000.0 / (1000.0 / 1300.0 + (1000.0 / 700.0 - 1000.0 / 1300.0) * v / (h - 1) + 0.0 * u)).astype(np.float32)
 
 
-def test_a_flat_box_on_a_plane_is_cut_and_a_swell_is_not() -> None:
+@pytest.mark.parametrize("min_px", [30, 200])  # every reading; every 4th (raised._sampled_pieces)
+def test_a_flat_box_on_a_plane_is_cut_and_a_swell_is_not(min_px: int) -> None:
     h, w = 240, 320
     sensor = sensor_model("kinect-v1")
     rng = np.random.default_rng(0)
@@ -34,7 +36,7 @@ def test_a_flat_box_on_a_plane_is_cut_and_a_swell_is_not() -> None:
     depth = depth + rng.normal(0, 1, depth.shape).astype(np.float32) * sensor.sigma(depth).astype(np.float32)
     labels = np.ones((h, w), np.int32)
     ok = np.ones((h, w), bool)
-    pieces, of_support = raised_pieces(labels, depth, ok, ok, [1], BOX, sensor, min_px=200)
+    pieces, of_support = raised_pieces(labels, depth, ok, ok, [1], BOX, sensor, min_px=min_px)
     assert of_support == [1]
     got = pieces == 1
     # the book's pixels, give or take the window's border

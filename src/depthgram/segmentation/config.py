@@ -179,8 +179,11 @@ class SegmentConfig:
         object of its own, however flat (a dish, a book on a table:
         :mod:`depthgram.segmentation.raised`); 0 (the default) leaves the supports whole. 4 finds
         a simulated arm camera's flat objects at 45 degrees (IoU 0.05-0.1 -> 0.84-0.92) with no
-        change on YCB-Video, but costs 1-3 ms a frame in numpy calls, beyond the default's speed
-        budget, so it is asked for (``[segment] raised_sigmas = 4``) until it is compiled.
+        change on YCB-Video. Its gate is compiled and its cut reads every few readings: a frame
+        whose supports are bare (the simulator's ``table``) costs 3-6 % more, but a real
+        camera's supports bend and pass the gate, and 7-Scenes and NVlabs frames cost 9-18 %
+        more, beyond the default's speed budget (5 %), so it is asked for
+        (``[segment] raised_sigmas = 4``).
     max_planes : int
         Most support planes searched for per frame.
     sensor : str

@@ -492,22 +492,27 @@ def _cut_raised(
     tops = [i for c, i in stack.supports if c == HORIZONTAL]
     # a plane facing the camera and as large as a dominant plane is a support too: a table seen
     # from above (an arm camera), where flat things lying on it are the whole scene
-    broad = [i for i in range(1, stack.first_support) if stack.attrs[i - 1, 0] >= cfg.plane_min_area * depth.size]
+    broad = (np.flatnonzero(stack.attrs[: stack.first_support - 1, 0] >= cfg.plane_min_area * depth.size) + 1).tolist()
     if not tops and not broad:
         return stack
-    pieces = np.zeros(depth.shape, np.int32)
+    pieces: NDArray[np.int32] | None = None
     of_support: list[int] = []
-    for ids, fitted in ((tops, classes == HORIZONTAL), (broad, classes == FACING)):
+    for ids, cls in ((tops, HORIZONTAL), (broad, FACING)):
         if not ids:
             continue
         found, of = raised_pieces(
-            labels, depth, ok, fitted, ids, stack.boxes[ids], sensor, min_px=min_px, k_sigma=cfg.raised_sigmas
+            labels, depth, ok, classes == cls, ids, stack.boxes[ids], sensor, min_px=min_px, k_sigma=cfg.raised_sigmas
         )
-        got = found > 0
-        pieces[got] = found[got] + np.int32(len(of_support))
+        if not of:
+            continue  # most supports: nothing cut, no frame-sized work
+        if pieces is None:
+            pieces = found
+        else:
+            got = found > 0
+            pieces[got] = found[got] + np.int32(len(of_support))
         of_support += of
     k = len(of_support)
-    if not k:
+    if pieces is None or not k:
         return stack
     sums, boxes = label_stats_fused(pieces, k, depth, np.zeros(depth.shape, np.float32))
     new = np.arange(stack.next_id, stack.next_id + k)
