@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 from depthgram import Pipeline, read
-from depthgram.frame import Gravity, Intrinsics
+from depthgram.frame import Frame, Gravity, Intrinsics
 from depthgram.scene.kinds import GravityKinds, name_kinds
 from depthgram.segmentation import segment
 from depthgram.sensor import simulate
@@ -186,3 +186,40 @@ def test_gravity_estimated_on_a_hand_held_real_recording(shared_data: Path) -> N
     assert len(errors) == 10
     assert max(errors) <= 8.0, errors
     assert float(np.median(errors)) <= 4.0, errors
+
+
+def _rolled(scene: str, quarter_turns: int) -> tuple[Frame, np.ndarray, tuple[float, float, float], dict[int, str]]:
+    """A simulated frame as a camera rolled by ``quarter_turns`` x 90 degrees sees it: depth, truth, gravity, names."""
+    (sim,) = simulate(scene, 1, size=(320, 240), seed=0)
+    f = sim.frame
+    assert f.intrinsics is not None and sim.gravity is not None
+    k, g = f.intrinsics, np.array(sim.gravity.vector)
+    depth, valid, truth = f.depth, f.valid, sim.instances
+    for _ in range(quarter_turns):
+        # np.rot90: pixel (u, v) -> (v, W - 1 - u), so camera x' = y and y' = -x
+        w = depth.shape[1]
+        depth, valid, truth = (np.ascontiguousarray(np.rot90(a)) for a in (depth, valid, truth))
+        k = Intrinsics(k.fy, k.fx, k.cy, w - 1 - k.cx)
+        g = np.array([g[1], -g[0], g[2]])
+    frame = Frame(depth, valid, intrinsics=k, index=0, name=f"{scene} rolled {90 * quarter_turns}")
+    return frame, truth, (float(g[0]), float(g[1]), float(g[2])), {o.id: o.name for o in sim.truth}
+
+
+@pytest.mark.parametrize("turns", [1, 2, 3])
+@pytest.mark.parametrize("scene", ["table", "chest_walk"])
+def test_a_rolled_camera_finds_the_same_objects_and_kinds_given_gravity(scene: str, turns: int) -> None:
+    # a robot's camera may be mounted on its side or upside down: the segmentation does not
+    # read the image's axes for what it finds, and the kinds follow the gravity it is given
+    upright, truth0, g0, names = _rolled(scene, 0)
+    frame, truth, g, _ = _rolled(scene, turns)
+    for f, t, down in ((upright, truth0, g0), (frame, truth, g)):
+        r = Pipeline(track=False, gravity=down).process(f)
+        kinds: dict[str, set[str]] = {}
+        for o in r.segmentation.objects:
+            if o.area >= _SHARE * f.depth.size:
+                ids, counts = np.unique(t[r.segmentation.labels == o.id], return_counts=True)
+                kinds.setdefault(names.get(int(ids[counts.argmax()]), "?"), set()).add(o.kind)
+        assert "floor" in kinds["floor"], (f.name, kinds)
+        walls = ("back_wall", "left_wall", "right_wall")
+        assert all(kinds.get(n, {"wall"}) <= {"wall"} for n in walls), (f.name, kinds)
+        assert all(kinds.get(n, {"object"}) == {"object"} for n in ("box", "bottle", "ball", "cup")), (f.name, kinds)
