@@ -141,7 +141,9 @@ _EGO_TILES = (8, 6)
 
 #: Standard errors by which the found motion must beat standing still on held-out tiles for
 #: the camera to be read as moving (:func:`_held_out_gain`): one-sided, a still camera is read
-#: as moving on about 1 frame in 40 by chance (Student's t, 47 degrees of freedom).
+#: as moving by chance on at most 1 frame in 40 (Student's t, 47 degrees of freedom; fewer,
+#: since a motion fitted to noise loses on held-out tiles on average). On 7-Scenes every real
+#: frame's gain is 2.56 or more (median 7.6).
 _EGO_STILL_SIGMAS = 2.0
 
 
