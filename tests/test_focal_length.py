@@ -158,6 +158,13 @@ def test_the_command_line_keeps_trusted_intrinsics(tmp_path: Path, capsys: pytes
         assert first["camera"]["intrinsics_source"] == want
     err = capsys.readouterr().err
     assert err.count("disagree with the scene") == 1
+    # batch passes the flag to each recording's pipeline
+    for extra, want in (([], "estimated"), (["--trust-intrinsics"], "given")):
+        out = tmp_path / f"batch{len(extra)}"
+        assert main(["batch", str(folder), "--out", str(out), *fx, *extra, "--quiet", "--workers", "1"]) == 0
+        first = json.loads(next(out.glob("*/scenes.jsonl")).read_text().splitlines()[0])
+        assert first["camera"]["intrinsics_source"] == want
+    capsys.readouterr()
     # info says what describe will use
     for extra, want in (([], "overruling given fx = 928 px"), (["--trust-intrinsics"], "(given)")):
         assert main(["info", str(folder), *fx, *extra]) == 0

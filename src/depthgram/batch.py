@@ -171,8 +171,11 @@ def process_recording(
     labels_part.mkdir()
     t0 = time.perf_counter()
     content = content_hash(spec)  # before reading: a change made while it runs is seen next time
-    pipe = Pipeline(Config.from_dict(config or {}), track=track)
-    src = open_source(spec, **dict(source_options or {}))
+    opts = dict(source_options or {})
+    # --trust-intrinsics rides with the reading options (it is said of the camera they give)
+    check = not opts.pop("trust_intrinsics", False)
+    pipe = Pipeline(Config.from_dict(config or {}), track=track, check_intrinsics=check)
+    src = open_source(spec, **opts)
     frames = objects = 0
     with atomic_open(out / "scenes.jsonl") as fh:
         for result in pipe.run(src):

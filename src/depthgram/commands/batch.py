@@ -43,6 +43,8 @@ def run(args: argparse.Namespace) -> int:
         raise InputError(f"--workers must be at least 1, got {args.workers}")
     cfg = load_config(args)  # with --stills
     opts = reading_options(args)
+    if args.trust_intrinsics:
+        opts["trust_intrinsics"] = True  # the pipeline's, carried with the reading options to each worker
 
     def show(r: BatchResult) -> None:
         if args.quiet:
