@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import json
+from pathlib import Path
+
 import numpy as np
 import pytest
 from numpy.testing import assert_allclose
@@ -103,3 +106,16 @@ def test_a_table_seen_from_straight_above_is_a_support_for_what_lies_on_it() -> 
         o.truth_id: o.iou for o in evaluate(segment(sim.frame).labels, sim.instances, valid=sim.frame.valid).objects
     }
     assert min(before[i] for i in (4, 5)) < 0.5
+
+
+def test_the_command_line_turns_it_on(tmp_path: Path) -> None:
+    # --raised SIGMAS, as [segment] raised_sigmas: the arm camera's flat things become objects
+    from depthgram.cli import main
+
+    counts = []
+    for extra in ([], ["--raised", "4"]):
+        out = tmp_path / f"s{len(extra)}.jsonl"
+        assert main(["describe", "sim:arm_down?frames=1&size=320x240", *extra, "--quiet", "--json", str(out)]) == 0
+        counts.append(len(json.loads(out.read_text().splitlines()[0])["objects"]))
+    assert counts[1] >= counts[0] + 3, counts  # the dish, the book, the screwdriver at least
+    assert main(["describe", "sim:arm_down?frames=1", "--raised", "-1"]) == 2

@@ -203,6 +203,14 @@ def add_config_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--method", default=None, choices=METHODS, help="segmentation method (default from the config: surfaces)"
     )
+    p.add_argument(
+        "--raised",
+        type=float,
+        default=None,
+        metavar="SIGMAS",
+        help="cut what stands above a table or floor by more than SIGMAS of the sensor's noise into objects "
+        "(flat things lying on a table seen from above; [segment] raised_sigmas, default 0: off; try 4)",
+    )
 
 
 def open_input(args: argparse.Namespace) -> Source:
@@ -222,6 +230,12 @@ def load_config(args: argparse.Namespace) -> Config:
     cfg = Config.load(args.config) if getattr(args, "config", None) else Config()
     if getattr(args, "method", None):
         cfg = cfg.replace(segment={"method": args.method})
+    if getattr(args, "raised", None) is not None:
+        if not 0.0 <= args.raised <= 1000.0:
+            from depthgram.errors import InputError
+
+            raise InputError(f"--raised {args.raised:g}: expected sigmas of the sensor's noise in [0, 1000] (0: off)")
+        cfg = cfg.replace(segment={"raised_sigmas": args.raised})
     stills = getattr(args, "stills", None)
     if stills is not None:
         cfg = cfg.with_stills({"yes": True, "no": False}.get(stills, "auto"))
