@@ -488,35 +488,6 @@ def _icp(
 
 
 @njit(cache=True, nogil=True)
-def _solve_spd(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Solve ``a x = b`` for a small symmetric positive definite ``a`` by Cholesky.
-
-    In place of ``np.linalg.solve``, whose call costs some 1 us, 48 times a frame.
-    """
-    n = b.shape[0]
-    c = np.zeros((n, n))
-    for i in range(n):
-        for j in range(i + 1):
-            acc = a[i, j]
-            for k in range(j):
-                acc -= c[i, k] * c[j, k]
-            c[i, j] = math.sqrt(max(acc, 1e-300)) if i == j else acc / c[j, j]
-    y = np.empty(n)
-    for i in range(n):
-        acc = b[i]
-        for k in range(i):
-            acc -= c[i, k] * y[k]
-        y[i] = acc / c[i, i]
-    x = np.empty(n)
-    for i in range(n - 1, -1, -1):
-        acc = y[i]
-        for k in range(i + 1, n):
-            acc -= c[k, i] * x[k]
-        x[i] = acc / c[i, i]
-    return x
-
-
-@njit(cache=True, nogil=True)
 def _held_out_gain(
     tile_ata: NDArray[np.float64],
     tile_atr: NDArray[np.float64],
@@ -568,7 +539,7 @@ def _held_out_gain(
             rest[p, p] += mu
             rhs[p] = -(atr[p] - tile_atr[k, p] + mu * total[p])
         # the last step's increment, found without this tile
-        step = _solve_spd(rest, rhs)
+        step = np.linalg.solve(rest, rhs)
         # ||r + J d||^2 for d = -total (no motion) less for d = step (the others' motion)
         gain = 0.0
         for p in range(6):
