@@ -21,7 +21,8 @@ NOTHING, PLANE, FEW_BLOCKS, FEW_READINGS = 0, 1, 2, 3
 def _fit(
     mu: NDArray[np.float64], mv: NDArray[np.float64], mq: NDArray[np.float64], keep: NDArray[np.bool_]
 ) -> NDArray[np.float64]:
-    # least squares of mq = a mu + b mv + c over the kept blocks, by Cramer's rule
+    # least squares of mq = a mu + b mv + c over the kept blocks: the normal equations' sums in
+    # one pass, solved by LAPACK (numba's np.linalg.solve)
     s_uu = s_uv = s_u = s_vv = s_v = s_1 = s_uq = s_vq = s_q = 0.0
     for i in range(mu.size):
         if keep[i]:
@@ -35,16 +36,10 @@ def _fit(
             s_uq += u * q
             s_vq += v * q
             s_q += q
-    det = s_uu * (s_vv * s_1 - s_v * s_v) - s_uv * (s_uv * s_1 - s_v * s_u) + s_u * (s_uv * s_v - s_vv * s_u)
-    out = np.zeros(3)
-    if abs(det) < 1e-300:
-        return out
-    out[0] = (s_uq * (s_vv * s_1 - s_v * s_v) - s_uv * (s_vq * s_1 - s_v * s_q) + s_u * (s_vq * s_v - s_vv * s_q)) / det
-    out[1] = (s_uu * (s_vq * s_1 - s_v * s_q) - s_uq * (s_uv * s_1 - s_v * s_u) + s_u * (s_uv * s_q - s_vq * s_u)) / det
-    out[2] = (
-        s_uu * (s_vv * s_q - s_vq * s_v) - s_uv * (s_uv * s_q - s_vq * s_u) + s_uq * (s_uv * s_v - s_vv * s_u)
-    ) / det
-    return out
+    a = np.array([[s_uu, s_uv, s_u], [s_uv, s_vv, s_v], [s_u, s_v, s_1]])
+    if abs(np.linalg.det(a)) < 1e-300:  # fewer than three blocks, or all on one line
+        return np.zeros(3)
+    return np.linalg.solve(a, np.array([s_uq, s_vq, s_q]))
 
 
 @njit(cache=True, nogil=True)
