@@ -31,12 +31,16 @@ from numpy.typing import NDArray
 from depthgram.frame import Intrinsics
 from depthgram.segmentation.ransac import find_planes
 
-__all__ = ["FocalCheck", "FocalEstimate", "RecordingFocal", "estimate_focal_length"]
+__all__ = ["CHECKED_SOURCES", "FocalCheck", "FocalEstimate", "RecordingFocal", "estimate_focal_length"]
 
 #: side of the windows of the local plane fits, at a working width of 320 px or less
 _PATCH_PX = 5
 #: the working width: wider frames are read on a grid (a focal length scales with the width)
 _WORK_WIDTH_PX = 320
+#: Intrinsics sources (:data:`depthgram.sources.camera.INTRINSICS_SOURCES`) a person chose, which
+#: :class:`FocalCheck` holds against the scene: a device's, a bag's and the simulator's own
+#: calibration are the frames' by construction.
+CHECKED_SOURCES = ("given", "file", "profile")
 #: given intrinsics whose focal length the scene's differs from by more than this factor are wrong:
 #: the estimate's own error on the recordings with a calibration is under 15 % (YCB-Video +3 to
 #: +10 %, 7-Scenes -14 to -6 %, NVlabs -6 to +6 %, TUM -2 %), a calibration of the wrong camera

@@ -27,7 +27,7 @@ from depthgram.act import plan as plan_scene
 from depthgram.dynamics import FramePixels, Tracker, TrackerConfig
 from depthgram.dynamics import warm_up as warm_up_dynamics
 from depthgram.errors import InputError
-from depthgram.focal_length import FocalCheck, RecordingFocal
+from depthgram.focal_length import CHECKED_SOURCES, FocalCheck, RecordingFocal
 from depthgram.frame import Frame, Gravity, Intrinsics, as_gravity
 from depthgram.scene import TreeConfig, build_tree, to_sentence, tree_to_dict
 from depthgram.scene.kinds import GravityKinds
@@ -293,10 +293,6 @@ def _object_record(o: SceneObject, node: Mapping[str, Any], m: Motion | None) ->
 
 #: Frames between two estimates of the sensor model in a stream.
 _SENSOR_EVERY = 30
-#: Intrinsics sources a person chose, held against the scene (:class:`FocalCheck`): a device's,
-#: a bag's and the simulator's own calibration are the frames' by construction.
-_CHECKED = ("given", "file", "profile")
-
 #: Unrelated successive pairs that, once they are at least half of the pairs seen, make a source
 #: without timestamps a folder of stills (:meth:`Pipeline._still_reason`).
 _STILLS_EVIDENCE = 2
@@ -400,7 +396,7 @@ class Pipeline:
             changes["gravity"] = self.gravity
         if changes:
             frame = dataclasses.replace(frame, **changes)  # type: ignore[arg-type]
-        if self.check_intrinsics and frame.intrinsics is not None and frame.intrinsics_source in _CHECKED:
+        if self.check_intrinsics and frame.intrinsics is not None and frame.intrinsics_source in CHECKED_SOURCES:
             frame = self._checked(frame, frame.intrinsics)
         if frame.intrinsics is None:
             k = self._scene_focal(frame)

@@ -149,8 +149,9 @@ def run(args: argparse.Namespace) -> int:
         src = open_input(args)
     # Same rule as the other commands: no bar in logs or pipes.
     info = src.info(progress=(n or 0) > _PROGRESS_FROM and sys.stderr.isatty())
-    checked = ("given", "file", "profile")
-    chosen = info.intrinsics is not None and info.intrinsics_source in checked and not args.trust_intrinsics
+    from depthgram.focal_length import CHECKED_SOURCES
+
+    chosen = info.intrinsics is not None and info.intrinsics_source in CHECKED_SOURCES and not args.trust_intrinsics
     if (info.intrinsics is None or chosen) and not src.live and info.frames:
         info = _with_scene_focal(info, args)
     if json_to is not None:
