@@ -157,7 +157,14 @@ def _frame_points(depth: NDArray[np.float32], cam: Intrinsics) -> NDArray[np.flo
     zf = depth[::s, ::s]
     ys, xs = np.nonzero(zf > 0)
     z = zf[ys, xs].astype(np.float64)
-    return np.stack([(xs * float(s) - cam.cx) / cam.fx * z, (ys * float(s) - cam.cy) / cam.fy * z, z], axis=1)
+    return _points(xs * float(s), ys * float(s), z, cam)
+
+
+def _points(
+    x: NDArray[np.number], y: NDArray[np.number], z: NDArray[np.float64], cam: Intrinsics
+) -> NDArray[np.float64]:
+    """Return the 3-D points (mm) seen at pixels ``(x, y)`` of the frame at depths ``z`` (mm)."""
+    return np.stack([(x - cam.cx) / cam.fx * z, (y - cam.cy) / cam.fy * z, z], axis=1)
 
 
 def _solve(
@@ -296,7 +303,7 @@ def _outline_beyond(
     if ys.size == 0:
         return 0.0
     z = depth[y0:y1, x0:x1][ys, xs].astype(np.float64)
-    pts = np.stack([((xs + x0) - cam.cx) / cam.fx * z, ((ys + y0) - cam.cy) / cam.fy * z, z], axis=1)
+    pts = _points(xs + x0, ys + y0, z, cam)
     beyond = pts @ planes.normal[j] + planes.offset[j] < -_BENEATH_MM
     return float(np.count_nonzero(beyond)) / ys.size
 
@@ -334,9 +341,7 @@ def _wall_pieces(
         if ys.size < 10:
             continue
         z = zf[ys, xs].astype(np.float64)
-        u = ((xs * st + x0) - cam.cx) / cam.fx
-        v = ((ys * st + y0) - cam.cy) / cam.fy
-        pts = np.stack([u * z, v * z, z], axis=1)
+        pts = _points(xs * st + x0, ys * st + y0, z, cam)
         tol = _TOL_REL * z + _TOL_MM
         for j in walls:
             if np.count_nonzero(np.abs(pts @ planes.normal[j] + planes.offset[j]) <= tol) >= _PLANAR_SHARE * z.size:
