@@ -39,7 +39,7 @@ def test_a_flat_box_on_a_plane_is_cut_and_a_swell_is_not(min_px: int) -> None:
     depth = depth + rng.normal(0, 1, depth.shape).astype(np.float32) * sensor.sigma(depth).astype(np.float32)
     labels = np.ones((h, w), np.int32)
     ok = np.ones((h, w), bool)
-    pieces, of_support = raised_pieces(labels, depth, ok, ok, [1], BOX, sensor, min_px=min_px)
+    pieces, of_support, _ = raised_pieces(labels, depth, ok, ok.view(np.int8), 1, [1], BOX, sensor, min_px=min_px)
     assert of_support == [1]
     got = pieces == 1
     # the book's pixels, give or take the window's border
@@ -56,10 +56,10 @@ def test_nothing_is_cut_from_a_bare_plane_nor_from_what_is_not_a_support() -> No
     depth = plane + rng.normal(0, 1, plane.shape).astype(np.float32) * sensor.sigma(plane).astype(np.float32)
     labels = np.ones((h, w), np.int32)
     ok = np.ones((h, w), bool)
-    pieces, of_support = raised_pieces(labels, depth, ok, ok, [1], BOX, sensor, min_px=200)
+    pieces, of_support, _ = raised_pieces(labels, depth, ok, ok.view(np.int8), 1, [1], BOX, sensor, min_px=200)
     assert of_support == [] and not pieces.any()
     # a support listed but not horizontal anywhere: nothing read
-    pieces, of_support = raised_pieces(labels, depth - 30.0, ok, ~ok, [1], BOX, sensor, min_px=200)
+    pieces, of_support, _ = raised_pieces(labels, depth - 30.0, ok, ok.view(np.int8), 0, [1], BOX, sensor, min_px=200)
     assert of_support == []
 
 

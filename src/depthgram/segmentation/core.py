@@ -18,7 +18,7 @@ from depthgram.segmentation.coplanar import class_window, coplanar_groups
 from depthgram.segmentation.creases import crease_scale_px, crease_state, inverse_depth
 from depthgram.segmentation.histogram import Bands, bin_index, depth_bands, log_bin_counts
 from depthgram.segmentation.label import label_bands_stats, label_stats_fused, relabel
-from depthgram.segmentation.label.stats import COUNT, KEY, N_SUMS, SUM_Z, add_rows
+from depthgram.segmentation.label.stats import COUNT, KEY, N_SUMS, SUM_X, SUM_XZ, SUM_Y, SUM_YZ, SUM_Z, add_rows
 from depthgram.segmentation.noise_model import SensorModel, estimate_sensor, sensor_model
 from depthgram.segmentation.objects import Histogram, SceneObject, Segmentation
 from depthgram.segmentation.openings import merge_openings
@@ -495,29 +495,38 @@ def _cut_raised(
     broad = (np.flatnonzero(stack.attrs[: stack.first_support - 1, 0] >= cfg.plane_min_area * depth.size) + 1).tolist()
     if not tops and not broad:
         return stack
-    pieces: NDArray[np.int32] | None = None
-    of_support: list[int] = []
+    found: list[tuple[NDArray[np.int32], list[int], tuple[int, int, int, int]]] = []
     for ids, cls in ((tops, HORIZONTAL), (broad, FACING)):
-        if not ids:
-            continue
-        found, of = raised_pieces(
-            labels, depth, ok, classes == cls, ids, stack.boxes[ids], sensor, min_px=min_px, k_sigma=cfg.raised_sigmas
-        )
-        if not of:
-            continue  # most supports: nothing cut, no frame-sized work
-        if pieces is None:
-            pieces = found
-        else:
-            got = found > 0
-            pieces[got] = found[got] + np.int32(len(of_support))
+        if ids:
+            got = raised_pieces(
+                labels, depth, ok, classes, cls, ids, stack.boxes[ids], sensor, min_px=min_px, k_sigma=cfg.raised_sigmas
+            )
+            if got[1]:
+                found.append(got)  # most supports: nothing cut, no frame-sized work
+    if not found:
+        return stack
+    # only the box holding every piece is read: the pieces' ids after the last support's
+    x0, y0 = min(b[0] for _, _, b in found), min(b[1] for _, _, b in found)
+    x1, y1 = max(b[2] for _, _, b in found), max(b[3] for _, _, b in found)
+    here = (slice(y0, y1), slice(x0, x1))
+    pieces = np.zeros((y1 - y0, x1 - x0), np.int32)
+    of_support: list[int] = []
+    for map_, of, _ in found:
+        part = map_[here]
+        got_px = part > 0
+        pieces[got_px] = part[got_px] + np.int32(len(of_support))
         of_support += of
     k = len(of_support)
-    if pieces is None or not k:
-        return stack
-    sums, boxes = label_stats_fused(pieces, k, depth, np.zeros(depth.shape, np.float32))
+    sums, boxes = label_stats_fused(pieces, k, depth[here], np.zeros(pieces.shape, np.float32))
+    # the box's sums and boxes in the frame's columns and rows
+    sums[:, SUM_X] += x0 * sums[:, COUNT]
+    sums[:, SUM_XZ] += x0 * sums[:, SUM_Z]
+    sums[:, SUM_Y] += y0 * sums[:, COUNT]
+    sums[:, SUM_YZ] += y0 * sums[:, SUM_Z]
+    boxes[1:] += np.array([x0, y0, x0, y0], np.int64)
     new = np.arange(stack.next_id, stack.next_id + k)
     cut = pieces > 0
-    labels[cut] = pieces[cut] + np.int32(stack.next_id - 1)
+    labels[here][cut] = pieces[cut] + np.int32(stack.next_id - 1)
     total = np.concatenate([stack.sums, sums[1:, :N_SUMS]])
     for j, sid in enumerate(of_support, start=1):
         total[sid] -= sums[j, :N_SUMS]

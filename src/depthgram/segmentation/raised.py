@@ -28,7 +28,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from depthgram.segmentation._kernels.raised import FEW_BLOCKS, PLANE, block_gate
+from depthgram.segmentation._kernels.raised import FEW_BLOCKS, PLANE, block_gate, component_test, window_test
 from depthgram.segmentation.noise_model import SensorModel
 
 __all__ = ["raised_pieces"]
@@ -52,7 +52,8 @@ def raised_pieces(
     labels: NDArray[np.int32],
     depth_mm: NDArray[np.float32],
     valid: NDArray[np.bool_],
-    horizontal: NDArray[np.bool_],
+    classes: NDArray[np.int8],
+    cls: int,
     support_ids: list[int],
     boxes: NDArray[np.int64],
     sensor: SensorModel,
@@ -62,7 +63,7 @@ def raised_pieces(
     window_px: int = 5,
     ring_share: float = 0.6,
     step_resolutions: float = 3.0,
-) -> tuple[NDArray[np.int32], list[int]]:
+) -> tuple[NDArray[np.int32], list[int], tuple[int, int, int, int]]:
     """Find the pieces of each horizontal support that stand above its plane by more than the noise.
 
     A support passes the gate first (:func:`_block_plane`); it is then cut at full resolution
@@ -77,10 +78,13 @@ def raised_pieces(
         Depth (mm).
     valid : ndarray of bool, shape (H, W)
         Pixels with a reading.
-    horizontal : ndarray of bool, shape (H, W)
-        Pixels of the horizontal orientation class: a support's plane is fitted on these.
+    classes : ndarray of int8, shape (H, W)
+        Each pixel's orientation class.
+    cls : int
+        The supports' class (horizontal, or facing for a table seen from above): a support's
+        plane is fitted on its readings of this class, and only they are cut.
     support_ids : list of int
-        The horizontal supports' ids in ``labels``.
+        The supports' ids in ``labels``.
     boxes : ndarray of int, shape (len(support_ids), 4)
         Each support's box (x0, y0, x1, y1, inclusive), holding all its pixels: nothing outside
         is read.
@@ -106,36 +110,38 @@ def raised_pieces(
         is no piece.
     of_support : list of int
         The support id each piece was cut from (``of_support[j - 1]`` for piece ``j``).
+    box : tuple of int
+        (x0, y0, x1, y1, exclusive) holding every piece's pixels: the caller reads no more of
+        ``pieces`` (an empty box when there is no piece).
     """
     h, w = depth_mm.shape
+    x_lo, y_lo, x_hi, y_hi = w, h, 0, 0
     out: NDArray[np.int32] | None = None  # most frames cut nothing: no frame-sized map then
     of_support: list[int] = []
     pad = window_px + 4
-    for sid, box in zip(support_ids, boxes, strict=True):
+    for sid, own in zip(support_ids, boxes, strict=True):
         # the support's own box (inclusive), grown by the windows and the ring: nothing else is read
-        bx0, by0 = max(int(box[0]) - pad, 0), max(int(box[1]) - pad, 0)
-        bx1, by1 = min(int(box[2]) + pad + 1, w), min(int(box[3]) + pad + 1, h)
-        lab, z_box = labels[by0:by1, bx0:bx1], depth_mm[by0:by1, bx0:bx1]
-        val, hor = valid[by0:by1, bx0:bx1], horizontal[by0:by1, bx0:bx1]
-        coef = _block_plane(labels, sid, horizontal, depth_mm, (bx0, by0, bx1, by1), sensor, k_sigma, min_px)
+        bx0, by0 = max(int(own[0]) - pad, 0), max(int(own[1]) - pad, 0)
+        bx1, by1 = min(int(own[2]) + pad + 1, w), min(int(own[3]) + pad + 1, h)
+        coef = _block_plane(labels, sid, classes, cls, depth_mm, (bx0, by0, bx1, by1), sensor, k_sigma, min_px)
         if coef is None:
             continue
         if coef.size == 0:
-            coef = _plane_fit((lab == sid) & val & hor, z_box, sensor)
+            lab, val, hor = labels[by0:by1, bx0:bx1], valid[by0:by1, bx0:bx1], classes[by0:by1, bx0:bx1] == cls
+            coef = _plane_fit((lab == sid) & val & hor, depth_mm[by0:by1, bx0:bx1], sensor)
+        box = (bx0, by0, bx1, by1)
         t = max(1, math.isqrt(min_px // _PIECE_SAMPLES))
         if t > 1:
             # cut on every t-th reading (the cut's cost is its pixel count), the pieces' pixels
             # then taken at full resolution (:func:`_sampled_pieces`)
             found = _sampled_pieces(
-                lab, sid, val, hor, z_box, coef, t, sensor, min_px=min_px, k_sigma=k_sigma,
+                labels, sid, valid, classes, cls, depth_mm, box, coef, t, sensor, min_px=min_px, k_sigma=k_sigma,
                 ring_share=ring_share, step_resolutions=step_resolutions,
             )  # fmt: skip
         else:
-            on = (lab == sid) & val & hor
-            height = _height_over(on, z_box, coef, (0, 0), lab.shape)
             got = _pieces(
-                on, z_box, height, sensor, min_px=min_px, k_sigma=k_sigma, window_px=window_px,
-                ring_share=ring_share, step_resolutions=step_resolutions,
+                labels, sid, valid, classes, cls, depth_mm, box, coef, 1, sensor, min_px=min_px, k_sigma=k_sigma,
+                window_px=window_px, ring_share=ring_share, step_resolutions=step_resolutions,
             )  # fmt: skip
             found = [(where, mine) for where, mine, _ in got]
         for (py, px), mine in found:
@@ -143,18 +149,22 @@ def raised_pieces(
             if out is None:
                 out = np.zeros((h, w), np.int32)
             out[by0 + py.start : by0 + py.stop, bx0 + px.start : bx0 + px.stop][mine] = len(of_support)
+            x_lo, y_lo = min(x_lo, bx0 + px.start), min(y_lo, by0 + py.start)
+            x_hi, y_hi = max(x_hi, bx0 + px.stop), max(y_hi, by0 + py.stop)
     if out is None:
         # read-only zeros without a frame's memory
-        return np.broadcast_to(np.int32(0), (h, w)), of_support
-    return out, of_support
+        return np.broadcast_to(np.int32(0), (h, w)), of_support, (0, 0, 0, 0)
+    return out, of_support, (x_lo, y_lo, x_hi, y_hi)
 
 
 def _sampled_pieces(
-    lab: NDArray[np.int32],
+    labels: NDArray[np.int32],
     sid: int,
-    val: NDArray[np.bool_],
-    hor: NDArray[np.bool_],
-    z_box: NDArray[np.float32],
+    valid: NDArray[np.bool_],
+    classes: NDArray[np.int8],
+    cls: int,
+    depth_mm: NDArray[np.float32],
+    box: tuple[int, int, int, int],
     coef: NDArray[np.float64],
     t: int,
     sensor: SensorModel,
@@ -170,17 +180,15 @@ def _sampled_pieces(
     structured-light camera's dropouts as the full resolution's 5 x 5 do) and a ring one
     sample wide; a piece's pixels are then the support's readings of its samples' cells (and
     one cell around: the samples' edge is a cell off the readings') standing above half its
-    median height. ``lab``, ``val``, ``hor``: the labels (the support's are ``sid``), the readings and the
-    horizontal class in its box; the other parameters are :func:`raised_pieces`'.
+    median height. ``box``: (x0, y0, x1, y1, exclusive) of the support's pixels grown by the
+    windows and the ring, on which ``coef`` is centred; slices of the returned pieces are in
+    it. The other parameters are :func:`raised_pieces`'.
     """
-    h, w = lab.shape
-    sub = (slice(None, None, t), slice(None, None, t))
-    on_t = (lab[sub] == sid) & val[sub] & hor[sub]
-    z_t = z_box[sub]
-    height_t = _height_over(on_t, z_t, coef, (0, 0), (h, w), step=t)
+    bx0, by0, bx1, by1 = box
+    h, w = by1 - by0, bx1 - bx0
     got = _pieces(
-        on_t, z_t, height_t, sensor, min_px=max(1, math.ceil(min_px / (t * t))), k_sigma=k_sigma, window_px=3,
-        ring_share=ring_share, step_resolutions=step_resolutions, ring_px=1, open_px=1,
+        labels, sid, valid, classes, cls, depth_mm, box, coef, t, sensor, min_px=max(1, math.ceil(min_px / (t * t))),
+        k_sigma=k_sigma, window_px=3, ring_share=ring_share, step_resolutions=step_resolutions, ring_px=1, open_px=1,
     )  # fmt: skip
     found = []
     cell = np.ones((2 * t + 1, 2 * t + 1), np.uint8)
@@ -192,19 +200,25 @@ def _sampled_pieces(
         oy, ox = py.start * t - y0, px.start * t - x0
         gh, gw = min(grid.shape[0], cells.shape[0] - oy), min(grid.shape[1], cells.shape[1] - ox)
         cells[oy : oy + gh, ox : ox + gw] = grid[:gh, :gw]
-        here = (slice(y0, y1), slice(x0, x1))
-        on = (lab[here] == sid) & val[here] & hor[here]
-        height = _height_over(on, z_box[here], coef, (x0, y0), (h, w))
+        here = (slice(by0 + y0, by0 + y1), slice(bx0 + x0, bx0 + x1))
+        on = (labels[here] == sid) & valid[here] & (classes[here] == cls)
+        height = _height_over(on, depth_mm[here], coef, (x0, y0), (h, w))
         mine = cv2.dilate(cells, cell).view(bool) & on & (height > half)
         if int(np.count_nonzero(mine)) >= min_px:
-            found.append((here, mine))
+            found.append(((slice(y0, y1), slice(x0, x1)), mine))
     return found
 
 
 def _pieces(
-    on: NDArray[np.bool_],
-    z_box: NDArray[np.float32],
-    height: NDArray[np.float32],
+    labels: NDArray[np.int32],
+    sid: int,
+    valid: NDArray[np.bool_],
+    classes: NDArray[np.int8],
+    cls: int,
+    depth_mm: NDArray[np.float32],
+    box: tuple[int, int, int, int],
+    coef: NDArray[np.float64],
+    t: int,
     sensor: SensorModel,
     *,
     min_px: int,
@@ -215,71 +229,59 @@ def _pieces(
     ring_px: int = 3,
     open_px: int = 3,
 ) -> list[tuple[tuple[slice, slice], NDArray[np.bool_], float]]:
-    """Return the pieces of ``on`` standing above the plane: each one's box (slices), mask in it and half height (mm).
+    """Return the pieces of the support ``sid`` standing above its plane, on every ``t``-th reading of ``box``.
 
-    ``height``: each reading's height (mm) over the support's plane; ``ring_px``: the ring's
-    width (px); ``open_px``: the side of the opening that drops slivers of the windows' test
-    (1: none); the other parameters are :func:`raised_pieces`'.
+    Each piece as its box (slices of the sampled grid), mask in it and half height (mm). A
+    window of ``window_px`` samples stands above the plane where its mean height over the
+    support's readings in it exceeds ``k_sigma`` sensor sigmas over the root of their count
+    plus one quantisation step, and lies on it where its mean is within that; holes (a
+    structured-light camera's sieve of dropouts) are bridged: a window counts wherever a
+    quarter of it has the support's readings and the readings closed by the window cover
+    it. The standing windows' connected pieces of at least ``min_px`` samples are kept when
+    ``ring_share`` of the ring around them (``ring_px`` wide) lies flat on the plane, when
+    they hold at most half the support's readings (more is the support itself: the plane was
+    fitted on the rest, a robust fit's breakdown point), and when their median height stands
+    ``step_resolutions`` of the sensor's resolutions over their ring's: a real camera's depth
+    bends by a few resolutions over a table (lens and baseline calibration), smoothly, so that
+    the ring of a swell rises with it; an object lying on the table steps up from a flat ring.
+    A piece's edge is where the readings pass half its median height (the window's mean
+    reaches past it). ``open_px``: the side of the opening that drops slivers of the windows'
+    test (1: none). The window and piece tests are compiled
+    (:func:`depthgram.segmentation._kernels.raised.window_test`, ``component_test``: numpy
+    and OpenCV's calls on a support's few thousand samples cost more than their
+    arithmetic); the pieces are OpenCV's connected components.
     """
-    found: list[tuple[tuple[slice, slice], NDArray[np.bool_], float]] = []
-    win = (window_px, window_px)
-    square = np.ones(win, np.uint8)
-    # each window's mean height and depth over the support's readings in it
-    count = cv2.boxFilter(on.astype(np.float32), -1, win, normalize=False)
-    n = np.maximum(count, 1.0)
-    mean = cv2.boxFilter(height, -1, win, normalize=False) / n
-    zmean = cv2.boxFilter(np.where(on, z_box, 0).astype(np.float32), -1, win, normalize=False) / n
-    limit = k_sigma * sensor.sigma(zmean) / np.sqrt(n) + sensor.step(zmean)
-    # holes (a structured-light camera's sieve of dropouts) are bridged: a window counts
-    # wherever a quarter of it has the support's readings
-    area = cv2.morphologyEx(on.astype(np.uint8), cv2.MORPH_CLOSE, square).astype(bool)
-    area &= count >= window_px * window_px / 4
-    high = (area & (mean > limit)).view(np.uint8)
+    x0, y0, x1, y1 = box
+    m = sensor
+    on, height, z, high, flat = window_test(
+        labels, int(sid), valid, classes, int(cls), depth_mm, x0, y0, x1, y1, int(t), np.asarray(coef, np.float64),
+        int(window_px), float(m.sigma_0), float(m.sigma_2), float(m.step_0), float(m.step_2), float(k_sigma),
+    )  # fmt: skip
     if open_px > 1:
         high = np.asarray(cv2.morphologyEx(high, cv2.MORPH_OPEN, np.ones((open_px, open_px), np.uint8)), np.uint8)
-    k, comp, stats, _ = cv2.connectedComponentsWithStats(high, connectivity=8)
+    k, cv_comp, cv_stats, _ = cv2.connectedComponentsWithStats(high, connectivity=8)
     if k <= 1:
-        return found
-    flat = area & (np.abs(mean) <= limit)
-    n_on = np.count_nonzero(on)
-    hh, ww = on.shape
-    ring_kernel = np.ones((2 * ring_px + 1, 2 * ring_px + 1), np.uint8)
+        return []
+    comp, stats = np.asarray(cv_comp, np.int32), np.asarray(cv_stats, np.int32)
+    kept, halves = component_test(
+        comp, stats, on, flat, height, z, int(min_px), int(ring_px), float(ring_share), float(step_resolutions),
+        float(m.sigma_0), float(m.sigma_2), float(m.step_0), float(m.step_2),
+    )  # fmt: skip
+    found: list[tuple[tuple[slice, slice], NDArray[np.bool_], float]] = []
+    hh, ww = comp.shape
     grow = ring_px + 1
-    big = np.flatnonzero(stats[1:k, cv2.CC_STAT_AREA] >= min_px) + 1
-    for j, where in zip(big.tolist(), stats[big, :4].tolist(), strict=True):
-        x, y, bw, bh = (int(v) for v in where)
-        # the piece's box grown by the ring's width: the ring is read there only
-        x0, y0, x1, y1 = max(x - grow, 0), max(y - grow, 0), min(x + bw + grow, ww), min(y + bh + grow, hh)
-        piece = comp[y0:y1, x0:x1] == j
-        ring = cv2.dilate(piece.view(np.uint8), ring_kernel).view(bool) & ~piece
-        if np.count_nonzero(flat[y0:y1, x0:x1] & ring) < ring_share * max(int(np.count_nonzero(ring)), 1):
-            continue
-        on_here = on[y0:y1, x0:x1]
-        inside_height = height[y0:y1, x0:x1]
-        # its edge where the readings pass half its height: the window's mean reaches past it
-        half = 0.5 * _median(inside_height[piece & on_here])
-        mine = piece & on_here & (inside_height > half)
-        n_mine = np.count_nonzero(mine)
-        # more than half of the support standing above its plane is the support: the plane was
-        # fitted on the rest (a robust fit's breakdown point), nothing lies on it
-        if n_mine < min_px or 2 * n_mine > n_on:
-            continue
-        # a step over the ring, not a swell of the surface: a real camera's depth bends by a
-        # few resolutions over a table (lens and baseline calibration), smoothly, so that the
-        # ring of a swell rises with it; an object lying on the table steps up from a flat ring
-        near = ring & on_here
-        around = _median(inside_height[near]) if near.any() else 0.0
-        z_piece = _median(z_box[y0:y1, x0:x1][mine])
-        if _median(inside_height[mine]) - around < step_resolutions * float(sensor.resolution(z_piece)):
-            continue
-        found.append(((slice(y0, y1), slice(x0, x1)), mine, half))
+    for j, half in zip(kept.tolist(), halves.tolist(), strict=True):
+        x, y, bw, bh = (int(v) for v in stats[j, :4])
+        where = (slice(max(y - grow, 0), min(y + bh + grow, hh)), slice(max(x - grow, 0), min(x + bw + grow, ww)))
+        found.append((where, (comp[where] == j) & on[where] & (height[where] > half), half))
     return found
 
 
 def _block_plane(
     labels: NDArray[np.int32],
     sid: int,
-    horizontal: NDArray[np.bool_],
+    classes: NDArray[np.int8],
+    cls: int,
     depth_mm: NDArray[np.float32],
     box: tuple[int, int, int, int],
     sensor: SensorModel,
@@ -311,7 +313,7 @@ def _block_plane(
     x0, y0, x1, y1 = box
     s = max(1, round(math.sqrt((x1 - x0) * (y1 - y0) / _GATE_SAMPLES)))
     status, coef = block_gate(
-        labels, int(sid), horizontal, depth_mm, x0, y0, x1, y1, s, float(_GATE_BLOCKS),
+        labels, int(sid), classes, int(cls), depth_mm, x0, y0, x1, y1, s, float(_GATE_BLOCKS),
         float(max(_MIN_SUPPORT_PX, min_px)), float(sensor.sigma_0), float(sensor.sigma_2), float(sensor.step_0),
         float(sensor.step_2), float(k_sigma), _ROUNDS,
     )  # fmt: skip
@@ -376,12 +378,3 @@ def _height_over(
     with np.errstate(divide="ignore", invalid="ignore"):
         height = np.float32(1000.0) / plane - z_box
     return np.where(on & (plane > 0), height, np.float32(0.0)).astype(np.float32)
-
-
-def _median(x: NDArray[np.float32]) -> float:
-    """Return the median of ``x`` (non-empty) by one partition: numpy's median call costs more than its work here."""
-    k = x.size // 2
-    if x.size % 2:
-        return float(np.partition(x, k)[k])
-    p = np.partition(x, (k - 1, k))
-    return 0.5 * (float(p[k - 1]) + float(p[k]))

@@ -1,8 +1,9 @@
-"""The compiled gate of the raised pass (:mod:`depthgram.segmentation.raised`): a support's block plane.
+"""The compiled passes of the raised pass (:mod:`depthgram.segmentation.raised`): the gate, the windows, the pieces.
 
-numpy does the same on a few hundred blocks in about eighty calls, whose overhead (100-130 us a
-support) was most of the pass on a frame whose supports are bare; the loops below read the
-samples once and fit the blocks in a few microseconds.
+numpy and OpenCV do the same on a support's few hundred blocks or few thousand samples in some
+eighty calls, whose overhead was most of the pass: the gate (a support's block plane), the
+windows' test and the pieces' tests below read their samples once. The pieces themselves are
+OpenCV's connected components, between the two.
 """
 
 from __future__ import annotations
@@ -56,7 +57,8 @@ def _above(
 def block_gate(
     labels: NDArray[np.int32],
     sid: int,
-    horizontal: NDArray[np.bool_],
+    classes: NDArray[np.int8],
+    cls: int,
     depth: NDArray[np.float32],
     x0: int,
     y0: int,
@@ -72,7 +74,7 @@ def block_gate(
     k_sigma: float,
     rounds: int,
 ) -> tuple[int, NDArray[np.float64]]:
-    # every s-th pixel of the box (x0, y0, x1, y1, exclusive) on the support and horizontal,
+    # every s-th pixel of the box (x0, y0, x1, y1, exclusive) on the support and of its class cls,
     # averaged over blocks of b x b samples, as raised._block_plane describes (the sensor's
     # sigma and step are sigma_0 + sigma_2 Z^2 and step_0 + step_2 Z^2, mm)
     h, w = y1 - y0, x1 - x0
@@ -81,7 +83,7 @@ def block_gate(
     for i in range(gh0):
         for j in range(gw0):
             y, x = y0 + i * s, x0 + j * s
-            if labels[y, x] == sid and horizontal[y, x]:
+            if labels[y, x] == sid and classes[y, x] == cls:
                 n_on += 1
     if n_on * s * s < min_readings:
         return FEW_READINGS, np.zeros(3)
@@ -104,7 +106,7 @@ def block_gate(
                 y = y0 + i * s
                 for j in range(c * b, c * b + b):
                     x = x0 + j * s
-                    if labels[y, x] != sid or not horizontal[y, x]:
+                    if labels[y, x] != sid or classes[y, x] != cls:
                         full = False
                         break
                     acc += np.float32(1000.0) / max(depth[y, x], np.float32(1.0))
@@ -138,3 +140,188 @@ def block_gate(
         above = _above(coef, mu, mv, z)
         keep = above < limit
     return (PLANE if np.any(above > gate) else NOTHING), coef
+
+
+@njit(cache=True, nogil=True)
+def _reflect(i: int, n: int) -> int:
+    # OpenCV's default border (BORDER_REFLECT_101: ... 2 1 | 0 1 2 ... n-2 n-1 | n-2 ...)
+    if i < 0:
+        return min(-i, n - 1)
+    if i >= n:
+        return max(2 * n - 2 - i, 0)
+    return i
+
+
+@njit(cache=True, nogil=True)
+def window_test(
+    labels: NDArray[np.int32],
+    sid: int,
+    valid: NDArray[np.bool_],
+    classes: NDArray[np.int8],
+    cls: int,
+    depth: NDArray[np.float32],
+    x0: int,
+    y0: int,
+    x1: int,
+    y1: int,
+    t: int,
+    coef: NDArray[np.float64],
+    window: int,
+    sigma_0: float,
+    sigma_2: float,
+    step_0: float,
+    step_2: float,
+    k_sigma: float,
+) -> tuple[NDArray[np.bool_], NDArray[np.float32], NDArray[np.float32], NDArray[np.uint8], NDArray[np.bool_]]:
+    # raised._pieces' window test on every t-th pixel of the box (x0, y0, x1, y1, exclusive):
+    # the support's readings (on), their height over the box-centred plane coef and depth, and
+    # which windows stand above the plane (high) or lie on it (flat), as raised._windows says
+    h, w = y1 - y0, x1 - x0
+    gh, gw = (h + t - 1) // t, (w + t - 1) // t
+    on = np.zeros((gh, gw), np.bool_)
+    height = np.zeros((gh, gw), np.float32)
+    z = np.zeros((gh, gw), np.float32)
+    cu, cv = (w - 1) / 2.0, (h - 1) / 2.0
+    for i in range(gh):
+        y = y0 + i * t
+        for j in range(gw):
+            x = x0 + j * t
+            if labels[y, x] == sid and valid[y, x] and classes[y, x] == cls:
+                plane = coef[0] * (j * t - cu) + coef[1] * (i * t - cv) + coef[2]
+                on[i, j] = True
+                z[i, j] = depth[y, x]
+                if plane > 0:
+                    height[i, j] = np.float32(1000.0 / plane) - depth[y, x]
+    r = window // 2
+    # the support's readings closed by the window (its dropouts bridged); OpenCV's morphology
+    # leaves the border out of both passes
+    grown = np.zeros((gh, gw), np.bool_)
+    for i in range(gh):
+        for j in range(gw):
+            hit = False
+            for a in range(max(i - r, 0), min(i + r + 1, gh)):
+                for b in range(max(j - r, 0), min(j + r + 1, gw)):
+                    if on[a, b]:
+                        hit = True
+                        break
+                if hit:
+                    break
+            grown[i, j] = hit
+    high = np.zeros((gh, gw), np.uint8)
+    flat = np.zeros((gh, gw), np.bool_)
+    least = window * window / 4.0
+    for i in range(gh):
+        for j in range(gw):
+            closed = True
+            count = 0.0
+            s_h = 0.0
+            s_z = 0.0
+            for a in range(i - r, i + r + 1):
+                ra = _reflect(a, gh)
+                inside_a = 0 <= a < gh
+                for b in range(j - r, j + r + 1):
+                    rb = _reflect(b, gw)
+                    if inside_a and 0 <= b < gw and not grown[a, b]:
+                        closed = False
+                    if on[ra, rb]:
+                        count += 1.0
+                        s_z += z[ra, rb]
+                    s_h += height[ra, rb]
+            if not closed or count < least:
+                continue
+            n = max(count, 1.0)
+            mean = s_h / n
+            zm = s_z / n
+            limit = k_sigma * (sigma_0 + sigma_2 * zm * zm) / math.sqrt(n) + step_0 + step_2 * zm * zm
+            if mean > limit:
+                high[i, j] = 1
+            elif abs(mean) <= limit:
+                flat[i, j] = True
+    return on, height, z, high, flat
+
+
+@njit(cache=True, nogil=True)
+def component_test(
+    comp: NDArray[np.int32],
+    stats: NDArray[np.int32],
+    on: NDArray[np.bool_],
+    flat: NDArray[np.bool_],
+    height: NDArray[np.float32],
+    z: NDArray[np.float32],
+    min_n: int,
+    ring_px: int,
+    ring_share: float,
+    step_resolutions: float,
+    sigma_0: float,
+    sigma_2: float,
+    step_0: float,
+    step_2: float,
+) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
+    # raised._pieces' tests of each connected piece of the high windows (comp, stats: OpenCV's
+    # connectedComponentsWithStats): its ring flat, fewer than half the support's readings, and
+    # a step of step_resolutions over its ring; the kept pieces' ids and half heights
+    hh, ww = comp.shape
+    n_on = 0
+    for i in range(hh):
+        for j in range(ww):
+            if on[i, j]:
+                n_on += 1
+    kept = np.zeros(stats.shape[0], np.int64)
+    halves = np.zeros(stats.shape[0], np.float64)
+    n_kept = 0
+    grow = ring_px + 1
+    for k in range(1, stats.shape[0]):
+        if stats[k, 4] < min_n:
+            continue
+        x, y, bw, bh = stats[k, 0], stats[k, 1], stats[k, 2], stats[k, 3]
+        ya, yb = max(y - grow, 0), min(y + bh + grow, hh)
+        xa, xb = max(x - grow, 0), min(x + bw + grow, ww)
+        size = (yb - ya) * (xb - xa)
+        inside = np.empty(size, np.float32)
+        near = np.empty(size, np.float32)
+        n_in = n_near = n_ring = n_flat = 0
+        for i in range(ya, yb):
+            for j in range(xa, xb):
+                if comp[i, j] == k:
+                    if on[i, j]:
+                        inside[n_in] = height[i, j]
+                        n_in += 1
+                    continue
+                ring = False
+                for a in range(max(i - ring_px, ya), min(i + ring_px + 1, yb)):
+                    for b in range(max(j - ring_px, xa), min(j + ring_px + 1, xb)):
+                        if comp[a, b] == k:
+                            ring = True
+                            break
+                    if ring:
+                        break
+                if ring:
+                    n_ring += 1
+                    if flat[i, j]:
+                        n_flat += 1
+                    if on[i, j]:
+                        near[n_near] = height[i, j]
+                        n_near += 1
+        if n_flat < ring_share * max(n_ring, 1) or n_in == 0:
+            continue
+        half = 0.5 * np.median(inside[:n_in])
+        mine = np.empty(n_in, np.float32)
+        zs = np.empty(n_in, np.float32)
+        n_mine = 0
+        for i in range(ya, yb):
+            for j in range(xa, xb):
+                if comp[i, j] == k and on[i, j] and height[i, j] > half:
+                    mine[n_mine] = height[i, j]
+                    zs[n_mine] = z[i, j]
+                    n_mine += 1
+        if n_mine < min_n or 2 * n_mine > n_on:
+            continue
+        around = np.median(near[:n_near]) if n_near > 0 else 0.0
+        zp = np.median(zs[:n_mine])
+        resolution = max(step_0 + step_2 * zp * zp, 2.0 * (sigma_0 + sigma_2 * zp * zp))
+        if np.median(mine[:n_mine]) - around < step_resolutions * resolution:
+            continue
+        kept[n_kept] = k
+        halves[n_kept] = half
+        n_kept += 1
+    return kept[:n_kept], halves[:n_kept]
