@@ -13,22 +13,41 @@ plane). A piece is kept when it is large enough to be an object and the ring aro
 the plane: the edge of a non-planar support (a ramp, a sagging cloth) rises gradually and has no
 flat ring, an object lying on the table has one.
 
-The cost is kept to what a default can pay: a compiled gate fits the plane on block means of
-every few readings and lets a support through only when a block stands above it; the cut then
-reads every t-th reading, t the largest step at which its window of 3 x 3 samples fits inside
-the smallest piece (``min_px``, :data:`_PIECE_SAMPLES`), and only the pieces it keeps are read
-at full resolution.
+The steps, for each support (:func:`raised_pieces`):
+
+1. **The gate** (:func:`_block_plane`) fits the plane on block means of every few readings and
+   lets a support through only when a block stands above it: on most frames nothing lies on a
+   support and nothing more is read.
+2. **The cut** reads every t-th reading, t the largest step at which its window of 3 x 3 samples
+   fits inside the smallest piece (``min_px``, :data:`_PIECE_SAMPLES`): the cut's cost is its
+   pixel count. A window stands above the plane where its mean height over the support's
+   readings in it exceeds ``k_sigma`` sensor sigmas over the root of their count plus one
+   quantisation step, and lies on it where its mean is within that. Holes (a structured-light
+   camera's sieve of dropouts) are bridged: a window counts wherever a quarter of it has the
+   support's readings and the readings closed by the window cover it.
+3. **The pieces**, the standing windows' 8-connected sets, are kept when they are large enough,
+   when ``ring_share`` of the ring around them (one sample wide) lies flat on the plane, when
+   they hold at most half the support's readings (more is the support itself: the plane was
+   fitted on the rest, a robust fit's breakdown point), and when their median height stands
+   ``step_resolutions`` of the sensor's resolutions over their ring's: a real camera's depth
+   bends by a few resolutions over a table (lens and baseline calibration), smoothly, so that
+   the ring of a swell rises with it; an object lying on the table steps up from a flat ring.
+4. **A kept piece's pixels** are then the support's readings of its samples' cells and one cell
+   around (the samples' edge is a cell off the readings') standing above half its median height
+   (the window's mean reaches past its edge), when they are still ``min_px``.
+
+Steps 2-4 run compiled (:mod:`depthgram.segmentation._kernels.raised`: numpy's and OpenCV's
+calls on a support's few thousand samples cost more than their arithmetic).
 """
 
 from __future__ import annotations
 
 import math
 
-import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from depthgram.segmentation._kernels.raised import FEW_BLOCKS, PLANE, block_gate, component_test, window_test
+from depthgram.segmentation._kernels.raised import FEW_BLOCKS, PLANE, block_gate, cut, paint
 from depthgram.segmentation.noise_model import SensorModel
 
 __all__ = ["raised_pieces"]
@@ -42,9 +61,12 @@ _FIT_READINGS = 1000
 #: samples (every s-th reading) and blocks of them the plane and the gate read (:func:`_block_plane`)
 _GATE_SAMPLES = 2500
 _GATE_BLOCKS = 300
-#: samples of the smallest piece when a support is cut on every t-th reading
-#: (:func:`_sampled_pieces`): t is the largest step at which the cut's window of 3 x 3 samples
-#: (3t px a side) still fits inside a piece of ``min_px`` pixels
+#: the cut's window and ring (samples), and how far (px) a support's box is grown to hold them at
+#: its edge
+_WINDOW, _RING, _PAD_PX = 3, 1, 9
+#: samples of the smallest piece when a support is cut on every t-th reading: t is the largest
+#: step at which the cut's window of 3 x 3 samples (3t px a side) still fits inside a piece of
+#: ``min_px`` pixels
 _PIECE_SAMPLES = 9
 
 
@@ -60,15 +82,13 @@ def raised_pieces(
     *,
     min_px: int,
     k_sigma: float = 4.0,
-    window_px: int = 5,
     ring_share: float = 0.6,
     step_resolutions: float = 3.0,
 ) -> tuple[NDArray[np.int32], list[int], tuple[int, int, int, int]]:
     """Find the pieces of each horizontal support that stand above its plane by more than the noise.
 
-    A support passes the gate first (:func:`_block_plane`); it is then cut at full resolution
-    when ``min_px`` is small (under :data:`_PIECE_SAMPLES` x 4 pixels), on every t-th reading
-    otherwise (:func:`_sampled_pieces`).
+    The gate, the cut on every t-th reading, the pieces' tests and their pixels, as the module
+    says.
 
     Parameters
     ----------
@@ -94,9 +114,6 @@ def raised_pieces(
         Fewest pixels of a piece.
     k_sigma : float
         How many of the window mean's noise sigmas a piece must stand above the plane.
-    window_px : int
-        Side of the window (px) whose readings are averaged at full resolution (3 x 3 samples
-        on every t-th reading).
     ring_share : float
         Least share (0..1) of the ring around a piece lying on the plane.
     step_resolutions : float
@@ -118,163 +135,39 @@ def raised_pieces(
     x_lo, y_lo, x_hi, y_hi = w, h, 0, 0
     out: NDArray[np.int32] | None = None  # most frames cut nothing: no frame-sized map then
     of_support: list[int] = []
-    pad = window_px + 4
     for sid, own in zip(support_ids, boxes, strict=True):
         # the support's own box (inclusive), grown by the windows and the ring: nothing else is read
-        bx0, by0 = max(int(own[0]) - pad, 0), max(int(own[1]) - pad, 0)
-        bx1, by1 = min(int(own[2]) + pad + 1, w), min(int(own[3]) + pad + 1, h)
+        bx0, by0 = max(int(own[0]) - _PAD_PX, 0), max(int(own[1]) - _PAD_PX, 0)
+        bx1, by1 = min(int(own[2]) + _PAD_PX + 1, w), min(int(own[3]) + _PAD_PX + 1, h)
         coef = _block_plane(labels, sid, classes, cls, depth_mm, (bx0, by0, bx1, by1), sensor, k_sigma, min_px)
         if coef is None:
             continue
         if coef.size == 0:
             lab, val, hor = labels[by0:by1, bx0:bx1], valid[by0:by1, bx0:bx1], classes[by0:by1, bx0:bx1] == cls
             coef = _plane_fit((lab == sid) & val & hor, depth_mm[by0:by1, bx0:bx1], sensor)
-        box = (bx0, by0, bx1, by1)
         t = max(1, math.isqrt(min_px // _PIECE_SAMPLES))
-        if t > 1:
-            # cut on every t-th reading (the cut's cost is its pixel count), the pieces' pixels
-            # then taken at full resolution (:func:`_sampled_pieces`)
-            found = _sampled_pieces(
-                labels, sid, valid, classes, cls, depth_mm, box, coef, t, sensor, min_px=min_px, k_sigma=k_sigma,
-                ring_share=ring_share, step_resolutions=step_resolutions,
-            )  # fmt: skip
-        else:
-            got = _pieces(
-                labels, sid, valid, classes, cls, depth_mm, box, coef, 1, sensor, min_px=min_px, k_sigma=k_sigma,
-                window_px=window_px, ring_share=ring_share, step_resolutions=step_resolutions,
-            )  # fmt: skip
-            found = [(where, mine) for where, mine, _ in got]
-        for (py, px), mine in found:
-            of_support.append(sid)
-            if out is None:
-                out = np.zeros((h, w), np.int32)
-            out[by0 + py.start : by0 + py.stop, bx0 + px.start : bx0 + px.stop][mine] = len(of_support)
-            x_lo, y_lo = min(x_lo, bx0 + px.start), min(y_lo, by0 + py.start)
-            x_hi, y_hi = max(x_hi, bx0 + px.stop), max(y_hi, by0 + py.stop)
+        m = sensor
+        comp, pieces, kept, halves, on, height = cut(
+            labels, int(sid), valid, classes, int(cls), depth_mm, bx0, by0, bx1, by1, t, np.asarray(coef, np.float64),
+            _WINDOW, _RING, float(m.sigma_0), float(m.sigma_2), float(m.step_0), float(m.step_2), float(k_sigma),
+            max(1, math.ceil(min_px / (t * t))), float(ring_share), float(step_resolutions),
+        )  # fmt: skip
+        if not kept.size:
+            continue
+        if out is None:
+            out = np.zeros((h, w), np.int32)
+        n, placed = paint(
+            out, labels, int(sid), valid, classes, int(cls), depth_mm, bx0, by0, bx1, by1, t,
+            np.asarray(coef, np.float64), comp, pieces, kept, halves, on, height, int(min_px), len(of_support) + 1,
+        )  # fmt: skip
+        of_support += [sid] * n
+        if n:
+            x_lo, y_lo = min(x_lo, int(placed[:, 0].min())), min(y_lo, int(placed[:, 1].min()))
+            x_hi, y_hi = max(x_hi, int(placed[:, 2].max())), max(y_hi, int(placed[:, 3].max()))
     if out is None:
         # read-only zeros without a frame's memory
         return np.broadcast_to(np.int32(0), (h, w)), of_support, (0, 0, 0, 0)
     return out, of_support, (x_lo, y_lo, x_hi, y_hi)
-
-
-def _sampled_pieces(
-    labels: NDArray[np.int32],
-    sid: int,
-    valid: NDArray[np.bool_],
-    classes: NDArray[np.int8],
-    cls: int,
-    depth_mm: NDArray[np.float32],
-    box: tuple[int, int, int, int],
-    coef: NDArray[np.float64],
-    t: int,
-    sensor: SensorModel,
-    *,
-    min_px: int,
-    k_sigma: float,
-    ring_share: float,
-    step_resolutions: float,
-) -> list[tuple[tuple[slice, slice], NDArray[np.bool_]]]:
-    """Return the pieces of a support found on every ``t``-th reading of its box, with their full-resolution pixels.
-
-    The cut of :func:`_pieces` on the samples, in windows of 3 x 3 samples (which bridge a
-    structured-light camera's dropouts as the full resolution's 5 x 5 do) and a ring one
-    sample wide; a piece's pixels are then the support's readings of its samples' cells (and
-    one cell around: the samples' edge is a cell off the readings') standing above half its
-    median height. ``box``: (x0, y0, x1, y1, exclusive) of the support's pixels grown by the
-    windows and the ring, on which ``coef`` is centred; slices of the returned pieces are in
-    it. The other parameters are :func:`raised_pieces`'.
-    """
-    bx0, by0, bx1, by1 = box
-    h, w = by1 - by0, bx1 - bx0
-    got = _pieces(
-        labels, sid, valid, classes, cls, depth_mm, box, coef, t, sensor, min_px=max(1, math.ceil(min_px / (t * t))),
-        k_sigma=k_sigma, window_px=3, ring_share=ring_share, step_resolutions=step_resolutions, ring_px=1, open_px=1,
-    )  # fmt: skip
-    found = []
-    cell = np.ones((2 * t + 1, 2 * t + 1), np.uint8)
-    for (py, px), mine_t, half in got:
-        y0, y1 = max(py.start * t - t, 0), min(py.stop * t + t, h)
-        x0, x1 = max(px.start * t - t, 0), min(px.stop * t + t, w)
-        cells = np.zeros((y1 - y0, x1 - x0), np.uint8)
-        grid = np.repeat(np.repeat(mine_t.view(np.uint8), t, axis=0), t, axis=1)
-        oy, ox = py.start * t - y0, px.start * t - x0
-        gh, gw = min(grid.shape[0], cells.shape[0] - oy), min(grid.shape[1], cells.shape[1] - ox)
-        cells[oy : oy + gh, ox : ox + gw] = grid[:gh, :gw]
-        here = (slice(by0 + y0, by0 + y1), slice(bx0 + x0, bx0 + x1))
-        on = (labels[here] == sid) & valid[here] & (classes[here] == cls)
-        height = _height_over(on, depth_mm[here], coef, (x0, y0), (h, w))
-        mine = cv2.dilate(cells, cell).view(bool) & on & (height > half)
-        if int(np.count_nonzero(mine)) >= min_px:
-            found.append(((slice(y0, y1), slice(x0, x1)), mine))
-    return found
-
-
-def _pieces(
-    labels: NDArray[np.int32],
-    sid: int,
-    valid: NDArray[np.bool_],
-    classes: NDArray[np.int8],
-    cls: int,
-    depth_mm: NDArray[np.float32],
-    box: tuple[int, int, int, int],
-    coef: NDArray[np.float64],
-    t: int,
-    sensor: SensorModel,
-    *,
-    min_px: int,
-    k_sigma: float,
-    window_px: int,
-    ring_share: float,
-    step_resolutions: float,
-    ring_px: int = 3,
-    open_px: int = 3,
-) -> list[tuple[tuple[slice, slice], NDArray[np.bool_], float]]:
-    """Return the pieces of the support ``sid`` standing above its plane, on every ``t``-th reading of ``box``.
-
-    Each piece as its box (slices of the sampled grid), mask in it and half height (mm). A
-    window of ``window_px`` samples stands above the plane where its mean height over the
-    support's readings in it exceeds ``k_sigma`` sensor sigmas over the root of their count
-    plus one quantisation step, and lies on it where its mean is within that; holes (a
-    structured-light camera's sieve of dropouts) are bridged: a window counts wherever a
-    quarter of it has the support's readings and the readings closed by the window cover
-    it. The standing windows' connected pieces of at least ``min_px`` samples are kept when
-    ``ring_share`` of the ring around them (``ring_px`` wide) lies flat on the plane, when
-    they hold at most half the support's readings (more is the support itself: the plane was
-    fitted on the rest, a robust fit's breakdown point), and when their median height stands
-    ``step_resolutions`` of the sensor's resolutions over their ring's: a real camera's depth
-    bends by a few resolutions over a table (lens and baseline calibration), smoothly, so that
-    the ring of a swell rises with it; an object lying on the table steps up from a flat ring.
-    A piece's edge is where the readings pass half its median height (the window's mean
-    reaches past it). ``open_px``: the side of the opening that drops slivers of the windows'
-    test (1: none). The window and piece tests are compiled
-    (:func:`depthgram.segmentation._kernels.raised.window_test`, ``component_test``: numpy
-    and OpenCV's calls on a support's few thousand samples cost more than their
-    arithmetic); the pieces are OpenCV's connected components.
-    """
-    x0, y0, x1, y1 = box
-    m = sensor
-    on, height, z, high, flat = window_test(
-        labels, int(sid), valid, classes, int(cls), depth_mm, x0, y0, x1, y1, int(t), np.asarray(coef, np.float64),
-        int(window_px), float(m.sigma_0), float(m.sigma_2), float(m.step_0), float(m.step_2), float(k_sigma),
-    )  # fmt: skip
-    if open_px > 1:
-        high = np.asarray(cv2.morphologyEx(high, cv2.MORPH_OPEN, np.ones((open_px, open_px), np.uint8)), np.uint8)
-    k, cv_comp, cv_stats, _ = cv2.connectedComponentsWithStats(high, connectivity=8)
-    if k <= 1:
-        return []
-    comp, stats = np.asarray(cv_comp, np.int32), np.asarray(cv_stats, np.int32)
-    kept, halves = component_test(
-        comp, stats, on, flat, height, z, int(min_px), int(ring_px), float(ring_share), float(step_resolutions),
-        float(m.sigma_0), float(m.sigma_2), float(m.step_0), float(m.step_2),
-    )  # fmt: skip
-    found: list[tuple[tuple[slice, slice], NDArray[np.bool_], float]] = []
-    hh, ww = comp.shape
-    grow = ring_px + 1
-    for j, half in zip(kept.tolist(), halves.tolist(), strict=True):
-        x, y, bw, bh = (int(v) for v in stats[j, :4])
-        where = (slice(max(y - grow, 0), min(y + bh + grow, hh)), slice(max(x - grow, 0), min(x + bw + grow, ww)))
-        found.append((where, (comp[where] == j) & on[where] & (height[where] > half), half))
-    return found
 
 
 def _block_plane(
@@ -356,25 +249,3 @@ def _plane_fit(on: NDArray[np.bool_], z_box: NDArray[np.float32], sensor: Sensor
             break
         keep = new_keep
     return coef
-
-
-def _height_over(
-    on: NDArray[np.bool_],
-    z_box: NDArray[np.float32],
-    coef: NDArray[np.float64],
-    origin: tuple[int, int],
-    shape: tuple[int, int],
-    step: int = 1,
-) -> NDArray[np.float32]:
-    """Depth (mm) by which each reading of ``on`` lies nearer than the plane ``coef`` (0 elsewhere).
-
-    ``on`` and ``z_box`` are every ``step``-th pixel of a part of the support's box of ``shape``
-    starting at its pixel ``origin`` (x, y): the plane is centred on the box.
-    """
-    cu, cv = (shape[1] - 1) / 2.0 - origin[0], (shape[0] - 1) / 2.0 - origin[1]
-    u = (np.arange(0, on.shape[1] * step, step, dtype=np.float32) - np.float32(cu))[None, :]
-    v = (np.arange(0, on.shape[0] * step, step, dtype=np.float32) - np.float32(cv))[:, None]
-    plane = np.float32(coef[0]) * u + np.float32(coef[1]) * v + np.float32(coef[2])
-    with np.errstate(divide="ignore", invalid="ignore"):
-        height = np.float32(1000.0) / plane - z_box
-    return np.where(on & (plane > 0), height, np.float32(0.0)).astype(np.float32)

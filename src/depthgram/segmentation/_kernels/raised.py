@@ -1,9 +1,9 @@
 """The compiled passes of the raised pass (:mod:`depthgram.segmentation.raised`): the gate, the windows, the pieces.
 
 numpy and OpenCV do the same on a support's few hundred blocks or few thousand samples in some
-eighty calls, whose overhead was most of the pass: the gate (a support's block plane), the
-windows' test and the pieces' tests below read their samples once. The pieces themselves are
-OpenCV's connected components, between the two.
+eighty calls, whose overhead was most of the pass: the gate (a support's block plane), the cut
+(the windows' test, their 8-connected pieces by the project's union-find, the pieces' tests) and
+the kept pieces' pixels below each read their samples once.
 """
 
 from __future__ import annotations
@@ -13,6 +13,9 @@ import math
 import numpy as np
 from numba import njit
 from numpy.typing import NDArray
+
+from depthgram.segmentation.label.stats import COUNT, N_COLUMNS
+from depthgram.segmentation.label.unionfind import resolve, union
 
 #: what :func:`block_gate` says of a support
 NOTHING, PLANE, FEW_BLOCKS, FEW_READINGS = 0, 1, 2, 3
@@ -173,7 +176,7 @@ def window_test(
     step_2: float,
     k_sigma: float,
 ) -> tuple[NDArray[np.bool_], NDArray[np.float32], NDArray[np.float32], NDArray[np.uint8], NDArray[np.bool_]]:
-    # raised._pieces' window test on every t-th pixel of the box (x0, y0, x1, y1, exclusive):
+    # raised's window test (its step 2) on every t-th pixel of the box (x0, y0, x1, y1, exclusive):
     # the support's readings (on), their height over the box-centred plane coef and depth, and
     # which windows stand above the plane (high) or lie on it (flat), as raised._windows says
     h, w = y1 - y0, x1 - x0
@@ -243,7 +246,9 @@ def window_test(
 @njit(cache=True, nogil=True)
 def component_test(
     comp: NDArray[np.int32],
-    stats: NDArray[np.int32],
+    n_comp: int,
+    boxes: NDArray[np.int64],
+    counts: NDArray[np.float64],
     on: NDArray[np.bool_],
     flat: NDArray[np.bool_],
     height: NDArray[np.float32],
@@ -257,25 +262,25 @@ def component_test(
     step_0: float,
     step_2: float,
 ) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
-    # raised._pieces' tests of each connected piece of the high windows (comp, stats: OpenCV's
-    # connectedComponentsWithStats): its ring flat, fewer than half the support's readings, and
-    # a step of step_resolutions over its ring; the kept pieces' ids and half heights
+    # raised's tests of each connected piece (its step 3) of the high windows (comp, n_comp,
+    # and their inclusive boxes and sample counts, as components gives them): its ring flat,
+    # fewer than half the support's readings, and a step of step_resolutions over its ring;
+    # the kept pieces' ids and half heights
     hh, ww = comp.shape
     n_on = 0
     for i in range(hh):
         for j in range(ww):
             if on[i, j]:
                 n_on += 1
-    kept = np.zeros(stats.shape[0], np.int64)
-    halves = np.zeros(stats.shape[0], np.float64)
+    kept = np.zeros(n_comp + 1, np.int64)
+    halves = np.zeros(n_comp + 1, np.float64)
     n_kept = 0
     grow = ring_px + 1
-    for k in range(1, stats.shape[0]):
-        if stats[k, 4] < min_n:
+    for k in range(1, n_comp + 1):
+        if counts[k] < min_n:
             continue
-        x, y, bw, bh = stats[k, 0], stats[k, 1], stats[k, 2], stats[k, 3]
-        ya, yb = max(y - grow, 0), min(y + bh + grow, hh)
-        xa, xb = max(x - grow, 0), min(x + bw + grow, ww)
+        ya, yb = max(boxes[k, 1] - grow, 0), min(boxes[k, 3] + 1 + grow, hh)
+        xa, xb = max(boxes[k, 0] - grow, 0), min(boxes[k, 2] + 1 + grow, ww)
         size = (yb - ya) * (xb - xa)
         inside = np.empty(size, np.float32)
         near = np.empty(size, np.float32)
@@ -325,3 +330,197 @@ def component_test(
         halves[n_kept] = half
         n_kept += 1
     return kept[:n_kept], halves[:n_kept]
+
+
+@njit(cache=True, nogil=True)
+def components(
+    high: NDArray[np.uint8], min_n: int
+) -> tuple[NDArray[np.int32], int, NDArray[np.int64], NDArray[np.float64]]:
+    # the 8-connected pieces of high of at least min_n samples, numbered in raster order of their
+    # first sample (the project's two-pass labeller; OpenCV's labeller wakes its thread pool,
+    # which costs more than labelling a few thousand samples): labels, count, inclusive boxes
+    # and the statistics table (COUNT: samples)
+    hh, ww = high.shape
+    lab = np.zeros((hh, ww), np.int32)
+    parent = np.arange(hh * ww // 2 + 2, dtype=np.int32)
+    nxt = 1
+    for i in range(hh):
+        for j in range(ww):
+            if not high[i, j]:
+                continue
+            here = 0
+            for a, b in ((i, j - 1), (i - 1, j - 1), (i - 1, j), (i - 1, j + 1)):
+                if a >= 0 and 0 <= b < ww and lab[a, b]:
+                    here = lab[a, b] if here == 0 else union(parent, here, lab[a, b])
+            if here == 0:
+                if nxt == parent.size:
+                    grown = np.arange(2 * parent.size, dtype=np.int32)
+                    grown[: parent.size] = parent
+                    parent = grown
+                here = nxt
+                nxt += 1
+            lab[i, j] = here
+    psums = np.zeros((nxt, N_COLUMNS), np.float64)
+    pboxes = np.empty((nxt, 4), np.int32)
+    pboxes[:, 0] = ww
+    pboxes[:, 1] = hh
+    pboxes[:, 2] = -1
+    pboxes[:, 3] = -1
+    for i in range(hh):
+        for j in range(ww):
+            p = lab[i, j]
+            if p:
+                psums[p, COUNT] += 1.0
+                pboxes[p, 0] = min(pboxes[p, 0], j)
+                pboxes[p, 1] = min(pboxes[p, 1], i)
+                pboxes[p, 2] = max(pboxes[p, 2], j)
+                pboxes[p, 3] = max(pboxes[p, 3], i)
+    lab, n, sums, boxes = resolve(lab, parent, nxt, psums, pboxes, min_n, True)
+    return lab, n, boxes, sums
+
+
+@njit(cache=True, nogil=True)
+def cut(
+    labels: NDArray[np.int32],
+    sid: int,
+    valid: NDArray[np.bool_],
+    classes: NDArray[np.int8],
+    cls: int,
+    depth: NDArray[np.float32],
+    x0: int,
+    y0: int,
+    x1: int,
+    y1: int,
+    t: int,
+    coef: NDArray[np.float64],
+    window: int,
+    ring_px: int,
+    sigma_0: float,
+    sigma_2: float,
+    step_0: float,
+    step_2: float,
+    k_sigma: float,
+    min_n: int,
+    ring_share: float,
+    step_resolutions: float,
+) -> tuple[
+    NDArray[np.int32], NDArray[np.int64], NDArray[np.int64], NDArray[np.float64], NDArray[np.bool_], NDArray[np.float32]
+]:
+    # raised's steps 2 and 3 in one call: the windows' test on every t-th reading of the box, the
+    # standing windows' pieces, and their tests; the pieces' labels and inclusive boxes on the
+    # samples, the kept ones with their half heights, and the support's samples and heights
+    on, height, z, high, flat = window_test(
+        labels,
+        sid,
+        valid,
+        classes,
+        cls,
+        depth,
+        x0,
+        y0,
+        x1,
+        y1,
+        t,
+        coef,
+        window,
+        sigma_0,
+        sigma_2,
+        step_0,
+        step_2,
+        k_sigma,
+    )
+    comp, n, boxes, sums = components(high, min_n)
+    kept, halves = component_test(
+        comp,
+        n,
+        boxes,
+        sums[:, COUNT],
+        on,
+        flat,
+        height,
+        z,
+        min_n,
+        ring_px,
+        ring_share,
+        step_resolutions,
+        sigma_0,
+        sigma_2,
+        step_0,
+        step_2,
+    )
+    return comp, boxes, kept, halves, on, height
+
+
+@njit(cache=True, nogil=True)
+def paint(
+    out: NDArray[np.int32],
+    labels: NDArray[np.int32],
+    sid: int,
+    valid: NDArray[np.bool_],
+    classes: NDArray[np.int8],
+    cls: int,
+    depth: NDArray[np.float32],
+    x0: int,
+    y0: int,
+    x1: int,
+    y1: int,
+    t: int,
+    coef: NDArray[np.float64],
+    comp: NDArray[np.int32],
+    boxes: NDArray[np.int64],
+    kept: NDArray[np.int64],
+    halves: NDArray[np.float64],
+    on: NDArray[np.bool_],
+    height: NDArray[np.float32],
+    min_px: int,
+    first: int,
+) -> tuple[int, NDArray[np.int64]]:
+    # the kept pieces' pixels, as raised's step 4 says, written into out as first,
+    # first + 1, ... (a later piece over an earlier one); how many had min_px pixels and their
+    # boxes (x0, y0, x1, y1, exclusive, in the frame). The heights are float32, as numpy's
+    # arithmetic on the frame's float32 depth gives them.
+    h, w = y1 - y0, x1 - x0
+    cu = np.float32((w - 1) / 2.0)
+    cv = np.float32((h - 1) / 2.0)
+    a, b, c = np.float32(coef[0]), np.float32(coef[1]), np.float32(coef[2])
+    placed = np.zeros((kept.size, 4), np.int64)
+    n = 0
+    for p in range(kept.size):
+        j, half = kept[p], halves[p]
+        gx0, gy0, gx1, gy1 = boxes[j, 0], boxes[j, 1], boxes[j, 2], boxes[j, 3]
+        ya, yb = max(gy0 * t - t, 0), min(gy1 * t + 2 * t, h)
+        xa, xb = max(gx0 * t - t, 0), min(gx1 * t + 2 * t, w)
+        mine = np.zeros((yb - ya, xb - xa), np.bool_)
+        count = 0
+        for y in range(ya, yb):
+            i = y // t
+            v = np.float32(y) - cv
+            for x in range(xa, xb):
+                yy, xx = y0 + y, x0 + x
+                if labels[yy, xx] != sid or not valid[yy, xx] or classes[yy, xx] != cls:
+                    continue
+                # within one sample of the piece's samples standing above half its height
+                jj = x // t
+                near = False
+                for r in range(max(i - 1, gy0), min(i + 1, gy1) + 1):
+                    for s in range(max(jj - 1, gx0), min(jj + 1, gx1) + 1):
+                        if comp[r, s] == j and on[r, s] and height[r, s] > half:
+                            near = True
+                            break
+                    if near:
+                        break
+                if not near:
+                    continue
+                plane = a * (np.float32(x) - cu) + b * v + c
+                if plane > 0 and np.float32(1000.0) / plane - depth[yy, xx] > half:
+                    mine[y - ya, x - xa] = True
+                    count += 1
+        if count < min_px:
+            continue
+        for y in range(ya, yb):
+            for x in range(xa, xb):
+                if mine[y - ya, x - xa]:
+                    out[y0 + y, x0 + x] = first + n
+        placed[n, 0], placed[n, 1], placed[n, 2], placed[n, 3] = x0 + xa, y0 + ya, x0 + xb, y0 + yb
+        n += 1
+    return n, placed[:n]
