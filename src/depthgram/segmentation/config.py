@@ -218,10 +218,10 @@ class SegmentConfig:
         on that grid) finds the creases of objects standing side by side. A structured-light
         camera spreads each bend over its 7-9 px correlation window, and a time-of-flight
         camera's noise hides a right-angled inside corner at that span beyond 4 mm of noise:
-        1/64 (10 px at 640 px) cuts a box lying on a flat block from it (issue 28: YCB-Video
-        0002 from 31 to 51 of 60 objects found), but also a chair's seat from its back and a
-        cup's inside from its wall on other recordings, so it is asked for (``[segment]
-        crease_span_fraction = 0.015625``; docs/design-notes.md).
+        1/64 (10 px at 640 px) cuts a box lying on a flat block from it (issue 28, YCB-Video
+        0002), but also a chair's seat from its back and a cup's inside from its wall on other
+        recordings, so it is asked for (``[segment] crease_span_fraction = 0.015625``; the
+        figures are in docs/design-notes.md).
     work_width_px : int
         ``surfaces``: a frame wider than this is segmented on every ``step``-th pixel and row
         (``step = ceil(width / work_width_px)``: 2 at 640 px, 4 at 1280 px) and each pixel then
