@@ -19,7 +19,8 @@ found when its IoU >= 0.5. Pictures of the first frame of each run (depth, truth
 ``--out`` (default ``benchmarks/out/user_camera/``).
 
 Run: ``PYTHONPATH=src .venv/bin/python benchmarks/user_camera.py`` (``--only NAME``: folders whose
-name holds NAME).
+name holds NAME; ``--config TOML``: settings given to every run, e.g. ``[segment]
+crease_span_fraction = 0.015625``).
 """
 
 from __future__ import annotations
@@ -108,15 +109,15 @@ def _picture(
     cv2.imwrite(str(path), np.hstack([d, colour(truth), colour(labels)]))
 
 
-def score_folder(folder: Path, name: str, out: Path | None) -> list[Score]:
-    """Every run of one labelled folder."""
+def score_folder(folder: Path, name: str, out: Path | None, extra: list[str] | None = None) -> list[Score]:
+    """Every run of one labelled folder (``extra``: options added to every run, e.g. ``--config``)."""
     depths = sorted(folder.glob("*-depth.png"))
     truths = [cv2.imread(str(p).replace("-depth.png", "-label.png"), cv2.IMREAD_UNCHANGED) for p in depths]
     raw = [cv2.imread(str(p), cv2.IMREAD_UNCHANGED).astype(np.float32) / 10.0 for p in depths]
     scores = []
     for run, options in RUNS.items():
         with tempfile.TemporaryDirectory() as tmp:
-            seconds, stderr = describe(folder, options, Path(tmp))
+            seconds, stderr = describe(folder, [*options, *(extra or [])], Path(tmp))
             maps = _label_maps(Path(tmp), len(depths))
         ious = []
         for depth, truth, labels in zip(raw, truths, maps, strict=True):
@@ -159,7 +160,9 @@ def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--only", default="", help="folders whose name holds this text")
     p.add_argument("--out", type=Path, default=OUT, help="folder for the pictures")
+    p.add_argument("--config", type=Path, help="pipeline settings (TOML) given to every run")
     args = p.parse_args(argv)
+    extra = ["--config", str(args.config)] if args.config else []
     scores: list[Score] = []
     for name in FOLDERS:
         folder = SHARED / name
@@ -168,7 +171,7 @@ def main(argv: list[str] | None = None) -> int:
         if not folder.is_dir():
             print(f"skipped {name}: not found at {folder}")
             continue
-        scores += score_folder(folder, name, args.out)
+        scores += score_folder(folder, name, args.out, extra)
     if not scores:
         print(f"no labelled YCB-Video folder found under {SHARED}")
         return 0

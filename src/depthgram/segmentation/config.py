@@ -56,6 +56,7 @@ _RANGES = (
     ("join_resolutions", 0.5, 100.0),
     ("max_slope_deg", 0.0, 89.0),
     ("crease_deg", 1.0, 89.0),
+    ("crease_span_fraction", 1e-3, 0.1),
     ("raised_sigmas", 0.0, 1000.0),
     ("far_mm", 100.0, 1e6),
 )
@@ -210,6 +211,17 @@ class SegmentConfig:
         or a cart seen at an angle), and the two become one ``compound``; larger vertical
         supports stay walls. 0 turns this off. On ``crossing`` the cart's side face was its own
         ``wall`` track as it entered and left (2 identity switches, 0 with the fold).
+    crease_span_fraction : float
+        ``surfaces``: half-span of the concave creases' second difference, as a share of the
+        width of the frame segmented (its sampling grid: 320 px for a 640 px frame), at least
+        2 px (:func:`depthgram.segmentation.creases.crease_scale_px`). The default 1/128 (2 px
+        on that grid) finds the creases of objects standing side by side. A structured-light
+        camera spreads each bend over its 7-9 px correlation window, and a time-of-flight
+        camera's noise hides a right-angled inside corner at that span beyond 4 mm of noise:
+        1/64 (10 px at 640 px) cuts a box lying on a flat block from it (issue 28, YCB-Video
+        0002), but also a chair's seat from its back and a cup's inside from its wall on other
+        recordings, so it is asked for (``[segment] crease_span_fraction = 0.015625``; the
+        figures are in docs/design-notes.md).
     work_width_px : int
         ``surfaces``: a frame wider than this is segmented on every ``step``-th pixel and row
         (``step = ceil(width / work_width_px)``: 2 at 640 px, 4 at 1280 px) and each pixel then
@@ -262,6 +274,7 @@ class SegmentConfig:
     join_resolutions: float = 2.5
     max_slope_deg: float = 70.0
     crease_deg: float = 40.0
+    crease_span_fraction: float = 1.0 / 128.0
     work_width_px: int = 320
     far_mm: float = 20_000.0
 
@@ -502,11 +515,21 @@ class SurfaceConfig:
     join_resolutions: float
     max_slope_deg: float
     crease_deg: float
+    crease_span_fraction: float
     raised_sigmas: float
     work_width_px: int
 
     FLAT: ClassVar[dict[str, str]] = {
-        n: n for n in ("sensor", "join_resolutions", "max_slope_deg", "crease_deg", "raised_sigmas", "work_width_px")
+        n: n
+        for n in (
+            "sensor",
+            "join_resolutions",
+            "max_slope_deg",
+            "crease_deg",
+            "crease_span_fraction",
+            "raised_sigmas",
+            "work_width_px",
+        )
     }
 
 

@@ -284,7 +284,7 @@ def _surface_objects(
     ref = min(max(far, 1.0), 1e6)
     edges, counts = log_bin_counts(d2, m2, min(max(bin_far, 0.01), 10_000.0), ref)
     bands = depth_bands(counts, edges, cfg)
-    r = crease_scale_px(depth.shape[1])
+    r = crease_scale_px(depth.shape[1], cfg.crease_span_fraction)
     # the labeller's state with the concave creases blocking, in one call
     state = crease_state(
         depth, ok, facing, sensor, scale_px=r, min_angle_deg=cfg.crease_deg, focal_px=cam.fx, inverse=inverse

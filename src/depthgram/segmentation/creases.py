@@ -24,13 +24,15 @@ from depthgram.segmentation.noise_model import SensorModel
 __all__ = ["concave_creases", "crease_scale_px", "crease_state", "inverse_depth", "surface_state", "warm_up"]
 
 
-def crease_scale_px(width_px: int) -> int:
-    """Distance (px) over which creases are looked for: about 1/128 of the frame width.
+def crease_scale_px(width_px: int, fraction: float = 1.0 / 128.0) -> int:
+    """Distance (px) over which creases are looked for: ``fraction`` of the frame width, at least 2.
 
     A crease is a change of slope; it must be judged over a span wider than the sensor's
     smoothing (structured light correlates over 7-9 px windows) yet narrower than the objects.
+    The default 1/128 is 2 px on the 320 px sampling grid of a 640 px frame, inside that
+    window: a box lying on a flat block needs 1/64 (``SegmentConfig.crease_span_fraction``).
     """
-    return max(2, round(width_px / 128))
+    return max(2, round(width_px * fraction))
 
 
 def concave_creases(
