@@ -194,18 +194,24 @@ def _beneath_shares(points: NDArray[np.float64], planes: _Planes, rows: NDArray[
 def estimate_gravity(seg: Segmentation, planes: _Planes) -> NDArray[np.float64] | None:
     """Return gravity (unit, down, camera coordinates) from the largest support seen from above, or None.
 
-    The segmentation's horizontal supports (``floor``, ``compound``) whose plane's normal points
-    to the image's top by more than 35 degrees off the optical axis are floors and table tops
-    seen from above; the largest one's normal is up, and those agreeing with it within 15
-    degrees are averaged in, weighted by their area.
+    The segmentation's horizontal supports (``floor``, ``compound``), and its large flat facing
+    segments, whose plane's normal points to the image's top by more than 35 degrees off the
+    optical axis are floors and table tops seen from above; the largest one's normal is up, and
+    those agreeing with it within 15 degrees are averaged in, weighted by their area. A facing
+    segment counts when it covers :data:`BIG_SHARE` of the frame: a floor seen as a far strip
+    (a 16:9 frame's narrower view, or a camera looking ahead) spreads its depth too little for
+    the segmentation to keep it a support, while its plane says what it is.
     """
     area = {o.id: o.area for o in seg.objects}
     kind = {o.id: o.kind for o in seg.objects}
+    big = BIG_SHARE * seg.labels.size
     lean = math.sin(math.radians(35.0))
     pick = [
         j
         for j, i in enumerate(planes.ids.tolist())
-        if kind[i] in ("floor", "compound") and planes.planar[j] and -planes.normal[j, 1] >= lean
+        if (kind[i] in ("floor", "compound") or (kind[i] == "object" and area[i] >= big))
+        and planes.planar[j]
+        and -planes.normal[j, 1] >= lean
     ]
     if not pick:
         return None
@@ -286,7 +292,9 @@ def name_kinds(
         _name_floors(ups, ids, by_id, new, height, planes, depth, cam, size)
     walls = [j for j, i in enumerate(ids) if new[i] == "wall"]
     if walls:
-        new.update(_wall_pieces(seg, depth, cam, planes, walls, set(ids)))
+        # the pieces not named on their own: small ones, and those too small for a wall yet too
+        # large for a piece of one by share alone (a strip of the back wall beside a bottle)
+        new.update(_wall_pieces(seg, depth, cam, planes, walls, {i for i in ids if new[i] != "object"}))
     return _renamed(seg, new), g
 
 
@@ -314,7 +322,7 @@ def _wall_pieces(
     """Return ``{id: "wall"}`` for the small facing segments lying in a wall's plane.
 
     A nearer object cuts a wall into pieces (the back wall under a table, beside a cupboard);
-    the pieces too small to be named a support on their own (:data:`LOW_SHARE`) are the same
+    the pieces not named a support on their own (``seen`` holds those that were) are the same
     wall where their readings lie in its plane, within the fit's tolerance (a piece's own fit is
     too loose: a strip under a table turns its normal 20 degrees). Only walls: a flat thing lying
     on a floor or a table stands above its plane by less than that tolerance at a few metres,
