@@ -110,10 +110,9 @@ def test_a_person_before_the_end_of_a_corridor_is_not_a_wall(sensor: str) -> Non
     kinds = _kinds("corridor", sensor, with_gravity=True)
     assert kinds["person"] == {"object"}, kinds
     assert kinds["left_wall"] == {"wall"} and kinds["right_wall"] == {"wall"}, kinds
-    if sensor == "tof":
-        # structured light's noise at 6 m exceeds the planarity tolerance (1.5 % + 4 mm): its end
-        # wall is not taken for a plane, and stays an object
-        assert kinds["end_wall"] == {"wall"}, kinds
+    # structured light reads the end wall, 6 m away, in steps of about 100 mm, more than the
+    # 1.5 % + 4 mm a plane's readings are held to: the camera's step and noise widen it
+    assert kinds["end_wall"] == {"wall"}, kinds
 
 
 def test_a_table_seen_straight_down_without_gravity_is_left_an_object() -> None:

@@ -524,6 +524,19 @@ class Pipeline:
         self._sensor_age += 1
         return self._sensor
 
+    def _known_sensor(self, frame: Frame) -> SensorModel | None:
+        """Return the sensor model this frame was segmented with, when known.
+
+        The config's, the camera's named profile, or the stream's last estimate.
+        """
+        seg = self.config.segment
+        if seg.sensor != "auto":
+            return sensor_model(seg.sensor)
+        hint = frame.meta.get("sensor_profile")
+        if isinstance(hint, str):
+            return sensor_model(hint)
+        return self._sensor
+
     def warm_up(self, frame: Frame) -> float:
         """Run ``frame`` through a throwaway copy of this pipeline; return the time it took (s).
 
@@ -632,7 +645,7 @@ class Pipeline:
         # kinds: a compound's depth is its nearest part's), before the tree and the plan
         down = frame.gravity.vector if frame.gravity is not None else None
         cam = frame.intrinsics or default_intrinsics(frame.depth.shape)
-        seg = self._kinds(seg, frame.depth, cam, down, related=not still)
+        seg = self._kinds(seg, frame.depth, cam, down, related=not still, sensor=self._known_sensor(frame))
         tree = build_tree(seg.objects, frame.size, motion=motions or None, config=cfg.tree, labels=seg.labels)
         action_plan = plan_scene(tree, frame, config=cfg.act)
         camera: dict[str, Any] | None = self.camera_record(frame)

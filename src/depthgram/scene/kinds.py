@@ -36,6 +36,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from depthgram.frame import Intrinsics
+from depthgram.segmentation.noise_model import SensorModel
 from depthgram.segmentation.objects import SceneObject, Segmentation
 
 __all__ = ["GravityKinds", "name_kinds"]
@@ -55,7 +56,7 @@ _LOWER_MM = 150.0
 #: segmentation kept one (a box's side is smaller: a 20 x 20 cm face is 0.04 m²)
 WALL_M2 = 0.25
 WALL_SUPPORT_M2 = 0.05
-#: Least share of a segment's samples within :data:`_TOL_REL` of its plane: a facing segment
+#: Least share of a segment's samples within the tolerance of its plane (:func:`_tolerance`): a facing segment
 #: taken for a support, and a support the segmentation found (what lies on a table merged with
 #: it by a noisy camera is off its plane).
 _PLANAR_SHARE = 0.7
@@ -94,12 +95,31 @@ class _Planes:
     planar: NDArray[np.bool_]  # (k,) enough samples lie on the plane
 
 
+def _tolerance(z_mm: NDArray[np.float64] | float, sensor: SensorModel | None) -> NDArray[np.float64] | float:
+    """How far (mm) a reading at depth ``z_mm`` may lie off a plane and still be on it.
+
+    :data:`_TOL_REL` of the depth plus :data:`_TOL_MM`, and at least one quantisation step and
+    two noise sigmas of the camera (``sensor``, when known): a structured-light camera's step at
+    6 m (about 100 mm) is more than 1.5 % of it, and a wall there read in steps is still flat.
+    """
+    tol = _TOL_REL * z_mm + _TOL_MM
+    if sensor is None:
+        return tol
+    return np.maximum(tol, sensor.step(z_mm) + 2.0 * sensor.sigma(z_mm))
+
+
 def _fit_planes(
-    labels: NDArray[np.int32], depth: NDArray[np.float32], cam: Intrinsics, ids: list[int], supports: set[int]
+    labels: NDArray[np.int32],
+    depth: NDArray[np.float32],
+    cam: Intrinsics,
+    ids: list[int],
+    supports: set[int],
+    sensor: SensorModel | None = None,
 ) -> _Planes:
     """Fit a plane to each of ``ids`` on a grid of samples (about :data:`_SAMPLES` of the frame).
 
-    ``supports``: the ids the segmentation named supports, held to a looser planarity.
+    ``supports``: the ids the segmentation named supports, held to a looser planarity;
+    ``sensor``: the camera's model, when known (:func:`_tolerance`).
 
     The plane is linear in inverse depth over the normalised pixel coordinates, ``1000/Z = a u' +
     b v' + c`` (u' = (x - cx) / fx), with its normal along (a, b, c) and its distance 1000 /
@@ -126,7 +146,7 @@ def _fit_planes(
         coef = _solve(row[keep], u[keep], v[keep], q[keep], k)
         pred = coef[row, 0] * u + coef[row, 1] * v + coef[row, 2]
         zp = 1000.0 / np.maximum(pred, 1e-9)
-        keep = np.abs(zp - zs) <= _TOL_REL * zs + _TOL_MM
+        keep = np.abs(zp - zs) <= _tolerance(zs, sensor)
     rk = row[keep]
     n_in = np.bincount(rk, minlength=k)
     n_all = np.maximum(np.bincount(row, minlength=k), 1)
@@ -230,18 +250,21 @@ def name_kinds(
     gravity: tuple[float, float, float] | NDArray[np.float64] | None,
     *,
     estimate: bool = True,
+    sensor: SensorModel | None = None,
 ) -> tuple[Segmentation, NDArray[np.float64] | None]:
     """Return ``seg`` with its supports named by gravity, and the gravity used (None: none known).
 
     ``gravity``: unit vector down in camera coordinates, or None: estimated from this frame
-    (:func:`estimate_gravity`) when ``estimate``. See the module's text for the rules.
+    (:func:`estimate_gravity`) when ``estimate``; ``sensor``: the camera's model the frame was
+    segmented with, when known (how far off its plane a reading may lie, :func:`_tolerance`).
+    See the module's text for the rules.
     """
     size = depth.size
     ids = [o.id for o in seg.objects if o.kind in _SUPPORT_KINDS or (o.kind == "object" and o.area >= LOW_SHARE * size)]
     if not ids:
         return seg, None if gravity is None else np.asarray(gravity, np.float64)
     supports = {o.id for o in seg.objects if o.kind in _SUPPORT_KINDS}
-    planes = _fit_planes(seg.labels, depth, cam, ids, supports)
+    planes = _fit_planes(seg.labels, depth, cam, ids, supports, sensor)
     g = None if gravity is None else np.asarray(gravity, np.float64)
     if g is None and estimate:
         g = estimate_gravity(seg, planes)
@@ -294,7 +317,8 @@ def name_kinds(
     if walls:
         # the pieces not named on their own: small ones, and those too small for a wall yet too
         # large for a piece of one by share alone (a strip of the back wall beside a bottle)
-        new.update(_wall_pieces(seg, depth, cam, planes, walls, {i for i in ids if new[i] != "object"}))
+        named = {i for i in ids if new[i] != "object"}
+        new.update(_wall_pieces(seg, depth, cam, planes, walls, named, sensor))
     return _renamed(seg, new), g
 
 
@@ -317,7 +341,13 @@ def _outline_beyond(
 
 
 def _wall_pieces(
-    seg: Segmentation, depth: NDArray[np.float32], cam: Intrinsics, planes: _Planes, walls: list[int], seen: set[int]
+    seg: Segmentation,
+    depth: NDArray[np.float32],
+    cam: Intrinsics,
+    planes: _Planes,
+    walls: list[int],
+    seen: set[int],
+    sensor: SensorModel | None,
 ) -> dict[int, str]:
     """Return ``{id: "wall"}`` for the small facing segments lying in a wall's plane.
 
@@ -335,7 +365,7 @@ def _wall_pieces(
         # a piece of a wall has its centroid in the wall's plane: most pieces are not read further
         c = o.centroid_mm
         if c is None or not any(
-            abs(float(planes.normal[j] @ np.asarray(c)) + float(planes.offset[j])) <= _TOL_REL * c[2] + _TOL_MM
+            abs(float(planes.normal[j] @ np.asarray(c)) + float(planes.offset[j])) <= _tolerance(float(c[2]), sensor)
             for j in walls
         ):
             continue
@@ -350,7 +380,7 @@ def _wall_pieces(
             continue
         z = zf[ys, xs].astype(np.float64)
         pts = _points(xs * st + x0, ys * st + y0, z, cam)
-        tol = _TOL_REL * z + _TOL_MM
+        tol = _tolerance(z, sensor)
         for j in walls:
             if np.count_nonzero(np.abs(pts @ planes.normal[j] + planes.offset[j]) <= tol) >= _PLANAR_SHARE * z.size:
                 out[o.id] = "wall"
@@ -426,18 +456,22 @@ class GravityKinds:
         gravity: tuple[float, float, float] | None,
         *,
         related: bool = True,
+        sensor: SensorModel | None = None,
     ) -> Segmentation:
-        """Return ``seg`` named by gravity; ``related``: the frame continues the previous one."""
+        """Return ``seg`` named by gravity.
+
+        ``related``: the frame continues the previous one; ``sensor``: as :func:`name_kinds`.
+        """
         if gravity is not None:
-            out, _ = name_kinds(seg, depth, cam, gravity)
+            out, _ = name_kinds(seg, depth, cam, gravity, sensor=sensor)
             return out
         if not related:
             self._last = None
-        out, g = name_kinds(seg, depth, cam, None)
+        out, g = name_kinds(seg, depth, cam, None, sensor=sensor)
         if g is not None:
             self._last, self._age = g, 0
             return out
         self._age += 1
         if self._last is not None and self._age <= _MEMORY:
-            out, _ = name_kinds(seg, depth, cam, self._last, estimate=False)
+            out, _ = name_kinds(seg, depth, cam, self._last, estimate=False, sensor=sensor)
         return out
