@@ -8,10 +8,11 @@ better than any reading, and a window of readings averages their noise down: a p
 stands above the plane by several of the sensor's sigmas over the window's root count (plus one
 quantisation step) is not the table.
 
-Only a support's horizontal readings are read and fitted (a folded front face is not on its
-plane). A piece is kept when it is large enough to be an object and the ring around it lies on
-the plane: the edge of a non-planar support (a ramp, a sagging cloth) rises gradually and has no
-flat ring, an object lying on the table has one.
+Only a support's readings of its own orientation class are read and fitted (a table top's
+horizontal ones: a front face folded into it is not on its plane). A piece is kept when it is
+large enough to be an object and the ring around it lies on the plane: the edge of a non-planar
+support (a ramp, a sagging cloth) rises gradually and has no flat ring, an object lying on the
+table has one.
 
 The steps, for each support (:func:`raised_pieces`):
 
@@ -145,6 +146,7 @@ def raised_pieces(
         if coef.size == 0:
             lab, val, hor = labels[by0:by1, bx0:bx1], valid[by0:by1, bx0:bx1], classes[by0:by1, bx0:bx1] == cls
             coef = _plane_fit((lab == sid) & val & hor, depth_mm[by0:by1, bx0:bx1], sensor)
+        # steps 2 and 3 on every t-th reading, then step 4 for the pieces kept
         t = max(1, math.isqrt(min_px // _PIECE_SAMPLES))
         m = sensor
         comp, pieces, kept, halves, on, height = cut(
@@ -164,7 +166,7 @@ def raised_pieces(
         if n:
             x_lo, y_lo = min(x_lo, int(placed[:, 0].min())), min(y_lo, int(placed[:, 1].min()))
             x_hi, y_hi = max(x_hi, int(placed[:, 2].max())), max(y_hi, int(placed[:, 3].max()))
-    if out is None:
+    if out is None or not of_support:
         # read-only zeros without a frame's memory
         return np.broadcast_to(np.int32(0), (h, w)), of_support, (0, 0, 0, 0)
     return out, of_support, (x_lo, y_lo, x_hi, y_hi)
