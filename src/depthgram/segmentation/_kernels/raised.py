@@ -147,7 +147,8 @@ def block_gate(
 
 @njit(cache=True, nogil=True)
 def _reflect(i: int, n: int) -> int:
-    # OpenCV's default border (BORDER_REFLECT_101: ... 2 1 | 0 1 2 ... n-2 n-1 | n-2 ...)
+    # a window at the box's edge reads it mirrored (... 2 1 | 0 1 2 ... n-2 n-1 | n-2 ...), as a
+    # box filter's default border does
     if i < 0:
         return min(-i, n - 1)
     if i >= n:
@@ -156,7 +157,7 @@ def _reflect(i: int, n: int) -> int:
 
 
 @njit(cache=True, nogil=True)
-def window_test(
+def _window_test(
     labels: NDArray[np.int32],
     sid: int,
     valid: NDArray[np.bool_],
@@ -178,7 +179,7 @@ def window_test(
 ) -> tuple[NDArray[np.bool_], NDArray[np.float32], NDArray[np.float32], NDArray[np.uint8], NDArray[np.bool_]]:
     # raised's window test (its step 2) on every t-th pixel of the box (x0, y0, x1, y1, exclusive):
     # the support's readings (on), their height over the box-centred plane coef and depth, and
-    # which windows stand above the plane (high) or lie on it (flat), as raised._windows says
+    # which windows stand above the plane (high) or lie on it (flat), as raised's step 2 says
     h, w = y1 - y0, x1 - x0
     gh, gw = (h + t - 1) // t, (w + t - 1) // t
     on = np.zeros((gh, gw), np.bool_)
@@ -196,8 +197,8 @@ def window_test(
                 if plane > 0:
                     height[i, j] = np.float32(1000.0 / plane) - depth[y, x]
     r = window // 2
-    # the support's readings closed by the window (its dropouts bridged); OpenCV's morphology
-    # leaves the border out of both passes
+    # the support's readings closed by the window (its dropouts bridged); samples beyond the
+    # box count neither way
     grown = np.zeros((gh, gw), np.bool_)
     for i in range(gh):
         for j in range(gw):
@@ -244,7 +245,7 @@ def window_test(
 
 
 @njit(cache=True, nogil=True)
-def component_test(
+def _component_test(
     comp: NDArray[np.int32],
     n_comp: int,
     boxes: NDArray[np.int64],
@@ -333,7 +334,7 @@ def component_test(
 
 
 @njit(cache=True, nogil=True)
-def components(
+def _components(
     high: NDArray[np.uint8], min_n: int
 ) -> tuple[NDArray[np.int32], int, NDArray[np.int64], NDArray[np.float64]]:
     # the 8-connected pieces of high of at least min_n samples, numbered in raster order of their
@@ -409,7 +410,7 @@ def cut(
     # raised's steps 2 and 3 in one call: the windows' test on every t-th reading of the box, the
     # standing windows' pieces, and their tests; the pieces' labels and inclusive boxes on the
     # samples, the kept ones with their half heights, and the support's samples and heights
-    on, height, z, high, flat = window_test(
+    on, height, z, high, flat = _window_test(
         labels,
         sid,
         valid,
@@ -429,8 +430,8 @@ def cut(
         step_2,
         k_sigma,
     )
-    comp, n, boxes, sums = components(high, min_n)
-    kept, halves = component_test(
+    comp, n, boxes, sums = _components(high, min_n)
+    kept, halves = _component_test(
         comp,
         n,
         boxes,
