@@ -48,6 +48,33 @@ def test_a_flat_box_on_a_plane_is_cut_and_a_swell_is_not(min_px: int) -> None:
     assert not got[swell > sensor.resolution(plane)].any()
 
 
+@pytest.mark.parametrize("trough", [False, True])
+def test_a_streak_with_troughs_beside_it_is_not_cut_a_strip_lying_on_the_plane_is(trough: bool) -> None:
+    # a stereo or structured-light floor's streak (NVlabs' floor): a crest several resolutions
+    # high with the floor at the plane just beside it and a trough a little further out; a
+    # strip lying on the plane has the plane all around it. Cut every 4th reading (min_px 200)
+    h, w = 240, 320
+    sensor = sensor_model("kinect-v1")
+    plane = _plane_depth(h, w)
+    res = sensor.resolution(plane)
+    v, u = np.mgrid[0:h, 0:w]
+    across = np.abs(v - 120)
+    along = (u >= 60) & (u < 260)
+    crest = along & (across <= 10)
+    depth = plane - 5.0 * res * crest
+    if trough:
+        depth = depth + 2.5 * res * (along & (across > 14) & (across <= 24))
+    depth = depth.astype(np.float32)
+    labels = np.ones((h, w), np.int32)
+    ok = np.ones((h, w), bool)
+    pieces, of_support, _ = raised_pieces(labels, depth, ok, ok.view(np.int8), 1, [1], BOX, sensor, min_px=200)
+    if trough:
+        assert of_support == [], of_support
+    else:
+        assert of_support == [1]
+        assert ((pieces == 1) & crest).sum() >= 0.85 * crest.sum()
+
+
 def test_nothing_is_cut_from_a_bare_plane_nor_from_what_is_not_a_support() -> None:
     h, w = 240, 320
     sensor = sensor_model("tof")

@@ -33,6 +33,9 @@ The steps, for each support (:func:`raised_pieces`):
    ``step_resolutions`` of the sensor's resolutions over their ring's: a real camera's depth
    bends by a few resolutions over a table (lens and baseline calibration), smoothly, so that
    the ring of a swell rises with it; an object lying on the table steps up from a flat ring.
+   And the support beyond the ring (one to two samples out) must lie on the plane, its median
+   within ``outer_resolutions``: a stereo or structured-light floor's streak has a trough
+   beside its crest, a thing lying on a support has the support's plane around it.
 4. **A kept piece's pixels** are then the support's readings of its samples' cells and one cell
    around (the samples' edge is a cell off the readings') standing above half its median height
    (the window's mean reaches past its edge), when they are still ``min_px``.
@@ -85,6 +88,7 @@ def raised_pieces(
     k_sigma: float = 4.0,
     ring_share: float = 0.6,
     step_resolutions: float = 3.0,
+    outer_resolutions: float = 1.0,
 ) -> tuple[NDArray[np.int32], list[int], tuple[int, int, int, int]]:
     """Find the pieces of each horizontal support that stand above its plane by more than the noise.
 
@@ -120,6 +124,8 @@ def raised_pieces(
     step_resolutions : float
         How many of the sensor's resolutions (:meth:`SensorModel.resolution`) the piece's median
         height must stand above its ring's.
+    outer_resolutions : float
+        How many resolutions the support's median height beyond the ring may lie off its plane.
 
     Returns
     -------
@@ -152,7 +158,7 @@ def raised_pieces(
         comp, pieces, kept, halves, on, height = cut(
             labels, int(sid), valid, classes, int(cls), depth_mm, bx0, by0, bx1, by1, t, np.asarray(coef, np.float64),
             _WINDOW, _RING, float(m.sigma_0), float(m.sigma_2), float(m.step_0), float(m.step_2), float(k_sigma),
-            max(1, math.ceil(min_px / (t * t))), float(ring_share), float(step_resolutions),
+            max(1, math.ceil(min_px / (t * t))), float(ring_share), float(step_resolutions), float(outer_resolutions),
         )  # fmt: skip
         if not kept.size:
             continue

@@ -258,6 +258,7 @@ def _component_test(
     ring_px: int,
     ring_share: float,
     step_resolutions: float,
+    outer_resolutions: float,
     sigma_0: float,
     sigma_2: float,
     step_0: float,
@@ -265,8 +266,9 @@ def _component_test(
 ) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
     # raised's tests of each connected piece (its step 3) of the high windows (comp, n_comp,
     # and their inclusive boxes and sample counts, as components gives them): its ring flat,
-    # fewer than half the support's readings, and a step of step_resolutions over its ring;
-    # the kept pieces' ids and half heights
+    # fewer than half the support's readings, a step of step_resolutions over its ring, and
+    # the support beyond the ring (ring_px to 2 ring_px out) within outer_resolutions of the
+    # plane; the kept pieces' ids and half heights
     hh, ww = comp.shape
     n_on = 0
     for i in range(hh):
@@ -276,7 +278,7 @@ def _component_test(
     kept = np.zeros(n_comp + 1, np.int64)
     halves = np.zeros(n_comp + 1, np.float64)
     n_kept = 0
-    grow = ring_px + 1
+    grow = 2 * ring_px
     for k in range(1, n_comp + 1):
         if counts[k] < min_n:
             continue
@@ -285,7 +287,8 @@ def _component_test(
         size = (yb - ya) * (xb - xa)
         inside = np.empty(size, np.float32)
         near = np.empty(size, np.float32)
-        n_in = n_near = n_ring = n_flat = 0
+        outer = np.empty(size, np.float32)
+        n_in = n_near = n_ring = n_flat = n_outer = 0
         for i in range(ya, yb):
             for j in range(xa, xb):
                 if comp[i, j] == k:
@@ -308,6 +311,18 @@ def _component_test(
                     if on[i, j]:
                         near[n_near] = height[i, j]
                         n_near += 1
+                elif on[i, j]:
+                    beyond = False
+                    for a in range(max(i - 2 * ring_px, ya), min(i + 2 * ring_px + 1, yb)):
+                        for b in range(max(j - 2 * ring_px, xa), min(j + 2 * ring_px + 1, xb)):
+                            if comp[a, b] == k:
+                                beyond = True
+                                break
+                        if beyond:
+                            break
+                    if beyond:
+                        outer[n_outer] = height[i, j]
+                        n_outer += 1
         if n_flat < ring_share * max(n_ring, 1) or n_in == 0:
             continue
         half = 0.5 * np.median(inside[:n_in])
@@ -326,6 +341,8 @@ def _component_test(
         zp = np.median(zs[:n_mine])
         resolution = max(step_0 + step_2 * zp * zp, 2.0 * (sigma_0 + sigma_2 * zp * zp))
         if np.median(mine[:n_mine]) - around < step_resolutions * resolution:
+            continue
+        if n_outer > 0 and abs(np.median(outer[:n_outer])) > outer_resolutions * resolution:
             continue
         kept[n_kept] = k
         halves[n_kept] = half
@@ -404,6 +421,7 @@ def cut(
     min_n: int,
     ring_share: float,
     step_resolutions: float,
+    outer_resolutions: float,
 ) -> tuple[
     NDArray[np.int32], NDArray[np.int64], NDArray[np.int64], NDArray[np.float64], NDArray[np.bool_], NDArray[np.float32]
 ]:
@@ -444,6 +462,7 @@ def cut(
         ring_px,
         ring_share,
         step_resolutions,
+        outer_resolutions,
         sigma_0,
         sigma_2,
         step_0,
