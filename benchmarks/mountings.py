@@ -1,12 +1,13 @@
 """The default segmentation on the simulator's scenes for new mountings (issue 28, item 6), scored against exact truth.
 
 For each scene and sensor model: objects found (IoU >= 0.5) and their mean IoU (the table itself
-left out: it is the support), and what kinds the segments covering the table, the floor and the
-walls were given (a table seen from above must never be a ``ceiling``; the kinds follow gravity,
+left out: it is the support), and what kinds the segments covering the table, the floor, the
+walls and the ceiling were given (a table seen from above must never be a ``ceiling``; the kinds follow gravity,
 :mod:`depthgram.scene.kinds`). With and without the exact gravity handed to the pipeline
 (without it, gravity is estimated from the supports seen from above).
 
     .venv/bin/python benchmarks/mountings.py [--size 640x480] [--frames 3] [--raised 4] [--peers]
+        [--scenes arm_down,arm_45,chest_walk,table,corridor,crossing]
 
 ``--raised K`` sets ``[segment] raised_sigmas`` (flat objects cut out of the supports, off by
 default). ``--peers`` adds, on the arm cameras' tabletops, what a user would otherwise pick, each
@@ -34,7 +35,7 @@ SCENES = ("arm_down", "arm_45", "chest_walk", "table")
 
 
 def score(scene: str, sensor: str, size: tuple[int, int], frames: int, with_gravity: bool, raised: float = 0.0) -> str:
-    """Return one table row: found / total, mean IoU, the table's kinds, the floor's and walls'."""
+    """Return one table row: found / total, mean IoU, the table's kinds, the room's (floor, walls, ceiling)."""
     sims = list(simulate(scene, frames, size=size, sensor=sensor, seed=1))
     gravity = sims[0].gravity if with_gravity else None
     config = Config(segment=SegmentConfig(raised_sigmas=raised))
@@ -56,12 +57,13 @@ def score(scene: str, sensor: str, size: tuple[int, int], frames: int, with_grav
             name = names.get(int(ids[counts.argmax()]), "")
             if name == "table":
                 table_kinds.add(o.kind)
-            elif (name == "floor" or name.endswith("wall")) and o.area >= 0.02 * labels.size:
+            elif (name in ("floor", "ceiling") or name.endswith("wall")) and o.area >= 0.02 * labels.size:
                 room_kinds.setdefault(name.split("_")[-1], set()).add(o.kind)
     iou = np.asarray(ious)
     found = int(np.count_nonzero(iou >= 0.5))
     room = " ".join(f"{k}:{'/'.join(sorted(v))}" for k, v in sorted(room_kinds.items())) or "-"
-    return f"{found:>2d}/{iou.size:<3d} {iou.mean():.2f}   {', '.join(sorted(table_kinds)) or '-':16s} {room}"
+    mean = f"{iou.mean():.2f}" if iou.size else " -  "
+    return f"{found:>2d}/{iou.size:<3d} {mean}   {', '.join(sorted(table_kinds)) or '-':16s} {room}"
 
 
 def peers(size: tuple[int, int], frames: int, quick: bool) -> None:
@@ -112,6 +114,11 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--size", default="640x480", help="frame size WxH (px)")
     p.add_argument("--frames", type=int, default=3, help="frames per scene")
     p.add_argument("--raised", type=float, default=0.0, help="[segment] raised_sigmas (0: off, the default)")
+    p.add_argument(
+        "--scenes",
+        default=",".join(SCENES),
+        help=f"comma-separated simulator scenes (default {','.join(SCENES)}; corridor and crossing have rooms too)",
+    )
     p.add_argument("--peers", action="store_true", help="also the peers on the arm cameras' tabletops")
     p.add_argument("--quick-peers", action="store_true", help="the peers with one setting each (no tuning)")
     args = p.parse_args(argv)
@@ -119,8 +126,8 @@ def main(argv: list[str] | None = None) -> int:
     if args.peers or args.quick_peers:
         peers((w, h), args.frames, args.quick_peers)
         print()
-    print(f"{'scene':11s} {'sensor':6s} {'gravity':8s} found  IoU    table's kinds    floor's and walls' kinds")
-    for scene in SCENES:
+    print(f"{'scene':11s} {'sensor':6s} {'gravity':8s} found  IoU    table's kinds    the room's kinds")
+    for scene in args.scenes.split(","):
         for sensor in ("tof", "sl"):
             for with_gravity in (False, True):
                 row = score(scene, sensor, (w, h), args.frames, with_gravity, args.raised)
