@@ -515,27 +515,25 @@ class Pipeline:
         seg = self.config.segment
         if seg.method != "surfaces" or seg.sensor != "auto":
             return None
-        hint = frame.meta.get("sensor_profile")
-        if isinstance(hint, str):
-            return sensor_model(hint)  # a named camera's model: as if the configuration named it
+        named = self._named_sensor(frame)
+        if named is not None:
+            return named  # a named camera's model: as if the configuration named it
         if self._sensor is None or self._sensor_age >= _SENSOR_EVERY:
             self._sensor = estimate_sensor(frame.depth, frame.valid)
             self._sensor_age = 0
         self._sensor_age += 1
         return self._sensor
 
-    def _known_sensor(self, frame: Frame) -> SensorModel | None:
-        """Return the sensor model this frame was segmented with, when known.
-
-        The config's, the camera's named profile, or the stream's last estimate.
-        """
-        seg = self.config.segment
-        if seg.sensor != "auto":
-            return sensor_model(seg.sensor)
+    def _named_sensor(self, frame: Frame) -> SensorModel | None:
+        """Return the camera's model by name: the config's ``sensor``, else the frame's camera profile, else None."""
+        if self.config.segment.sensor != "auto":
+            return sensor_model(self.config.segment.sensor)
         hint = frame.meta.get("sensor_profile")
-        if isinstance(hint, str):
-            return sensor_model(hint)
-        return self._sensor
+        return sensor_model(hint) if isinstance(hint, str) else None
+
+    def _known_sensor(self, frame: Frame) -> SensorModel | None:
+        """Return the sensor model this frame was segmented with, when known (named, or the stream's last estimate)."""
+        return self._named_sensor(frame) or self._sensor
 
     def warm_up(self, frame: Frame) -> float:
         """Run ``frame`` through a throwaway copy of this pipeline; return the time it took (s).
