@@ -21,9 +21,12 @@ small beside the table it stands on and stays an object.
 
 Gravity comes from the frame (``--gravity``, ``--tilt``, an IMU, the simulator's truth). Without
 it, it is estimated from the largest support seen from above (what the image's axes call a
-horizontal support with its normal toward the image's top), kept over the recent frames of a
-stream. Without either, no ``floor`` or ``ceiling`` is guessed: a horizontal support is a
-``compound``.
+horizontal support, or a large flat facing segment, with its normal toward the image's top),
+kept over the recent frames of a stream. Without either, no ``floor`` or ``ceiling`` is
+guessed: a horizontal support is a ``compound``.
+
+A reading lies on a plane within 1.5 % of its depth plus 4 mm, or the camera's step and two
+sigmas there when the sensor model is known.
 """
 
 from __future__ import annotations
