@@ -91,18 +91,28 @@ def _xruns(log: Path) -> dict[str, Any]:
     }
 
 
-def _frames(seconds: float) -> tuple[str, Iterator[Any]]:
-    """(what, frames): a 640x480 recording looped for at least ``seconds`` at 30 frames/s."""
+def _frames(seconds: float, decimate: str) -> tuple[str, Any, int, Iterator[Any]]:
+    """A 640x480 recording looped for ``seconds`` at 30 frames/s: (what, first frame, step, the frames after it).
+
+    The frames after the first are read as ``listen`` reads them (:func:`depthgram.sources.base.decimated`),
+    ``decimate`` as its ``--decimate``.
+    """
     from depthgram import read
+    from depthgram.commands.listen import decimation
+    from depthgram.sources.base import decimated
 
     spec = str(SEVEN_SCENES) if SEVEN_SCENES.is_dir() else "sim:corridor?size=640x480&frames=300"
     n = int(seconds * 30) + 1
+    first_pass = iter(read(spec))
+    whole = next(first_pass)
+    step = decimation(decimate, whole.size[0])
 
     def loop() -> Iterator[Any]:
+        yield from decimated(first_pass, step)
         while True:
-            yield from read(spec)
+            yield from decimated(iter(read(spec)), step)
 
-    return spec, itertools.islice(loop(), n)
+    return spec, whole, step, itertools.islice(loop(), n - 1)
 
 
 def synthesis_share(reps: int = 2000, binaural: bool = False) -> dict[str, float]:
@@ -171,15 +181,12 @@ def live(seconds: float, device: int | str | None, realtime: bool = True, decima
 
     import psutil
 
-    from depthgram.commands.listen import decimation
     from depthgram.pacing import Pacer
     from depthgram.pipeline import Pipeline
     from depthgram.sound.live import AudioProcess, percentiles
     from depthgram.sources.prefetch import prefetch
 
-    spec, frames = _frames(seconds)
-    whole = next(frames)
-    step = decimation(decimate, whole.size[0])
+    spec, whole, step, frames = _frames(seconds, decimate)
     read_cpu = [0.0]  # CPU of the reader thread: decoding the recording's PNGs, which a camera does not need
 
     def timed() -> Iterator[Any]:
@@ -188,7 +195,6 @@ def live(seconds: float, device: int | str | None, realtime: bool = True, decima
             f = next(frames, None)
             if f is None:
                 return
-            f = f.decimated(step)
             read_cpu[0] += time.thread_time() - t
             yield f
 

@@ -211,12 +211,14 @@ class Frame:
         """Share of pixels without a reading."""
         return 1.0 - float(np.count_nonzero(self.valid)) / self.valid.size
 
-    def decimated(self, step: int) -> Frame:
+    def decimated(self, step: int, *, read: bool = False) -> Frame:
         """Every ``step``-th pixel of each ``step``-th row, with the intrinsics to match.
 
         The readings are kept as they are, not averaged: a mean of pixels across an outline
         would be a depth no surface has (a flying pixel), and the sensor model's noise still
         describes each kept pixel. Pixel ``(i, j)`` of the result is pixel ``(step i, step j)``.
+        ``read``: this frame's arrays hold those pixels already (a source read only them) while
+        the rest (intrinsics) is the whole frame's: only the rest changes.
         """
         if step < 1:
             raise InputError(f"{self.name or 'frame'}: decimation step must be >= 1, got {step}")
@@ -225,8 +227,8 @@ class Frame:
         k = self.intrinsics
         return replace(
             self,
-            depth=np.ascontiguousarray(self.depth[::step, ::step]),
-            valid=np.ascontiguousarray(self.valid[::step, ::step]),
+            depth=self.depth if read else np.ascontiguousarray(self.depth[::step, ::step]),
+            valid=self.valid if read else np.ascontiguousarray(self.valid[::step, ::step]),
             intrinsics=None if k is None else Intrinsics(k.fx / step, k.fy / step, k.cx / step, k.cy / step),
             meta={**self.meta, "decimated": step},
         )
@@ -369,13 +371,21 @@ def make_frame(
         raise DepthError(f"{where}: the depth image is empty (shape {arr.shape})")
     if not np.isfinite(scale_mm) or scale_mm <= 0:
         raise DepthError(f"{where}: scale must be a positive number of mm per unit, got {scale_mm}")
-    valid = np.isfinite(arr) if np.issubdtype(arr.dtype, np.floating) else np.ones(arr.shape, bool)
-    valid &= arr != 0
+    unsigned = arr.dtype.kind == "u"
+    valid = arr != 0
+    if np.issubdtype(arr.dtype, np.floating):
+        valid &= np.isfinite(arr)
     for v in invalid_values:
         valid &= arr != v
-    valid &= arr > 0  # negative depth is no reading
+    if not unsigned:
+        valid &= arr > 0  # negative depth is no reading
     with np.errstate(over="ignore"):  # an overflow is found and handled just below
-        depth = np.where(valid, arr, 0).astype(np.float32)
+        if unsigned:
+            # a reading times 1 or 0 is itself or +0 exactly: one pass instead of a where
+            # (slow on 16-bit samples) and a cast
+            depth = np.multiply(arr, valid, dtype=np.float32)
+        else:
+            depth = np.where(valid, arr, 0).astype(np.float32)
         if scale_mm != 1.0:
             depth *= np.float32(scale_mm)
     if _may_overflow(arr.dtype, scale_mm):

@@ -93,6 +93,7 @@ def run(args: argparse.Namespace) -> int:
     from depthgram.pacing import Pacer
     from depthgram.sound import SoundMapping
     from depthgram.sound.live import AudioProcess, percentiles
+    from depthgram.sources.base import decimated
     from depthgram.sources.prefetch import prefetch
 
     if not 8000 <= args.samplerate <= 192000:
@@ -122,7 +123,7 @@ def run(args: argparse.Namespace) -> int:
             f"as {first.size[0]}x{first.size[1]} (--decimate 1 reads them all)",
             file=sys.stderr,
         )
-    frames = prefetch((f.decimated(step) for f in raw), ahead=2)
+    frames = prefetch(decimated(raw, step), ahead=2)
     pipe.warm_up(first)
 
     log = open(args.log, "w", encoding="utf-8") if args.log else None  # closed in the finally below

@@ -1,8 +1,10 @@
-"""The beep-train oscillator: one fused pass per voice (numba).
+"""The voices' oscillators: one fused pass per voice and audio block (numba).
 
 No library kernel combines a wavetable oscillator, a pulse train with raised-cosine beeps
 and linear parameter ramps; in numpy it takes some twenty passes over the buffer per voice,
-and the beeps are silent most of the time, which a loop can skip.
+and the beeps are silent most of the time, which a loop can skip. A glide (a surface's tone,
+its pitch, loudness and pan following a triangle) is the same kind of loop: as numpy calls it
+was some thirty passes over a 256-sample block, each costing its call more than its samples.
 """
 
 from __future__ import annotations
@@ -81,3 +83,74 @@ def pulse_voice(
         out_l[i] += s * (l1 + (l0 - l1) * w)
         out_r[i] += s * (q1 + (q0 - q1) * w)
     return osc, pulse
+
+
+@njit(cache=True)
+def glide_voice(
+    out_l: np.ndarray,
+    out_r: np.ndarray,
+    table: np.ndarray,
+    mono: bool,
+    osc: float,
+    phase: float,
+    samplerate: float,
+    period_n: float,
+    ramp_n: float,
+    ramp_done: float,
+    scale: float,
+    fa0: float,
+    fa1: float,
+    fb0: float,
+    fb1: float,
+    ga0: float,
+    ga1: float,
+    gb0: float,
+    gb1: float,
+    la0: float,
+    la1: float,
+    lb0: float,
+    lb1: float,
+    ra0: float,
+    ra1: float,
+    rb0: float,
+    rb1: float,
+) -> tuple[float, float]:
+    """Add one gliding tone to ``out_l``/``out_r``; return its oscillator and glide phases, unwrapped.
+
+    Along the glide's triangle (``phase`` in cycles, one cycle every ``period_n`` samples) the
+    parameters move from their near (``*a*``) to their far (``*b*``) values and back: frequency
+    ``f`` (Hz), gain ``g``, left and right pan ``l``, ``r``; each moves from its old (``*0``) to
+    its new (``*1``) value over ``ramp_n`` samples, ``ramp_done`` of them played by earlier
+    calls. ``mono``: the tone goes to ``out_l`` alone, unpanned (binaural rendering filters it).
+    The arithmetic is the numpy expression's, in its order, so that a block is the same.
+    """
+    n_table = table.shape[0]
+    mask = n_table - 1
+    acc = 0.0
+    cyc = osc
+    gp = phase
+    for i in range(out_l.shape[0]):
+        w = 1.0 - (i + 1.0 + ramp_done) / ramp_n
+        if w < 0.0:
+            w = 0.0
+        elif w > 1.0:
+            w = 1.0
+        gp = phase + (i + 1.0) / period_n
+        tri = 1.0 - abs(2.0 * (gp - math.floor(gp)) - 1.0)
+        fa = fa1 if fa0 == fa1 else fa1 + (fa0 - fa1) * w
+        fb = fb1 if fb0 == fb1 else fb1 + (fb0 - fb1) * w
+        acc += fa * (fb / fa) ** tri
+        cyc = osc + acc / samplerate
+        ga = ga1 if ga0 == ga1 else ga1 + (ga0 - ga1) * w
+        gb = gb1 if gb0 == gb1 else gb1 + (gb0 - gb1) * w
+        wave = table[int(cyc * n_table) & mask] * ((ga * (1 - tri) + gb * tri) * scale)
+        if mono:
+            out_l[i] += wave
+            continue
+        la = la1 if la0 == la1 else la1 + (la0 - la1) * w
+        lb = lb1 if lb0 == lb1 else lb1 + (lb0 - lb1) * w
+        ra = ra1 if ra0 == ra1 else ra1 + (ra0 - ra1) * w
+        rb = rb1 if rb0 == rb1 else rb1 + (rb0 - rb1) * w
+        out_l[i] += wave * (la * (1 - tri) + lb * tri)
+        out_r[i] += wave * (ra * (1 - tri) + rb * tri)
+    return cyc, gp

@@ -39,7 +39,13 @@ STOP_TIMEOUT_S = 15.0
 #: Priority (SCHED_FIFO, 1..99) asked for the audio callback's thread when it is not realtime already.
 RT_PRIORITY = 70
 
+#: Seconds between two relays of the callback's block events to the pipeline's process. The
+#: events only feed the log and the latency figures, which need them in order, not at once;
+#: every wake-up of the relaying thread costs the audio process its interpreter's time.
+RELAY_S = 0.1
+
 __all__ = [
+    "RELAY_S",
     "RT_PRIORITY",
     "STOP_TIMEOUT_S",
     "AudioProcess",
@@ -487,8 +493,8 @@ def _serve(
     conn.send(("ready", (float(player.stream.latency), player.priority)))
     try:
         # This thread only relays the callback's events and waits for "stop": it sleeps in
-        # poll() (no interpreter lock held) all but a few microseconds every 20 ms.
-        while not conn.poll(0.02):
+        # poll() (no interpreter lock held) all but a few microseconds every RELAY_S.
+        while not conn.poll(RELAY_S):
             events = player.drain()
             if events:
                 conn.send(("events", events))

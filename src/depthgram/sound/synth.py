@@ -263,9 +263,10 @@ class VoiceBank:
         self.states: dict[tuple[str, int], _State] = {}
         self._tables = _wavetables(mapping.harmonics_max)
         self._hann = _hann_table()
-        from depthgram.sound._kernels import pulse_voice  # numba: loaded only when sound is made
+        from depthgram.sound._kernels import glide_voice, pulse_voice  # numba: loaded only when sound is made
 
         self._pulse_voice = pulse_voice
+        self._glide_voice = glide_voice
 
     def warm_up(self) -> None:
         """Compile the kernels now (a beep and a glide, rendered and thrown away), not in a live callback."""
@@ -283,7 +284,6 @@ class VoiceBank:
         sr = self.samplerate
         m = self.mapping
         r = max(1, round(m.ramp_s * sr))
-        ticks = np.arange(1, n + 1, dtype=np.float64)
         out_l = np.zeros(n)
         out_r = np.zeros(n)
         scratch = np.zeros(n)  # the unused second channel of a mono voice (binaural)
@@ -313,12 +313,6 @@ class VoiceBank:
                 st.voice = new
             old = st.voice
             done = st.done
-            # Weight of the old value along the call: 1 -> 0 over the ramp, then 0.
-            old_w = np.clip(1.0 - (ticks + done) / r, 0.0, 1.0) if done < r else None
-
-            def ramp(a: float, b: float, old_w: NDArray[np.float64] | None = old_w) -> NDArray[np.float64] | float:
-                return b if a == b or old_w is None else b + (a - b) * old_w
-
             # Binaural: the voice is made mono (pan 1, 0 into a scratch pair), then filtered by
             # the responses of its direction into both ears.
             dest_l, dest_r = (np.zeros(n), scratch) if self.hrirs is not None else (out_l, out_r)
@@ -353,24 +347,37 @@ class VoiceBank:
                 )
             else:
                 # A glide: continuous tone, parameters following the triangle near -> far -> near.
-                gp = st.pulse + ticks / (sr * m.glide_period_s)
-                tri = 1.0 - np.abs(2.0 * (gp - np.floor(gp)) - 1.0)
-                fa, fb = ramp(old.freq_a, new.freq_a), ramp(old.freq_b, new.freq_b)
-                freq = fa * np.power(np.divide(fb, fa), tri)
-                gain = (ramp(old.gain_a, new.gain_a) * (1 - tri) + ramp(old.gain_b, new.gain_b) * tri) * m.master_gain
-                cyc = st.osc + np.cumsum(freq) / sr
-                wave = self._tables[new.harmonics][(cyc * _TABLE).astype(np.int64) & (_TABLE - 1)] * gain
-                if self.hrirs is not None:
-                    dest_l += wave
-                else:
-                    out_l += wave * (
-                        ramp(old.pan_a[0], new.pan_a[0]) * (1 - tri) + ramp(old.pan_b[0], new.pan_b[0]) * tri
-                    )
-                    out_r += wave * (
-                        ramp(old.pan_a[1], new.pan_a[1]) * (1 - tri) + ramp(old.pan_b[1], new.pan_b[1]) * tri
-                    )
-                st.osc = float(cyc[-1] % 1.0)
-                st.pulse = float(gp[-1] % 1.0)
+                cyc, gp = self._glide_voice(
+                    dest_l,
+                    dest_r,
+                    self._tables[new.harmonics],
+                    self.hrirs is not None,
+                    st.osc,
+                    st.pulse,
+                    float(sr),
+                    sr * m.glide_period_s,
+                    float(r),
+                    float(done),
+                    m.master_gain,
+                    old.freq_a,
+                    new.freq_a,
+                    old.freq_b,
+                    new.freq_b,
+                    old.gain_a,
+                    new.gain_a,
+                    old.gain_b,
+                    new.gain_b,
+                    old.pan_a[0],
+                    new.pan_a[0],
+                    old.pan_b[0],
+                    new.pan_b[0],
+                    old.pan_a[1],
+                    new.pan_a[1],
+                    old.pan_b[1],
+                    new.pan_b[1],
+                )
+                st.osc = float(cyc % 1.0)
+                st.pulse = float(gp % 1.0)
             if self.hrirs is not None:
                 self._place(st, new, dest_l, spatial)
             st.done = min(done + n, r)

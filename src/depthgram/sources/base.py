@@ -17,7 +17,7 @@ from depthgram.frame import Frame, Gravity, Intrinsics
 if TYPE_CHECKING:
     from depthgram.sources.camera import Camera
 
-__all__ = ["DepthSummary", "Source", "SourceInfo"]
+__all__ = ["DepthSummary", "Source", "SourceInfo", "decimated"]
 
 #: Depth histogram bins are 1 mm wide; readings beyond this (mm) share the last bin.
 _HIST_MAX_MM = 200_000
@@ -165,15 +165,17 @@ class Source(ABC):
     camera: Camera | None = None
     gravity: Gravity | None = None
 
-    def calibrated(self, frame: Frame) -> Frame:
+    def calibrated(self, frame: Frame, *, size: tuple[int, int] | None = None) -> Frame:
         """Return ``frame`` with the user's camera and gravity, and where its intrinsics came from.
 
-        Every source passes its frames through this before yielding them.
+        Every source passes its frames through this before yielding them. ``size`` (width,
+        height) px: of the frame as stored, when ``frame`` holds only some of its pixels (the
+        camera's intrinsics are for that size).
         """
         cam, grav = self.camera, self.gravity
         changes: dict[str, object] = {}
         if cam is not None:
-            k = cam.for_size(frame.size)
+            k = cam.for_size(size or frame.size)
             self.intrinsics, self.intrinsics_source = k, cam.source
             changes.update(intrinsics=k, intrinsics_source=cam.source)
             if cam.origin:
@@ -263,3 +265,19 @@ class Source(ABC):
             intrinsics_from=self.camera.origin if self.camera is not None else self.intrinsics_from,
             gravity=gravity.to_dict() if gravity is not None else None,
         )
+
+
+def decimated(frames: Iterator[Frame], step: int) -> Iterator[Frame]:
+    """Yield the rest of ``frames`` as :meth:`Frame.decimated` gives them (``step``: every how many pixels and rows).
+
+    The frames of an iterator that can read only those pixels (a ``decimate(step)`` method: the
+    image files of :class:`~depthgram.sources.files.FilesSource`) are read so: the same frames,
+    without converting the samples left out. ``frames`` is iterated here only.
+    """
+    tell = getattr(frames, "decimate", None)
+    if tell is not None:
+        tell(step)
+        yield from frames
+        return
+    for frame in frames:
+        yield frame.decimated(step)

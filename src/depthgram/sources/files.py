@@ -9,11 +9,11 @@ from depthgram.errors import InputError
 from depthgram.frame import Frame, Intrinsics
 from depthgram.sources.base import Source
 from depthgram.sources.config import SourceConfig
-from depthgram.sources.decode import to_frame
+from depthgram.sources.decode import check_depth_array, to_frame
 from depthgram.sources.images import IMAGE_SUFFIXES, read_image
 from depthgram.sources.sidecars import natural_key, read_timestamps
 
-__all__ = ["FilesSource", "list_frames"]
+__all__ = ["FileFrames", "FilesSource", "list_frames"]
 
 
 def list_frames(folder: Path) -> list[Path]:
@@ -106,26 +106,65 @@ class FilesSource(Source):
             return self.times[i]
         return i / self.fps if self.fps else None
 
-    def __iter__(self) -> Iterator[Frame]:
-        first: tuple[Path, tuple[int, int]] | None = None
-        seq = len(self.paths) > 1
-        for i, path in enumerate(self.paths):
-            where = f"{path} (frame {i})" if seq else str(path)
-            raw = read_image(path, key=self.cfg.key, where=where)
-            frame = to_frame(
-                raw,
-                self.cfg,
-                where=where,
-                index=i,
-                time_s=self._time(i),
-                intrinsics=self.intrinsics,
-                name=path.name,
+    def __iter__(self) -> FileFrames:
+        return FileFrames(self)
+
+
+class FileFrames(Iterator[Frame]):
+    """The frames of a :class:`FilesSource`, read one file at a time.
+
+    :meth:`decimate` makes the frames read after it every ``step``-th pixel of every
+    ``step``-th row, as :meth:`Frame.decimated` would (:func:`depthgram.sources.base.decimated`
+    asks for it): the samples left out are never converted to millimetres.
+    """
+
+    def __init__(self, source: FilesSource) -> None:
+        self._source = source
+        self._i = 0
+        self._step = 1
+        self._first: tuple[Path, tuple[int, int]] | None = None
+
+    def decimate(self, step: int) -> None:
+        """Read every ``step``-th pixel of every ``step``-th row of the frames from the next one on."""
+        if step < 1:
+            raise InputError(f"{self._source.name}: decimation step must be >= 1, got {step}")
+        self._step = step
+
+    def close(self) -> None:
+        """Read no further frame."""
+        self._i = len(self._source.paths)
+
+    def __next__(self) -> Frame:
+        src = self._source
+        i = self._i
+        if i >= len(src.paths):
+            raise StopIteration
+        self._i += 1
+        path = src.paths[i]
+        where = f"{path} (frame {i})" if len(src.paths) > 1 else str(path)
+        raw = read_image(path, key=src.cfg.key, where=where)
+        step = self._step
+        whole = check_depth_array(raw, where) if step > 1 else raw
+        # every sample becomes mm on its own: the frame of the kept samples is the kept pixels
+        # of the whole frame
+        frame = to_frame(
+            whole[::step, ::step] if step > 1 else raw,
+            src.cfg,
+            where=where,
+            index=i,
+            time_s=src._time(i),
+            intrinsics=src.intrinsics,
+            name=path.name,
+        )
+        size = (int(whole.shape[1]), int(whole.shape[0])) if step > 1 else frame.size
+        if self._first is None:
+            self._first = (path, size)
+        elif size != self._first[1]:
+            first, known = self._first
+            raise InputError(
+                f"{path} (frame {i}) is {size[0]}x{size[1]} px but {first} (frame 0) is "
+                f"{known[0]}x{known[1]} px; all frames of a sequence must have one size"
             )
-            if first is None:
-                first = (path, frame.size)
-            elif frame.size != first[1]:
-                raise InputError(
-                    f"{path} (frame {i}) is {frame.size[0]}x{frame.size[1]} px but {first[0]} (frame 0) is "
-                    f"{first[1][0]}x{first[1][1]} px; all frames of a sequence must have one size"
-                )
-            yield self.calibrated(frame)
+        if step == 1:
+            return src.calibrated(frame)
+        return src.calibrated(frame, size=size).decimated(step, read=True)
