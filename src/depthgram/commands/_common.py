@@ -208,8 +208,9 @@ def add_config_arguments(p: argparse.ArgumentParser) -> None:
         type=float,
         default=None,
         metavar="SIGMAS",
-        help="cut what stands above a table or floor by more than SIGMAS of the sensor's noise into objects "
-        "(flat things lying on a table seen from above; [segment] raised_sigmas, default 0: off; try 4)",
+        help="cut what stands above any table or floor by more than SIGMAS of the sensor's noise into objects "
+        "(flat things lying on a table seen at an angle; [segment] raised_sigmas = SIGMAS, raised_supports = "
+        "'all'; by default only a table seen from straight above is cut, at 4; 0: none)",
     )
 
 
@@ -235,7 +236,7 @@ def load_config(args: argparse.Namespace) -> Config:
             from depthgram.errors import InputError
 
             raise InputError(f"--raised {args.raised:g}: expected sigmas of the sensor's noise in [0, 1000] (0: off)")
-        cfg = cfg.replace(segment={"raised_sigmas": args.raised})
+        cfg = cfg.replace(segment={"raised_sigmas": args.raised, "raised_supports": "all"})
     stills = getattr(args, "stills", None)
     if stills is not None:
         cfg = cfg.with_stills({"yes": True, "no": False}.get(stills, "auto"))

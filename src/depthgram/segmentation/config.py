@@ -22,6 +22,7 @@ from depthgram.segmentation.noise_model import PROFILES
 
 __all__ = [
     "METHODS",
+    "RAISED_SUPPORTS",
     "HistogramConfig",
     "PaperConfig",
     "PlaneConfig",
@@ -36,6 +37,8 @@ __all__ = [
 #: ``region`` (region growing, the paper's reference), ``paper`` (the paper's slicing literally:
 #: per-slice histograms joined by successive depth labels, no surface normals).
 METHODS = ("surfaces", "slices", "threshold", "region", "paper")
+#: Supports the raised pass cuts (``SegmentConfig.raised_supports``).
+RAISED_SUPPORTS = ("facing", "all")
 
 #: (field, smallest, largest) of the numeric options checked by :class:`SegmentConfig`; a
 #: module constant so that validating a config (once per call with overrides) costs no dict.
@@ -175,16 +178,21 @@ class SegmentConfig:
     plane_tol_rel : float
         Depth-proportional part of that tolerance (structured light noise grows with depth).
     raised_sigmas : float
-        ``surfaces``: what stands above a horizontal support's plane by this many of the
-        sensor's noise sigmas (over a 5 x 5 window's mean, plus one quantisation step) is an
-        object of its own, however flat (a dish, a book on a table:
-        :mod:`depthgram.segmentation.raised`); 0 (the default) leaves the supports whole. 4 finds
-        a simulated arm camera's flat objects at 45 degrees (IoU 0.05-0.1 -> 0.84-0.92) with no
-        change on YCB-Video. Its gate is compiled and its cut reads every few readings: a frame
-        whose supports are bare (the simulator's ``table``) costs 3-6 % more, but a real
-        camera's supports bend and pass the gate, and 7-Scenes and NVlabs frames cost 9-18 %
-        more, beyond the default's speed budget (5 %), so it is asked for
-        (``[segment] raised_sigmas = 4``).
+        ``surfaces``: what stands above a support's plane by this many of the sensor's noise
+        sigmas (over a window's mean, plus one quantisation step) is an object of its own,
+        however flat (a dish, a book, a screwdriver on a table:
+        :mod:`depthgram.segmentation.raised`); 0 leaves every support whole. Which supports are
+        cut: ``raised_supports``.
+    raised_supports : str
+        ``facing`` (the default): only a support facing the camera as large as a dominant plane
+        (``plane_min_area``), a table seen from straight above (an arm camera), where its
+        readings lie at nearly one depth and a thing's rise is read along the view: the
+        simulator's ``arm_down`` 8 -> 18 of 18 objects (ToF), no piece cut on any real recording
+        here through the pipeline, 0-3 % more time on them. ``all``: the horizontal supports too
+        (a table seen at 45 degrees: ``arm_45`` ToF 9 -> 18 of 18), asked for (``--raised
+        SIGMAS``) because a real camera's floors and tables seen at an angle bend and streak by a
+        few resolutions over their depths, which it cuts as it would a book (NVlabs 5 pieces in
+        9 frames, 7-Scenes 2 a frame) at 6-10 % more time (docs/design-notes.md).
     max_planes : int
         Most support planes searched for per frame.
     sensor : str
@@ -268,7 +276,8 @@ class SegmentConfig:
     plane_tol_mm: float = 8.0
     plane_tol_rel: float = 0.012
     max_planes: int = 3
-    raised_sigmas: float = 0.0
+    raised_sigmas: float = 4.0
+    raised_supports: str = "facing"
     side_max_area: float = 0.08
     sensor: str = "auto"
     join_resolutions: float = 2.5
@@ -302,6 +311,8 @@ class SegmentConfig:
             raise bad("cut_from", self.cut_from, "'minimum' or 'peak'")
         if self.gap_pixels not in ("nearest", "background"):
             raise bad("gap_pixels", self.gap_pixels, "'nearest' or 'background'")
+        if self.raised_supports not in RAISED_SUPPORTS:
+            raise bad("raised_supports", self.raised_supports, f"one of {RAISED_SUPPORTS}")
         if self.slice_directions not in ("both", "horizontal", "vertical"):
             raise bad("slice_directions", self.slice_directions, "'both', 'horizontal' or 'vertical'")
         for name, lo, hi in _RANGES:
@@ -517,6 +528,7 @@ class SurfaceConfig:
     crease_deg: float
     crease_span_fraction: float
     raised_sigmas: float
+    raised_supports: str
     work_width_px: int
 
     FLAT: ClassVar[dict[str, str]] = {
@@ -528,6 +540,7 @@ class SurfaceConfig:
             "crease_deg",
             "crease_span_fraction",
             "raised_sigmas",
+            "raised_supports",
             "work_width_px",
         )
     }

@@ -483,13 +483,13 @@ def _cut_raised(
 ) -> _Stack:
     """Cut what lies on each support above its noise into objects of their own (in place).
 
-    The supports are the horizontal ones and the facing objects as large as a dominant plane
-    (``cfg.plane_min_area`` of the frame).
+    The supports are the facing objects as large as a dominant plane (``cfg.plane_min_area`` of
+    the frame), and with ``cfg.raised_supports == "all"`` the horizontal ones.
 
     The pieces (:func:`depthgram.segmentation.raised.raised_pieces`) take ids after the last
     support's; their statistics come out of their support's row, which stays additive.
     """
-    tops = [i for c, i in stack.supports if c == HORIZONTAL]
+    tops = [i for c, i in stack.supports if c == HORIZONTAL] if cfg.raised_supports == "all" else []
     # a plane facing the camera and as large as a dominant plane is a support too: a table seen
     # from above (an arm camera), where flat things lying on it are the whole scene
     broad = (np.flatnonzero(stack.attrs[: stack.first_support - 1, 0] >= cfg.plane_min_area * depth.size) + 1).tolist()
