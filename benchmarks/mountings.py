@@ -9,11 +9,12 @@ walls and the ceiling were given (a table seen from above must never be a ``ceil
     .venv/bin/python benchmarks/mountings.py [--size 640x480] [--frames 3] [--raised 4] [--peers]
         [--scenes arm_down,arm_45,chest_walk,table,corridor,crossing]
 
-``--raised K`` sets ``[segment] raised_sigmas`` (flat objects cut out of the supports, off by
-default). ``--peers`` adds, on the arm cameras' tabletops, what a user would otherwise pick, each
-tuned on the same frames (``benchmarks/real.py``'s grids; ``--quick-peers`` one setting each):
-Open3D plane removal + DBSCAN and scikit-image ``felzenszwalb``, beside depthgram with and without
-``raised_sigmas = 4``, found / mean IoU / milliseconds a frame.
+``--raised K`` cuts flat objects out of every support at K sigmas (``[segment] raised_sigmas = K,
+raised_supports = "all"``, as the command line's ``--raised``; by default only a support facing
+the camera is cut, at 4). ``--peers`` adds, on the arm cameras' tabletops, what a user would
+otherwise pick, each tuned on the same frames (``benchmarks/real.py``'s grids; ``--quick-peers``
+one setting each): Open3D plane removal + DBSCAN and scikit-image ``felzenszwalb``, beside
+depthgram by default and on every support, found / mean IoU / milliseconds a frame.
 """
 
 from __future__ import annotations
@@ -34,11 +35,14 @@ from depthgram.sensor import simulate
 SCENES = ("arm_down", "arm_45", "chest_walk", "table")
 
 
-def score(scene: str, sensor: str, size: tuple[int, int], frames: int, with_gravity: bool, raised: float = 0.0) -> str:
+def score(
+    scene: str, sensor: str, size: tuple[int, int], frames: int, with_gravity: bool, raised: float | None = None
+) -> str:
     """Return one table row: found / total, mean IoU, the table's kinds, the room's (floor, walls, ceiling)."""
     sims = list(simulate(scene, frames, size=size, sensor=sensor, seed=1))
     gravity = sims[0].gravity if with_gravity else None
-    config = Config(segment=SegmentConfig(raised_sigmas=raised))
+    seg = SegmentConfig() if raised is None else SegmentConfig(raised_sigmas=raised, raised_supports="all")
+    config = Config(segment=seg)
     pipe = Pipeline(config, track=False, gravity=gravity)
     ious: list[float] = []
     table_kinds: set[str] = set()
@@ -85,7 +89,7 @@ def peers(size: tuple[int, int], frames: int, quick: bool) -> None:
                 lfs.append(real.LabelledFrame(f.name, f.depth, f.valid, truth, f.intrinsics))
                 wanted.append(ids)
             methods = real.methods(quick=quick)
-            methods.insert(1, real.Method("depthgram raised_sigmas = 4", _raised_labels))
+            methods.insert(1, real.Method("depthgram --raised 4 (all)", _raised_labels))
             for m in methods:
                 setting = real.tune(m, lfs, progress=False)
                 m.run(lfs[0], setting)  # compiled kernels and imports before the clock
@@ -113,7 +117,9 @@ def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--size", default="640x480", help="frame size WxH (px)")
     p.add_argument("--frames", type=int, default=3, help="frames per scene")
-    p.add_argument("--raised", type=float, default=0.0, help="[segment] raised_sigmas (0: off, the default)")
+    p.add_argument(
+        "--raised", type=float, default=None, help="cut every support at this many sigmas (default: as segment does)"
+    )
     p.add_argument(
         "--scenes",
         default=",".join(SCENES),
