@@ -85,6 +85,13 @@ def pulse_voice(
     return osc, pulse
 
 
+@njit(cache=True, inline="always")
+def _toward(old: float, new: float, w: float) -> float:
+    # the value ``w`` of the way back from ``new`` to ``old``; ``new`` itself when they agree, as
+    # the numpy ramp returned it (``new + 0 * w`` would turn a -0.0 into +0.0)
+    return new if old == new else new + (old - new) * w
+
+
 @njit(cache=True)
 def glide_voice(
     out_l: np.ndarray,
@@ -137,20 +144,16 @@ def glide_voice(
             w = 1.0
         gp = phase + (i + 1.0) / period_n
         tri = 1.0 - abs(2.0 * (gp - math.floor(gp)) - 1.0)
-        fa = fa1 if fa0 == fa1 else fa1 + (fa0 - fa1) * w
-        fb = fb1 if fb0 == fb1 else fb1 + (fb0 - fb1) * w
+        fa, fb = _toward(fa0, fa1, w), _toward(fb0, fb1, w)
         acc += fa * (fb / fa) ** tri
         cyc = osc + acc / samplerate
-        ga = ga1 if ga0 == ga1 else ga1 + (ga0 - ga1) * w
-        gb = gb1 if gb0 == gb1 else gb1 + (gb0 - gb1) * w
+        ga, gb = _toward(ga0, ga1, w), _toward(gb0, gb1, w)
         wave = table[int(cyc * n_table) & mask] * ((ga * (1 - tri) + gb * tri) * scale)
         if mono:
             out_l[i] += wave
             continue
-        la = la1 if la0 == la1 else la1 + (la0 - la1) * w
-        lb = lb1 if lb0 == lb1 else lb1 + (lb0 - lb1) * w
-        ra = ra1 if ra0 == ra1 else ra1 + (ra0 - ra1) * w
-        rb = rb1 if rb0 == rb1 else rb1 + (rb0 - rb1) * w
+        la, lb = _toward(la0, la1, w), _toward(lb0, lb1, w)
+        ra, rb = _toward(ra0, ra1, w), _toward(rb0, rb1, w)
         out_l[i] += wave * (la * (1 - tri) + lb * tri)
         out_r[i] += wave * (ra * (1 - tri) + rb * tri)
     return cyc, gp
