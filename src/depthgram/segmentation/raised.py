@@ -142,6 +142,10 @@ def raised_pieces(
     x_lo, y_lo, x_hi, y_hi = w, h, 0, 0
     out: NDArray[np.int32] | None = None  # most frames cut nothing: no frame-sized map then
     of_support: list[int] = []
+    # steps 2 and 3 read every t-th reading, then step 4 the pieces kept
+    t = max(1, math.isqrt(min_px // _PIECE_SAMPLES))
+    min_samples = max(1, math.ceil(min_px / (t * t)))
+    m = sensor
     for sid, own in zip(support_ids, boxes, strict=True):
         # the support's own box (inclusive), grown by the windows and the ring: nothing else is read
         bx0, by0 = max(int(own[0]) - _PAD_PX, 0), max(int(own[1]) - _PAD_PX, 0)
@@ -152,21 +156,18 @@ def raised_pieces(
         if coef.size == 0:
             lab, val, hor = labels[by0:by1, bx0:bx1], valid[by0:by1, bx0:bx1], classes[by0:by1, bx0:bx1] == cls
             coef = _plane_fit((lab == sid) & val & hor, depth_mm[by0:by1, bx0:bx1], sensor)
-        # steps 2 and 3 on every t-th reading, then step 4 for the pieces kept
-        t = max(1, math.isqrt(min_px // _PIECE_SAMPLES))
-        m = sensor
         comp, pieces, kept, halves, on, height = cut(
-            labels, int(sid), valid, classes, int(cls), depth_mm, bx0, by0, bx1, by1, t, np.asarray(coef, np.float64),
-            _WINDOW, _RING, float(m.sigma_0), float(m.sigma_2), float(m.step_0), float(m.step_2), float(k_sigma),
-            max(1, math.ceil(min_px / (t * t))), float(ring_share), float(step_resolutions), float(outer_resolutions),
+            labels, int(sid), valid, classes, int(cls), depth_mm, bx0, by0, bx1, by1, t, coef, _WINDOW, _RING,
+            float(m.sigma_0), float(m.sigma_2), float(m.step_0), float(m.step_2), float(k_sigma), min_samples,
+            float(ring_share), float(step_resolutions), float(outer_resolutions),
         )  # fmt: skip
         if not kept.size:
             continue
         if out is None:
             out = np.zeros((h, w), np.int32)
         n, placed = paint(
-            out, labels, int(sid), valid, classes, int(cls), depth_mm, bx0, by0, bx1, by1, t,
-            np.asarray(coef, np.float64), comp, pieces, kept, halves, on, height, int(min_px), len(of_support) + 1,
+            out, labels, int(sid), valid, classes, int(cls), depth_mm, bx0, by0, bx1, by1, t, coef, comp, pieces,
+            kept, halves, on, height, int(min_px), len(of_support) + 1,
         )  # fmt: skip
         of_support += [sid] * n
         if n:
