@@ -186,50 +186,21 @@ class SegmentConfig:
     raised_supports : str
         ``facing`` (the default): only a support facing the camera as large as a dominant plane
         (``plane_min_area``), a table seen from straight above (an arm camera), where its
-        readings lie at nearly one depth and a thing's rise is read along the view: the
-        simulator's ``arm_down`` 8 -> 18 of 18 objects (ToF), no piece cut on any real recording
-        here through the pipeline, 0-3 % more time on them. ``all``: the horizontal supports too
-        (a table seen at 45 degrees: ``arm_45`` ToF 9 -> 18 of 18), asked for (``--raised
-        SIGMAS``) because a real camera's floors and tables seen at an angle bend and streak by a
-        few resolutions over their depths, which it cuts as it would a book (NVlabs 5 pieces in
-        9 frames, 7-Scenes 2 a frame) at 6-10 % more time (docs/design-notes.md).
-    max_planes : int
-        Most support planes searched for per frame.
-    sensor : str
-        ``auto`` (default): the depth step and noise are estimated from each frame
-        (:func:`depthgram.segmentation.noise_model.estimate_sensor`); or a named profile of
-        :data:`depthgram.segmentation.noise_model.PROFILES` (``kinect-v1``, ``xtion``,
-        ``primesense``, ``realsense-d400``, ``azure-kinect``, ``tof``). Sets every depth
-        tolerance of the ``surfaces`` method and the width of its histogram bins.
-    join_resolutions : float
-        ``surfaces``: two neighbouring readings lie on one surface when their depths differ by
-        at most this many sensor resolutions (one step, or two noise deviations) plus the
-        ``max_slope_deg`` term.
-    max_slope_deg : float
-        ``surfaces``: steepest surface (degrees from facing the sensor) followed across a pixel
-        or a bridged hole; the depth allowed per pixel of distance is ``tan(max_slope) z / f``.
-    crease_deg : float
-        ``surfaces``: smallest bend that makes a concave crease (an inside corner) separate
-        two objects. 40 keeps the four stacked objects of OSD ``test42`` apart and all 30
-        YCB-Video objects found; 30 lets noise cut objects (27 of 30), 50 merges a can with
-        the bowl it stands on.
-    side_max_area : float
-        ``slices`` method: a vertical support smaller than this fraction of the frame that meets
-        a facing object along its side without a depth jump is that object's side face (a box
-        or a cart seen at an angle), and the two become one ``compound``; larger vertical
-        supports stay walls. 0 turns this off. On ``crossing`` the cart's side face was its own
-        ``wall`` track as it entered and left (2 identity switches, 0 with the fold).
+        readings lie at nearly one depth and a thing's rise is read along the view. ``all``: the
+        horizontal supports too (a table seen at an angle), asked for (``--raised SIGMAS``):
+        a real camera's floors and tables seen at an angle bend and streak by a few resolutions
+        over their depths, which it cuts as it would a book, and it costs more (the figures
+        are in docs/design-notes.md).
     crease_span_fraction : float
         ``surfaces``: half-span of the concave creases' second difference, as a share of the
         width of the frame segmented (its sampling grid: 320 px for a 640 px frame), at least
-        2 px (:func:`depthgram.segmentation.creases.crease_scale_px`). The default 1/128 (2 px
-        on that grid) finds the creases of objects standing side by side. A structured-light
-        camera spreads each bend over its 7-9 px correlation window, and a time-of-flight
-        camera's noise hides a right-angled inside corner at that span beyond 4 mm of noise:
-        1/64 (10 px at 640 px) cuts a box lying on a flat block from it (issue 28, YCB-Video
-        0002), but also a chair's seat from its back and a cup's inside from its wall on other
-        recordings, so it is asked for (``[segment] crease_span_fraction = 0.015625``; the
-        figures are in docs/design-notes.md).
+        2 px (:func:`depthgram.segmentation.creases.crease_scale_px`). The default 1/128 finds
+        the creases of objects standing side by side. A structured-light camera spreads each
+        bend over its correlation window, and a time-of-flight camera's noise hides a
+        right-angled inside corner at that span: 1/64 cuts a box lying on a flat block from it
+        (issue 28, YCB-Video 0002), but also a chair's seat from its back and a cup's inside
+        from its wall on other recordings, so it is asked for (``[segment]
+        crease_span_fraction = 0.015625``; the figures are in docs/design-notes.md).
     work_width_px : int
         ``surfaces``: a frame wider than this is segmented on every ``step``-th pixel and row
         (``step = ceil(width / work_width_px)``: 2 at 640 px, 4 at 1280 px) and each pixel then
