@@ -30,9 +30,11 @@ The steps, for each support (:func:`raised_pieces`):
    when ``ring_share`` of the ring around them (one sample wide) lies flat on the plane, when
    they hold at most half the support's readings (more is the support itself: the plane was
    fitted on the rest, a robust fit's breakdown point), and when their median height stands
-   ``step_resolutions`` of the sensor's resolutions over their ring's: a real camera's depth
-   bends by a few resolutions over a table (lens and baseline calibration), smoothly, so that
-   the ring of a swell rises with it; an object lying on the table steps up from a flat ring.
+   ``rise_steps`` quantisation steps over their ring's: a real camera's depth bends by a
+   few steps over a table (lens and baseline calibration), smoothly, so that the ring of a
+   swell rises with it; an object lying on the table steps up from a flat ring. (The rise is a
+   difference of two medians of many readings, so a noisy time-of-flight camera's sigma counts
+   only by the root of their counts: one reading's two sigmas would hide a dish 5 sigmas high.)
    And the support beyond the ring (one to two samples out) must lie on the plane, its median
    within ``outer_resolutions``: a stereo or structured-light floor's streak has a trough
    beside its crest, a thing lying on a support has the support's plane around it.
@@ -87,7 +89,7 @@ def raised_pieces(
     min_px: int,
     k_sigma: float = 4.0,
     ring_share: float = 0.6,
-    step_resolutions: float = 3.0,
+    rise_steps: float = 3.0,
     outer_resolutions: float = 1.0,
 ) -> tuple[NDArray[np.int32], list[int], tuple[int, int, int, int]]:
     """Find the pieces of each horizontal support that stand above its plane by more than the noise.
@@ -121,9 +123,9 @@ def raised_pieces(
         How many of the window mean's noise sigmas a piece must stand above the plane.
     ring_share : float
         Least share (0..1) of the ring around a piece lying on the plane.
-    step_resolutions : float
-        How many of the sensor's resolutions (:meth:`SensorModel.resolution`) the piece's median
-        height must stand above its ring's.
+    rise_steps : float
+        How many quantisation steps (or the noise of the two medians, when larger) the piece's
+        median height must stand above its ring's.
     outer_resolutions : float
         How many resolutions the support's median height beyond the ring may lie off its plane.
 
@@ -159,7 +161,7 @@ def raised_pieces(
         comp, pieces, kept, halves, on, height = cut(
             labels, int(sid), valid, classes, int(cls), depth_mm, bx0, by0, bx1, by1, t, coef, _WINDOW, _RING,
             float(m.sigma_0), float(m.sigma_2), float(m.step_0), float(m.step_2), float(k_sigma), min_samples,
-            float(ring_share), float(step_resolutions), float(outer_resolutions),
+            float(ring_share), float(rise_steps), float(outer_resolutions),
         )  # fmt: skip
         if not kept.size:
             continue

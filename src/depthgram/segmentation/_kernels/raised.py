@@ -257,7 +257,7 @@ def _component_test(
     min_n: int,
     ring_px: int,
     ring_share: float,
-    step_resolutions: float,
+    rise_steps: float,
     outer_resolutions: float,
     sigma_0: float,
     sigma_2: float,
@@ -266,7 +266,7 @@ def _component_test(
 ) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
     # raised's tests of each connected piece (its step 3) of the high windows (comp, n_comp,
     # and their inclusive boxes and sample counts, as components gives them): its ring flat,
-    # fewer than half the support's readings, a step of step_resolutions over its ring, and
+    # fewer than half the support's readings, a step of rise_steps over its ring, and
     # the support beyond the ring (ring_px to 2 ring_px out) within outer_resolutions of the
     # plane; the kept pieces' ids and half heights
     hh, ww = comp.shape
@@ -339,8 +339,14 @@ def _component_test(
             continue
         around = np.median(near[:n_near]) if n_near > 0 else 0.0
         zp = np.median(zs[:n_mine])
-        resolution = max(step_0 + step_2 * zp * zp, 2.0 * (sigma_0 + sigma_2 * zp * zp))
-        if np.median(mine[:n_mine]) - around < step_resolutions * resolution:
+        step = step_0 + step_2 * zp * zp
+        sigma = sigma_0 + sigma_2 * zp * zp
+        resolution = max(step, 2.0 * sigma)
+        # the rise is a difference of two medians of many readings: their noise is a fraction
+        # of one reading's, so what it must clear is the step (a bend is whole steps) or that
+        # fraction, not two of one reading's sigmas
+        spread = 2.0 * 1.2533 * sigma * np.sqrt(1.0 / n_mine + 1.0 / max(n_near, 1))
+        if np.median(mine[:n_mine]) - around < rise_steps * max(step, spread):
             continue
         if n_outer > 0 and abs(np.median(outer[:n_outer])) > outer_resolutions * resolution:
             continue
@@ -420,7 +426,7 @@ def cut(
     k_sigma: float,
     min_n: int,
     ring_share: float,
-    step_resolutions: float,
+    rise_steps: float,
     outer_resolutions: float,
 ) -> tuple[
     NDArray[np.int32], NDArray[np.int64], NDArray[np.int64], NDArray[np.float64], NDArray[np.bool_], NDArray[np.float32]
@@ -461,7 +467,7 @@ def cut(
         min_n,
         ring_px,
         ring_share,
-        step_resolutions,
+        rise_steps,
         outer_resolutions,
         sigma_0,
         sigma_2,
