@@ -115,10 +115,49 @@ def test_a_person_before_the_end_of_a_corridor_is_not_a_wall(sensor: str) -> Non
     assert kinds["end_wall"] == {"wall"}, kinds
 
 
-def test_a_table_seen_straight_down_without_gravity_is_left_an_object() -> None:
-    # nothing says which way is up: a plane facing the camera may be a wall as well as a table
-    kinds = _kinds("arm_down", "sl", with_gravity=False)
-    assert kinds["table"] == {"object"}
+@pytest.mark.parametrize("sensor", ["tof", "sl"])
+def test_a_table_seen_straight_down_without_gravity_is_a_support_by_what_rests_on_it(sensor: str) -> None:
+    # no IMU and no support seen from above: the things lying on the plane facing the camera,
+    # held in by it a few centimetres nearer, say it is a table top and its normal is up
+    kinds = _kinds("arm_down", sensor, with_gravity=False)
+    assert kinds["table"] == {"compound"}, kinds
+    for name in ("dish", "book", "screwdriver", "banana", "mug"):
+        assert kinds.get(name, {"object"}) == {"object"}, name
+    assert not {"ceiling", "floor", "wall"} & set().union(*kinds.values()), kinds
+
+
+@pytest.mark.parametrize("what", ["bare", "one", "far"])
+def test_a_plane_facing_the_camera_is_no_support_without_things_resting_on_it(what: str) -> None:
+    # a plane 1.5 m ahead, square to the camera: bare, with one block 60 mm before it (one
+    # thing may hang on a wall), or with two blocks 0.8 m before it (people before a wall):
+    # nothing says which way is up, so nothing is named by a guessed gravity
+    depth, cam = _plane_frame((0.0, 0.0, -1.0), 1500.0)
+    blocks = {"bare": [], "one": [(20, 40, 60.0)], "far": [(20, 40, 800.0), (95, 40, 800.0)]}[what]
+    for x, y, rise in blocks:
+        depth[y : y + 35, x : x + 40] -= rise
+    depth += np.random.default_rng(0).normal(0.0, 2.0, depth.shape).astype(np.float32)  # a camera's noise
+    seg = segment(depth, intrinsics=cam)
+    assert len(seg.objects) == 1 + len(blocks)
+    named, used = name_kinds(seg, depth, cam, None)
+    assert used is None
+    assert all(o.kind == "object" for o in named.objects), [(o.id, o.kind) for o in named.objects]
+
+
+def test_two_things_resting_on_a_plane_facing_the_camera_make_it_the_floor_under_them() -> None:
+    # the same plane with two blocks 40 and 60 mm nearer, held in by it: its normal is up, and
+    # 1.5 m below the camera with nothing seen beyond it, it is the floor
+    depth, cam = _plane_frame((0.0, 0.0, -1.0), 1500.0)
+    for x, y, rise in ((20, 40, 40.0), (95, 40, 60.0)):
+        depth[y : y + 35, x : x + 40] -= rise
+    depth += np.random.default_rng(0).normal(0.0, 2.0, depth.shape).astype(np.float32)
+    seg = segment(depth, intrinsics=cam)
+    assert len(seg.objects) == 3
+    named, used = name_kinds(seg, depth, cam, None)
+    assert used is not None
+    np.testing.assert_allclose(used, (0.0, 0.0, 1.0), atol=0.02)
+    big = max(named.objects, key=lambda o: o.area)
+    assert big.kind == "floor"
+    assert sorted(o.kind for o in named.objects if o.id != big.id) == ["object", "object"]
 
 
 def _plane_frame(normal: tuple[float, float, float], offset_mm: float) -> tuple[np.ndarray, Intrinsics]:

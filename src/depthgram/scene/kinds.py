@@ -22,8 +22,11 @@ small beside the table it stands on and stays an object.
 Gravity comes from the frame (``--gravity``, ``--tilt``, an IMU, the simulator's truth). Without
 it, it is estimated from the largest support seen from above (what the image's axes call a
 horizontal support, or a large flat facing segment, with its normal toward the image's top),
-kept over the recent frames of a stream. Without either, no ``floor`` or ``ceiling`` is
-guessed: a horizontal support is a ``compound``.
+kept over the recent frames of a stream. Where no support is seen from above, a large flat
+facing segment that things rest on (held in by it, standing a little nearer) is one seen from
+straight above: its normal is up (:func:`resting_gravity`; an arm camera over a table, no IMU).
+Without any of these, no ``floor`` or ``ceiling`` is guessed: a horizontal support is a
+``compound``.
 
 A reading lies on a plane within 1.5 % of its depth plus 4 mm, or the camera's step and two
 sigmas there when the sensor model is known.
@@ -42,7 +45,7 @@ from depthgram.frame import Intrinsics
 from depthgram.segmentation.noise_model import SensorModel
 from depthgram.segmentation.objects import SceneObject, Segmentation
 
-__all__ = ["GravityKinds", "name_kinds"]
+__all__ = ["GravityKinds", "name_kinds", "resting_gravity"]
 
 #: The most a support's normal leans off vertical (degrees) to be horizontal, or off horizontal
 #: to be a wall.
@@ -83,6 +86,11 @@ _MIN_PIECE_SHARE = 0.002
 _PIECE_SAMPLES = 300
 #: Samples of the frame the planes are fitted on.
 _SAMPLES = 3000
+#: Fewest segments resting on a large flat facing segment, and the tallest (mm) counted, for its
+#: normal to be taken for up (:func:`resting_gravity`): a table top seen from straight above
+#: holds a few things a few centimetres to a few decimetres high
+_RESTING_LEAST = 2
+_RESTING_MAX_MM = 400.0
 #: Frames an estimated gravity is remembered in a stream.
 _MEMORY = 30
 
@@ -246,6 +254,61 @@ def estimate_gravity(seg: Segmentation, planes: _Planes) -> NDArray[np.float64] 
     return np.asarray(-mean / np.linalg.norm(mean), np.float64)
 
 
+def resting_gravity(
+    seg: Segmentation, planes: _Planes, depth: NDArray[np.float32], cam: Intrinsics, sensor: SensorModel | None = None
+) -> NDArray[np.float64] | None:
+    """Return gravity (unit, down, camera coordinates) from a large flat segment things rest on, or None.
+
+    When no support is seen from above (:func:`estimate_gravity`), a camera may still look
+    straight down at one: an arm camera over a table, whose top faces it. Things lie on a
+    support, not beside it: a large flat facing segment (:data:`BIG_SHARE` of the frame) holding
+    at least :data:`_RESTING_LEAST` other segments that stand on its near side by more than the
+    noise and less than :data:`_RESTING_MAX_MM`, and that it surrounds (most of their outline's
+    neighbours on the sampling grid are its readings), is a support seen from above: its normal
+    is up. The largest such segment wins.
+    """
+    area = {o.id: o.area for o in seg.objects}
+    kind = {o.id: o.kind for o in seg.objects}
+    big = BIG_SHARE * seg.labels.size
+    cands = [
+        j for j, i in enumerate(planes.ids.tolist()) if kind[i] == "object" and area[i] >= big and planes.planar[j]
+    ]
+    if not cands:
+        return None
+    h, w = depth.shape
+    s = max(1, round(math.sqrt(h * w / _SAMPLES)))
+    lab = np.where(depth[::s, ::s] > 0, seg.labels[::s, ::s], 0)
+    # the segments' neighbours on the grid: (segment, neighbour) pairs of differing readings
+    pairs = []
+    for a, b in ((lab[:, :-1], lab[:, 1:]), (lab[:-1, :], lab[1:, :])):
+        differ = (a != b) & (a > 0) & (b > 0)
+        pairs.append(np.stack([a[differ], b[differ]], axis=1))
+        pairs.append(np.stack([b[differ], a[differ]], axis=1))
+    edges = np.concatenate(pairs)
+    ys, xs = np.nonzero(lab)
+    z = depth[::s, ::s][ys, xs].astype(np.float64)
+    points = _points(xs * float(s), ys * float(s), z, cam)
+    of = lab[ys, xs]
+    for j in sorted(cands, key=lambda j: -area[int(planes.ids[j])]):
+        sid = int(planes.ids[j])
+        touching = edges[:, 0][edges[:, 1] == sid]
+        resting = 0
+        for i in np.unique(touching).tolist():
+            mine = of == i
+            if np.count_nonzero(mine) < 5:
+                continue
+            held = np.count_nonzero(touching == i) / max(int(np.count_nonzero(edges[:, 0] == i)), 1)
+            if held < 0.5:
+                continue
+            near = points[mine] @ planes.normal[j] + planes.offset[j]  # > 0: toward the camera
+            rise = float(np.median(near))
+            if float(np.median(_tolerance(z[mine], sensor))) < rise <= _RESTING_MAX_MM:
+                resting += 1
+        if resting >= _RESTING_LEAST:
+            return np.asarray(-planes.normal[j], np.float64)
+    return None
+
+
 def name_kinds(
     seg: Segmentation,
     depth: NDArray[np.float32],
@@ -271,6 +334,8 @@ def name_kinds(
     g = None if gravity is None else np.asarray(gravity, np.float64)
     if g is None and estimate:
         g = estimate_gravity(seg, planes)
+        if g is None:
+            g = resting_gravity(seg, planes, depth, cam, sensor)
     by_id = {o.id: o for o in seg.objects}
     kinds = {i: by_id[i].kind for i in ids}
     if g is None:
