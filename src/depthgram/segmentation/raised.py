@@ -37,7 +37,10 @@ The steps, for each support (:func:`raised_pieces`):
    only by the root of their counts: one reading's two sigmas would hide a dish 5 sigmas high.)
    And the support beyond the ring (one to two samples out) must lie on the plane, its median
    within ``outer_resolutions``: a stereo or structured-light floor's streak has a trough
-   beside its crest, a thing lying on a support has the support's plane around it.
+   beside its crest, a thing lying on a support has the support's plane around it. On a support
+   seen at an angle (its readings over a range of depths, where a camera's depth bends most),
+   the piece's heights must also lie near their median (``spread``): a thing lying there stands
+   up from its edge, a swell rises from nothing at its edge to twice its median or more.
 4. **A kept piece's pixels** are then the support's readings of its samples' cells and one cell
    around (the samples' edge is a cell off the readings') standing above half its median height
    (the window's mean reaches past its edge), when they are still ``min_px``.
@@ -91,6 +94,7 @@ def raised_pieces(
     ring_share: float = 0.6,
     rise_steps: float = 3.0,
     outer_resolutions: float = 1.0,
+    spread: float = math.inf,
 ) -> tuple[NDArray[np.int32], list[int], tuple[int, int, int, int]]:
     """Find the pieces of each horizontal support that stand above its plane by more than the noise.
 
@@ -128,6 +132,10 @@ def raised_pieces(
         median height must stand above its ring's.
     outer_resolutions : float
         How many resolutions the support's median height beyond the ring may lie off its plane.
+    spread : float
+        Most a piece's 90th-percentile height may be, as a multiple of its median (``inf``: no
+        limit): what lies on a support stands up from its edge, a swell of the depth rises
+        from nothing.
 
     Returns
     -------
@@ -161,7 +169,7 @@ def raised_pieces(
         comp, pieces, kept, halves, on, height = cut(
             labels, int(sid), valid, classes, int(cls), depth_mm, bx0, by0, bx1, by1, t, coef, _WINDOW, _RING,
             float(m.sigma_0), float(m.sigma_2), float(m.step_0), float(m.step_2), float(k_sigma), min_samples,
-            float(ring_share), float(rise_steps), float(outer_resolutions),
+            float(ring_share), float(rise_steps), float(outer_resolutions), float(spread),
         )  # fmt: skip
         if not kept.size:
             continue

@@ -259,6 +259,7 @@ def _component_test(
     ring_share: float,
     rise_steps: float,
     outer_resolutions: float,
+    spread: float,
     sigma_0: float,
     sigma_2: float,
     step_0: float,
@@ -325,7 +326,10 @@ def _component_test(
                         n_outer += 1
         if n_flat < ring_share * max(n_ring, 1) or n_in == 0:
             continue
-        half = 0.5 * np.median(inside[:n_in])
+        middle = np.median(inside[:n_in])
+        if np.percentile(inside[:n_in], 90.0) > spread * middle:
+            continue
+        half = 0.5 * middle
         mine = np.empty(n_in, np.float32)
         zs = np.empty(n_in, np.float32)
         n_mine = 0
@@ -345,8 +349,8 @@ def _component_test(
         # the rise is a difference of two medians of many readings: their noise is a fraction
         # of one reading's, so what it must clear is the step (a bend is whole steps) or that
         # fraction, not two of one reading's sigmas
-        spread = 2.0 * 1.2533 * sigma * np.sqrt(1.0 / n_mine + 1.0 / max(n_near, 1))
-        if np.median(mine[:n_mine]) - around < rise_steps * max(step, spread):
+        noise = 2.0 * 1.2533 * sigma * np.sqrt(1.0 / n_mine + 1.0 / max(n_near, 1))
+        if np.median(mine[:n_mine]) - around < rise_steps * max(step, noise):
             continue
         if n_outer > 0 and abs(np.median(outer[:n_outer])) > outer_resolutions * resolution:
             continue
@@ -428,6 +432,7 @@ def cut(
     ring_share: float,
     rise_steps: float,
     outer_resolutions: float,
+    spread: float,
 ) -> tuple[
     NDArray[np.int32], NDArray[np.int64], NDArray[np.int64], NDArray[np.float64], NDArray[np.bool_], NDArray[np.float32]
 ]:
@@ -469,6 +474,7 @@ def cut(
         ring_share,
         rise_steps,
         outer_resolutions,
+        spread,
         sigma_0,
         sigma_2,
         step_0,
