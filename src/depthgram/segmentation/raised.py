@@ -27,7 +27,10 @@ The steps, for each support (:func:`raised_pieces`):
    camera's sieve of dropouts) are bridged: a window counts wherever a quarter of it has the
    support's readings and the readings closed by the window cover it.
 3. **The pieces**, the standing windows' 8-connected sets, are kept when they are large enough,
-   when ``ring_share`` of the ring around them (one sample wide) lies flat on the plane, when
+   when ``ring_share`` of the ring around them (one sample wide) lies flat on the plane and at
+   most ``ring_missing`` of it has no reading (a thing lying on the support is too low to cast
+   a shadow; one standing well before it, on a counter before a wall, is seen beside its
+   shadow), when
    they hold at most half the support's readings (more is the support itself: the plane was
    fitted on the rest, a robust fit's breakdown point), and when their median height stands
    ``rise_steps`` quantisation steps over their ring's: a real camera's depth bends by a
@@ -95,6 +98,7 @@ def raised_pieces(
     rise_steps: float = 3.0,
     outer_resolutions: float = 1.0,
     spread: float = math.inf,
+    ring_missing: float = 0.15,
 ) -> tuple[NDArray[np.int32], list[int], tuple[int, int, int, int]]:
     """Find the pieces of each horizontal support that stand above its plane by more than the noise.
 
@@ -136,6 +140,10 @@ def raised_pieces(
         Most a piece's 90th-percentile height may be, as a multiple of its median (``inf``: no
         limit): what lies on a support stands up from its edge, a swell of the depth rises
         from nothing.
+    ring_missing : float
+        Most share (0..1) of the ring around a piece without a reading: a thing lying on a
+        support is too low to cast a shadow or leave mixed pixels at its edge; one standing
+        well before it (on a counter before a wall) is seen beside its shadow.
 
     Returns
     -------
@@ -169,7 +177,7 @@ def raised_pieces(
         comp, pieces, kept, halves, on, height = cut(
             labels, int(sid), valid, classes, int(cls), depth_mm, bx0, by0, bx1, by1, t, coef, _WINDOW, _RING,
             float(m.sigma_0), float(m.sigma_2), float(m.step_0), float(m.step_2), float(k_sigma), min_samples,
-            float(ring_share), float(rise_steps), float(outer_resolutions), float(spread),
+            float(ring_share), float(rise_steps), float(outer_resolutions), float(spread), float(ring_missing),
         )  # fmt: skip
         if not kept.size:
             continue

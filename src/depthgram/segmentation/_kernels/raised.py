@@ -260,6 +260,11 @@ def _component_test(
     rise_steps: float,
     outer_resolutions: float,
     spread: float,
+    ring_missing: float,
+    valid: NDArray[np.bool_],
+    x0: int,
+    y0: int,
+    t: int,
     sigma_0: float,
     sigma_2: float,
     step_0: float,
@@ -289,7 +294,7 @@ def _component_test(
         inside = np.empty(size, np.float32)
         near = np.empty(size, np.float32)
         outer = np.empty(size, np.float32)
-        n_in = n_near = n_ring = n_flat = n_outer = 0
+        n_in = n_near = n_ring = n_flat = n_outer = n_missing = 0
         for i in range(ya, yb):
             for j in range(xa, xb):
                 if comp[i, j] == k:
@@ -309,6 +314,8 @@ def _component_test(
                     n_ring += 1
                     if flat[i, j]:
                         n_flat += 1
+                    if not valid[y0 + i * t, x0 + j * t]:
+                        n_missing += 1
                     if on[i, j]:
                         near[n_near] = height[i, j]
                         n_near += 1
@@ -324,7 +331,7 @@ def _component_test(
                     if beyond:
                         outer[n_outer] = height[i, j]
                         n_outer += 1
-        if n_flat < ring_share * max(n_ring, 1) or n_in == 0:
+        if n_flat < ring_share * max(n_ring, 1) or n_in == 0 or n_missing > ring_missing * n_ring:
             continue
         middle = np.median(inside[:n_in])
         if np.percentile(inside[:n_in], 90.0) > spread * middle:
@@ -433,6 +440,7 @@ def cut(
     rise_steps: float,
     outer_resolutions: float,
     spread: float,
+    ring_missing: float,
 ) -> tuple[
     NDArray[np.int32], NDArray[np.int64], NDArray[np.int64], NDArray[np.float64], NDArray[np.bool_], NDArray[np.float32]
 ]:
@@ -475,6 +483,11 @@ def cut(
         rise_steps,
         outer_resolutions,
         spread,
+        ring_missing,
+        valid,
+        x0,
+        y0,
+        t,
         sigma_0,
         sigma_2,
         step_0,
