@@ -33,7 +33,8 @@ The steps, for each support (:func:`raised_pieces`):
    shadow), when
    they hold at most half the support's readings (more is the support itself: the plane was
    fitted on the rest, a robust fit's breakdown point), and when their median height stands
-   ``rise_steps`` quantisation steps over their ring's: a real camera's depth bends by a
+   ``rise_steps`` quantisation steps over their ring's, that ring lying at most ``ring_rise``
+   of their height (or a step) above the plane: a real camera's depth bends by a
    few steps over a table (lens and baseline calibration), smoothly, so that the ring of a
    swell rises with it; an object lying on the table steps up from a flat ring. (The rise is a
    difference of two medians of many readings, so a noisy time-of-flight camera's sigma counts
@@ -99,6 +100,7 @@ def raised_pieces(
     outer_resolutions: float = 1.0,
     spread: float = math.inf,
     ring_missing: float = 0.15,
+    ring_rise: float = 0.1,
 ) -> tuple[NDArray[np.int32], list[int], tuple[int, int, int, int]]:
     """Find the pieces of each horizontal support that stand above its plane by more than the noise.
 
@@ -144,6 +146,11 @@ def raised_pieces(
         Most share (0..1) of the ring around a piece without a reading: a thing lying on a
         support is too low to cast a shadow or leave mixed pixels at its edge; one standing
         well before it (on a counter before a wall) is seen beside its shadow.
+    ring_rise : float
+        Most the ring's median height may be, as a share of the piece's (or one quantisation
+        step, when larger): a thing lying on a support steps up from the plane at its edge;
+        the cap of a rounded surface taken for a support (a hand, a ball near the camera) has
+        its ring rising with it.
 
     Returns
     -------
@@ -178,6 +185,7 @@ def raised_pieces(
             labels, int(sid), valid, classes, int(cls), depth_mm, bx0, by0, bx1, by1, t, coef, _WINDOW, _RING,
             float(m.sigma_0), float(m.sigma_2), float(m.step_0), float(m.step_2), float(k_sigma), min_samples,
             float(ring_share), float(rise_steps), float(outer_resolutions), float(spread), float(ring_missing),
+            float(ring_rise),
         )  # fmt: skip
         if not kept.size:
             continue

@@ -261,6 +261,7 @@ def _component_test(
     outer_resolutions: float,
     spread: float,
     ring_missing: float,
+    ring_rise: float,
     valid: NDArray[np.bool_],
     x0: int,
     y0: int,
@@ -357,7 +358,8 @@ def _component_test(
         # of one reading's, so what it must clear is the step (a bend is whole steps) or that
         # fraction, not two of one reading's sigmas
         noise = 2.0 * 1.2533 * sigma * np.sqrt(1.0 / n_mine + 1.0 / max(n_near, 1))
-        if np.median(mine[:n_mine]) - around < rise_steps * max(step, noise):
+        top = np.median(mine[:n_mine])
+        if top - around < rise_steps * max(step, noise) or around > max(ring_rise * top, step):
             continue
         if n_outer > 0 and abs(np.median(outer[:n_outer])) > outer_resolutions * resolution:
             continue
@@ -441,6 +443,7 @@ def cut(
     outer_resolutions: float,
     spread: float,
     ring_missing: float,
+    ring_rise: float,
 ) -> tuple[
     NDArray[np.int32], NDArray[np.int64], NDArray[np.int64], NDArray[np.float64], NDArray[np.bool_], NDArray[np.float32]
 ]:
@@ -484,6 +487,7 @@ def cut(
         outer_resolutions,
         spread,
         ring_missing,
+        ring_rise,
         valid,
         x0,
         y0,
