@@ -26,25 +26,28 @@ The steps, for each support (:func:`raised_pieces`):
    quantisation step, and lies on it where its mean is within that. Holes (a structured-light
    camera's sieve of dropouts) are bridged: a window counts wherever a quarter of it has the
    support's readings and the readings closed by the window cover it.
-3. **The pieces**, the standing windows' 8-connected sets, are kept when they are large enough,
-   when ``ring_share`` of the ring around them (one sample wide) lies flat on the plane and at
-   most ``ring_missing`` of it has no reading (a thing lying on the support is too low to cast
-   a shadow; one standing well before it, on a counter before a wall, is seen beside its
-   shadow), when
-   they hold at most half the support's readings (more is the support itself: the plane was
-   fitted on the rest, a robust fit's breakdown point), and when their median height stands
-   ``rise_steps`` quantisation steps over their ring's, that ring lying at most ``ring_rise``
-   of their height (or a step) above the plane: a real camera's depth bends by a
-   few steps over a table (lens and baseline calibration), smoothly, so that the ring of a
-   swell rises with it; an object lying on the table steps up from a flat ring. (The rise is a
-   difference of two medians of many readings, so a noisy time-of-flight camera's sigma counts
-   only by the root of their counts: one reading's two sigmas would hide a dish 5 sigmas high.)
-   And the support beyond the ring (one to two samples out) must lie on the plane, its median
-   within ``outer_resolutions``: a stereo or structured-light floor's streak has a trough
-   beside its crest, a thing lying on a support has the support's plane around it. On a support
-   seen at an angle (its readings over a range of depths, where a camera's depth bends most),
-   the piece's heights must also lie near their median (``spread``): a thing lying there stands
-   up from its edge, a swell rises from nothing at its edge to twice its median or more.
+3. **The pieces**, the standing windows' 8-connected sets, are kept when they are large enough
+   and hold at most half the support's readings (more is the support itself: the plane was
+   fitted on the rest, a robust fit's breakdown point), and when they look like a thing lying
+   on the support, not like the support's own depth bending:
+
+   - ``ring_share`` of the ring around them (one sample wide) lies flat on the plane, and at
+     most ``ring_missing`` of it has no reading: a thing lying on a support is too low to cast
+     a shadow; one standing well before it (on a counter before a wall) is seen beside its own;
+   - their median height stands ``rise_steps`` quantisation steps over their ring's, and that
+     ring lies at most ``ring_rise`` of their height (or a step) above the plane: a real
+     camera's depth bends by a few steps over a table (lens and baseline calibration),
+     smoothly, so the ring of a swell rises with it, as does that of a ball's cap taken for a
+     support; a thing lying on a table steps up from a flat ring. (The rise is a difference of
+     two medians of many readings: a noisy time-of-flight camera's sigma counts only by the
+     root of their counts; one reading's two sigmas would hide a dish 5 sigmas high);
+   - the support beyond the ring (one to two samples out) lies on the plane, its median within
+     ``outer_resolutions``: a stereo or structured-light floor's streak has a trough beside its
+     crest;
+   - on a support seen at an angle (its readings over a range of depths, where a camera's depth
+     bends most) their heights lie near their median (``spread``): a thing lying there stands
+     up from its edge, a swell rises from nothing at its edge to twice its median or more.
+
 4. **A kept piece's pixels** are then the support's readings of its samples' cells and one cell
    around (the samples' edge is a cell off the readings') standing above half its median height
    (the window's mean reaches past its edge), when they are still ``min_px``.

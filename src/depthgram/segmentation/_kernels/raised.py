@@ -272,10 +272,11 @@ def _component_test(
     step_2: float,
 ) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
     # raised's tests of each connected piece (its step 3) of the high windows (comp, n_comp,
-    # and their inclusive boxes and sample counts, as components gives them): its ring flat,
-    # fewer than half the support's readings, a step of rise_steps over its ring, and
-    # the support beyond the ring (ring_px to 2 ring_px out) within outer_resolutions of the
-    # plane; the kept pieces' ids and half heights
+    # and their inclusive boxes and sample counts, as components gives them): its ring flat and
+    # seen (valid at the samples, every t-th pixel from x0, y0), its heights' spread, fewer than
+    # half the support's readings, a step of rise_steps over its ring with the ring near the
+    # plane, and the support beyond the ring (ring_px to 2 ring_px out) within
+    # outer_resolutions of the plane; the kept pieces' ids and half heights
     hh, ww = comp.shape
     n_on = 0
     for i in range(hh):
