@@ -469,13 +469,6 @@ def _stack_supports(
     return _Stack(total, total_boxes, keys, first_support, next_id, supports, attrs)
 
 
-#: Most a piece's 90th-percentile height may be, as a multiple of its median, on a horizontal
-#: support (:func:`_cut_raised`): a thing lying there stands up from its edge (a dish, a book,
-#: a banana: 1.1-1.3), a swell of an oblique support's depth rises from nothing at its edge
-#: (a stereo floor's streak, a Kinect table's bend: 1.7 and more)
-_SPREAD = 1.6
-
-
 def _cut_raised(
     labels: NDArray[np.int32],
     depth: NDArray[np.float32],
@@ -505,11 +498,9 @@ def _cut_raised(
     found: list[tuple[NDArray[np.int32], list[int], tuple[int, int, int, int]]] = []
     for ids, cls in ((tops, HORIZONTAL), (broad, FACING)):
         if ids:
-            spread = _SPREAD if cls == HORIZONTAL else math.inf
             got = raised_pieces(
-                labels, depth, ok, classes, cls, ids, stack.boxes[ids], sensor, min_px=min_px,
-                k_sigma=cfg.raised_sigmas, spread=spread,
-            )  # fmt: skip
+                labels, depth, ok, classes, cls, ids, stack.boxes[ids], sensor, min_px=min_px, k_sigma=cfg.raised_sigmas
+            )
             if got[1]:
                 found.append(got)  # most supports: nothing cut, no frame-sized work
     if not found:

@@ -43,10 +43,7 @@ The steps, for each support (:func:`raised_pieces`):
      root of their counts; one reading's two sigmas would hide a dish 5 sigmas high);
    - the support beyond the ring (one to two samples out) lies on the plane, its median within
      ``outer_resolutions``: a stereo or structured-light floor's streak has a trough beside its
-     crest;
-   - on a support seen at an angle (its readings over a range of depths, where a camera's depth
-     bends most) their heights lie near their median (``spread``): a thing lying there stands
-     up from its edge, a swell rises from nothing at its edge to twice its median or more.
+     crest.
 
 4. **A kept piece's pixels** are then the support's readings of its samples' cells and one cell
    around (the samples' edge is a cell off the readings') standing above half its median height
@@ -101,7 +98,6 @@ def raised_pieces(
     ring_share: float = 0.6,
     rise_steps: float = 3.0,
     outer_resolutions: float = 1.0,
-    spread: float = math.inf,
     ring_missing: float = 0.15,
     ring_rise: float = 0.1,
 ) -> tuple[NDArray[np.int32], list[int], tuple[int, int, int, int]]:
@@ -141,10 +137,6 @@ def raised_pieces(
         median height must stand above its ring's.
     outer_resolutions : float
         How many resolutions the support's median height beyond the ring may lie off its plane.
-    spread : float
-        Most a piece's 90th-percentile height may be, as a multiple of its median (``inf``: no
-        limit): what lies on a support stands up from its edge, a swell of the depth rises
-        from nothing.
     ring_missing : float
         Most share (0..1) of the ring around a piece without a reading: a thing lying on a
         support is too low to cast a shadow or leave mixed pixels at its edge; one standing
@@ -187,8 +179,7 @@ def raised_pieces(
         comp, pieces, kept, halves, on, height = cut(
             labels, int(sid), valid, classes, int(cls), depth_mm, bx0, by0, bx1, by1, t, coef, _WINDOW, _RING,
             float(m.sigma_0), float(m.sigma_2), float(m.step_0), float(m.step_2), float(k_sigma), min_samples,
-            float(ring_share), float(rise_steps), float(outer_resolutions), float(spread), float(ring_missing),
-            float(ring_rise),
+            float(ring_share), float(rise_steps), float(outer_resolutions), float(ring_missing), float(ring_rise),
         )  # fmt: skip
         if not kept.size:
             continue

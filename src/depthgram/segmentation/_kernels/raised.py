@@ -259,7 +259,6 @@ def _component_test(
     ring_share: float,
     rise_steps: float,
     outer_resolutions: float,
-    spread: float,
     ring_missing: float,
     ring_rise: float,
     valid: NDArray[np.bool_],
@@ -273,8 +272,8 @@ def _component_test(
 ) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
     # raised's tests of each connected piece (its step 3) of the high windows (comp, n_comp,
     # and their inclusive boxes and sample counts, as components gives them): its ring flat and
-    # seen (valid at the samples, every t-th pixel from x0, y0), its heights' spread, fewer than
-    # half the support's readings, a step of rise_steps over its ring with the ring near the
+    # seen (valid at the samples, every t-th pixel from x0, y0), fewer than half the support's
+    # readings, a step of rise_steps over its ring with the ring near the
     # plane, and the support beyond the ring (ring_px to 2 ring_px out) within
     # outer_resolutions of the plane; the kept pieces' ids and half heights
     hh, ww = comp.shape
@@ -335,10 +334,7 @@ def _component_test(
                         n_outer += 1
         if n_flat < ring_share * max(n_ring, 1) or n_in == 0 or n_missing > ring_missing * n_ring:
             continue
-        middle = np.median(inside[:n_in])
-        if np.percentile(inside[:n_in], 90.0) > spread * middle:
-            continue
-        half = 0.5 * middle
+        half = 0.5 * np.median(inside[:n_in])
         mine = np.empty(n_in, np.float32)
         zs = np.empty(n_in, np.float32)
         n_mine = 0
@@ -442,7 +438,6 @@ def cut(
     ring_share: float,
     rise_steps: float,
     outer_resolutions: float,
-    spread: float,
     ring_missing: float,
     ring_rise: float,
 ) -> tuple[
@@ -486,7 +481,6 @@ def cut(
         ring_share,
         rise_steps,
         outer_resolutions,
-        spread,
         ring_missing,
         ring_rise,
         valid,
