@@ -273,3 +273,26 @@ def test_a_rolled_camera_finds_the_same_objects_and_kinds_given_gravity(scene: s
         walls = ("back_wall", "left_wall", "right_wall")
         assert all(kinds.get(n, {"wall"}) <= {"wall"} for n in walls), (f.name, kinds)
         assert all(kinds.get(n, {"object"}) == {"object"} for n in ("box", "bottle", "ball", "cup")), (f.name, kinds)
+
+
+def test_an_estimated_gravity_is_reported_and_warned_of_once() -> None:
+    # an arm camera over a table, no gravity given: the JSON line carries the estimate (source
+    # "estimated", within a few degrees of straight down) and one GravityWarning names the options;
+    # with the tilt given, no warning and the line carries the user's
+    from depthgram.frame import GravityWarning
+
+    sims = list(simulate("arm_down", 2, size=(320, 240), sensor="tof", seed=1))
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        pipe = Pipeline(track=False)
+        records = [pipe.process(s.frame).to_record() for s in sims]
+    said = [w for w in caught if issubclass(w.category, GravityWarning)]
+    assert len(said) == 1 and "--gravity" in str(said[0].message) and "--tilt" in str(said[0].message)
+    for rec in records:
+        assert rec["gravity"]["source"] == "estimated"
+        np.testing.assert_allclose(rec["gravity"]["vector"], sims[0].gravity.vector, atol=0.05)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        rec = Pipeline(track=False, tilt_deg=90.0).process(sims[0].frame).to_record()
+    assert not [w for w in caught if issubclass(w.category, GravityWarning)]
+    assert rec["gravity"]["source"] == "tilt"

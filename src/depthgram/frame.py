@@ -23,6 +23,7 @@ __all__ = [
     "DepthError",
     "Frame",
     "Gravity",
+    "GravityWarning",
     "Intrinsics",
     "UnitsWarning",
     "as_gravity",
@@ -76,6 +77,10 @@ class Intrinsics:
         return Intrinsics(self.fx * sx, self.fy * sy, (self.cx + 0.5) * sx - 0.5, (self.cy + 0.5) * sy - 0.5)
 
 
+class GravityWarning(UserWarning):
+    """Gravity was estimated from the scene: give it (``--gravity`` / ``--tilt``, or an IMU) to be sure."""
+
+
 @dataclass(frozen=True)
 class Gravity:
     """Which way is down, in the camera's frame, and how that is known.
@@ -88,7 +93,9 @@ class Gravity:
         (0, 0, 1). Any length is accepted and normalised.
     source : str
         ``given`` (a vector from the user), ``tilt`` (a pitch from the user), ``imu`` (the
-        recording's accelerometer), ``file`` (a file beside the frames), ``simulator`` (exact).
+        recording's accelerometer), ``file`` (a file beside the frames), ``simulator`` (exact),
+        ``estimated`` (from the scene's supports, :mod:`depthgram.scene.kinds`; reported, never
+        put on a frame).
     """
 
     vector: tuple[float, float, float]

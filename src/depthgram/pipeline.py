@@ -28,7 +28,7 @@ from depthgram.dynamics import FramePixels, Tracker, TrackerConfig
 from depthgram.dynamics import warm_up as warm_up_dynamics
 from depthgram.errors import InputError
 from depthgram.focal_length import CHECKED_SOURCES, FocalCheck, RecordingFocal
-from depthgram.frame import Frame, Gravity, Intrinsics, as_gravity
+from depthgram.frame import Frame, Gravity, GravityWarning, Intrinsics, as_gravity
 from depthgram.scene import TreeConfig, build_tree, to_sentence, tree_to_dict
 from depthgram.scene.kinds import GravityKinds
 from depthgram.scene.tree import Motion, SceneTree
@@ -217,6 +217,9 @@ class SceneResult:
     #: The intrinsics the frame was segmented with and where they came from, and the sensor model
     #: (:meth:`Pipeline.camera_record`): on the first frame of a run, and wherever they change.
     camera: Mapping[str, Any] | None = None
+    #: Gravity estimated from the scene (source ``estimated``) where the frame carries none: the
+    #: supports' kinds were named by it.
+    gravity_estimate: Gravity | None = None
 
     @property
     def sentence(self) -> str:
@@ -241,6 +244,8 @@ class SceneResult:
             rec["camera"] = dict(self.camera)
         if f.gravity is not None:
             rec["gravity"] = f.gravity.to_dict()
+        elif self.gravity_estimate is not None:
+            rec["gravity"] = self.gravity_estimate.to_dict()
         return rec | {
             "objects": objects,
             "occluded": occluded,
@@ -359,6 +364,7 @@ class Pipeline:
         self.gravity = as_gravity(gravity, tilt_deg)
         self._said_camera: dict[str, Any] | None = None  # the camera record last given in a result
         self._warned_guess = False
+        self._warned_gravity = False
         self._warned_estimate = False
         self._focal = RecordingFocal()  # the focal length read from the scene, once found
         self._focal_check = FocalCheck()  # the user's intrinsics against the scene
@@ -644,6 +650,17 @@ class Pipeline:
         down = frame.gravity.vector if frame.gravity is not None else None
         cam = frame.intrinsics or default_intrinsics(frame.depth.shape)
         seg = self._kinds(seg, frame.depth, cam, down, related=not still, sensor=self._known_sensor(frame))
+        estimate = None if self._kinds.estimated is None else Gravity(tuple(self._kinds.estimated), "estimated")
+        if estimate is not None and not self._warned_gravity:
+            self._warned_gravity = True
+            warnings.warn(
+                f"{frame.name or f'frame {frame.index}'}: no gravity given: estimated from the scene's supports "
+                f"(the camera looks {estimate.tilt_deg:.0f} degrees down); the floor, table tops, walls and "
+                "ceiling are named by it. Give it with --gravity X Y Z or --tilt DEG (in Python: gravity= or "
+                "tilt_deg=) to be sure",
+                GravityWarning,
+                stacklevel=2,
+            )
         tree = build_tree(seg.objects, frame.size, motion=motions or None, config=cfg.tree, labels=seg.labels)
         action_plan = plan_scene(tree, frame, config=cfg.act)
         camera: dict[str, Any] | None = self.camera_record(frame)
@@ -661,6 +678,7 @@ class Pipeline:
             latency_s=time.perf_counter() - t0,
             still=still,
             camera=camera,
+            gravity_estimate=estimate,
         )
 
     def run(self, frames: Iterable[Frame], *, read_ahead: int = 2, workers: int = 1) -> Iterator[SceneResult]:

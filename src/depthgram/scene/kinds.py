@@ -515,6 +515,9 @@ class GravityKinds:
     def __init__(self) -> None:
         self._last: NDArray[np.float64] | None = None
         self._age = 0
+        #: the gravity the last frame was named by when it was estimated (this frame's or a
+        #: recent one's), else None (given, or none known)
+        self.estimated: NDArray[np.float64] | None = None
 
     def __call__(
         self,
@@ -530,6 +533,7 @@ class GravityKinds:
 
         ``related``: the frame continues the previous one; ``sensor``: as :func:`name_kinds`.
         """
+        self.estimated = None
         if gravity is not None:
             out, _ = name_kinds(seg, depth, cam, gravity, sensor=sensor)
             return out
@@ -538,8 +542,10 @@ class GravityKinds:
         out, g = name_kinds(seg, depth, cam, None, sensor=sensor)
         if g is not None:
             self._last, self._age = g, 0
+            self.estimated = g
             return out
         self._age += 1
         if self._last is not None and self._age <= _MEMORY:
             out, _ = name_kinds(seg, depth, cam, self._last, estimate=False, sensor=sensor)
+            self.estimated = self._last
         return out
