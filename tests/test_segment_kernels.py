@@ -1123,6 +1123,27 @@ def test_planes_from_sums_is_the_numpy_route_within_the_conditioning() -> None:
     assert n_rows > 100
 
 
+def test_planes_from_sums_leaves_the_small_pieces_unsolved() -> None:
+    # the supports read the planes of pieces of min_px pixels or more alone: those rows are the
+    # full solve's to the last bit, the others NaN, and the counts are every row's
+    rng = np.random.default_rng(13)
+    for t in range(10):
+        depth, ok, cam = _floor_scene()
+        if t % 2:
+            depth = depth + rng.normal(0, 8, depth.shape).astype(np.float32) * ok
+        classes = rng.choice(np.array([0, 1, 2], np.int8), depth.shape, p=[0.3, 0.6, 0.1])
+        _, _, _, _, planes = support_pieces(depth, ok, classes, 1, cam, jump_rel=0.25, bridge=2, min_fit_px=5)
+        normal, offset, count = planes_from_sums(planes)
+        min_px = float(rng.choice([1.0, 5.0, 20.0]))
+        got_normal, got_offset, got_count = planes_from_sums(planes, min_px=min_px)
+        solved = count >= min_px
+        solved[0] = True
+        np.testing.assert_array_equal(got_count, count)
+        np.testing.assert_array_equal(got_normal[solved], normal[solved])
+        np.testing.assert_array_equal(got_offset[solved], offset[solved])
+        assert np.isnan(got_normal[~solved]).all() and np.isnan(got_offset[~solved]).all()
+
+
 def test_small_supports_are_numpys_test() -> None:
     # too few pixels or too flat for their depth: numpy's test on the statistics table, rows
     # of every kind (empty, flat, spread, exactly at the limits)

@@ -463,6 +463,7 @@ def support_pieces_lazy(
     bridge: int,
     min_fit_px: int,
     window: tuple[int, int, int, int] | None = None,
+    min_plane_px: float = 0.0,
 ) -> tuple[
     NDArray[np.int32],
     NDArray[np.int32] | None,
@@ -482,7 +483,8 @@ def support_pieces_lazy(
 
     ``window`` ``(y0, y1, x0, x1)`` (half-open, px), when it holds every pixel of the class
     (:func:`depthgram.segmentation.coplanar.class_window`), gives the same results reading these
-    rows and columns alone; the labels are 0 outside it.
+    rows and columns alone; the labels are 0 outside it. ``min_plane_px``: as for
+    :func:`join_pieces`.
     """
     h, w = valid.shape
     win = window if window is not None else (0, h, 0, w)
@@ -490,7 +492,7 @@ def support_pieces_lazy(
     labels, n, sums, boxes, planes = label_keyed_planes(
         depth_mm, state, depth_mm, cam.fx, cam.fy, cam.cx, cam.cy, rel=jump_rel, bridge=bridge, window=win
     )
-    return (labels, *join_pieces(n, sums, boxes, planes, min_fit_px=min_fit_px))
+    return (labels, *join_pieces(n, sums, boxes, planes, min_fit_px=min_fit_px, min_plane_px=min_plane_px))
 
 
 def join_pieces(
@@ -500,6 +502,7 @@ def join_pieces(
     planes: NDArray[np.float64],
     *,
     min_fit_px: int,
+    min_plane_px: float = 0.0,
 ) -> tuple[
     NDArray[np.int32] | None,
     int,
@@ -514,11 +517,12 @@ def join_pieces(
     :func:`depthgram.segmentation.label.label_keyed_planes` (row 0 unused). Returns what
     :func:`support_pieces_lazy` returns after the labels: the lookup table piece -> support
     (None when none joined), the number of supports, their tables, and the pieces' plane fit
-    when none joined (else None).
+    when none joined (else None), whose pieces under both ``min_fit_px`` and ``min_plane_px``
+    pixels have no plane (NaN: the caller reads the planes of larger pieces alone).
     """
     if n < 2:
         return None, n, sums, boxes, planes, None
-    fit = planes_from_sums(planes)
+    fit = planes_from_sums(planes, min_px=min(min_fit_px, min_plane_px))
     normal, off, count = fit
     lut, m = coplanar_groups(normal, off, count, min_fit_px=min_fit_px)
     if m == n:

@@ -99,17 +99,21 @@ def support_class(
     fit_px = max(min_px // 2, 10)
     if pieces is None:
         lab, merge, n, sums, boxes, planes, fit = support_pieces_lazy(
-            depth, ok, classes, cls, cam, jump_rel=cfg.jump_rel, bridge=cfg.fill_holes_px, min_fit_px=fit_px
-        )
+            depth, ok, classes, cls, cam, jump_rel=cfg.jump_rel, bridge=cfg.fill_holes_px, min_fit_px=fit_px,
+            min_plane_px=min_px,
+        )  # fmt: skip
         n_pieces = merge.size - 1 if merge is not None else n
         base, size = 0, n_pieces + 1
     else:
         lab, base, size, n_pieces, psums, pboxes, pplanes = pieces
-        merge, n, sums, boxes, planes, fit = join_pieces(n_pieces, psums, pboxes, pplanes, min_fit_px=fit_px)
+        merge, n, sums, boxes, planes, fit = join_pieces(
+            n_pieces, psums, pboxes, pplanes, min_fit_px=fit_px, min_plane_px=min_px
+        )
     # noise makes some support pixels look facing; those lying on a big support's plane
-    # go back to it (an upright object meets that plane only along its base row)
+    # go back to it (an upright object meets that plane only along its base row): only the
+    # planes of supports of min_px pixels or more are read
     if n:
-        normal, off, count = fit if fit is not None else planes_from_sums(planes)
+        normal, off, count = fit if fit is not None else planes_from_sums(planes, min_px=min_px)
         near = join_near(
             classes, ok, cls, FACING, normal, off, count, boxes, depth, cam, min_px=min_px, tol_rel=cfg.jump_rel / 2
         )
@@ -118,7 +122,7 @@ def support_class(
             win = class_window(boxes, count, depth.shape, min_px=min_px)
             lab, merge, n, sums, boxes, planes, _ = support_pieces_lazy(
                 depth, ok, classes, cls, cam, jump_rel=cfg.jump_rel, bridge=cfg.fill_holes_px, min_fit_px=fit_px,
-                window=win,
+                window=win, min_plane_px=min_px,
             )  # fmt: skip
             n_pieces = merge.size - 1 if merge is not None else n
             base, size = 0, n_pieces + 1
