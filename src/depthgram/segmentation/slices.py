@@ -349,7 +349,7 @@ def add_through(
         labels,
         np.ascontiguousarray(more, np.int32),
         np.ascontiguousarray(lut, np.int32),
-        _cover(np.ascontiguousarray(boxes, np.int64).reshape(-1, 4), *labels.shape),
+        np.ascontiguousarray(boxes, np.int64).reshape(-1, 4),
     )
 
 
@@ -358,6 +358,7 @@ def _add_through(
     labels: NDArray[np.int32], more: NDArray[np.int32], lut: NDArray[np.int32], boxes: NDArray[np.int64]
 ) -> None:
     # boxes may overlap: a pixel read twice is written the same value twice
+    boxes = _cover(boxes, labels.shape[0], labels.shape[1])
     for k in range(boxes.shape[0]):
         for y in range(boxes[k, 1], boxes[k, 3] + 1):
             src = more[y]
@@ -368,10 +369,21 @@ def _add_through(
                 dst[ux] = v if v else dst[ux]
 
 
+@njit(cache=True, inline="always")
 def _cover(boxes: NDArray[np.int64], h: int, w: int) -> NDArray[np.int64]:
-    """Return the boxes (k, 4, inclusive), or the whole frame as one box when they cover more than it."""
-    area = sum(max(x1 - x0 + 1, 0) * max(y1 - y0 + 1, 0) for x0, y0, x1, y1 in boxes.tolist())
-    return boxes if area < h * w else np.array([[0, 0, w - 1, h - 1]], np.int64)
+    """Return the boxes (k, 4, inclusive), or the whole frame as one box when they cover more than it.
+
+    Taken in the compiled loops that read the boxes: a real frame drops hundreds of specks,
+    whose areas a Python loop summed at a visible cost.
+    """
+    area = 0
+    for k in range(boxes.shape[0]):
+        area += max(boxes[k, 2] - boxes[k, 0] + 1, 0) * max(boxes[k, 3] - boxes[k, 1] + 1, 0)
+    if area < h * w:
+        return boxes
+    whole = np.empty((1, 4), np.int64)
+    whole[0, 0], whole[0, 1], whole[0, 2], whole[0, 3] = 0, 0, w - 1, h - 1
+    return whole
 
 
 def drop_classes(
@@ -395,7 +407,7 @@ def drop_classes(
         int(base),
         classes,
         np.int8(to_class),
-        _cover(np.ascontiguousarray(boxes, np.int64).reshape(-1, 4), *labels.shape),
+        np.ascontiguousarray(boxes, np.int64).reshape(-1, 4),
     )
 
 
@@ -409,6 +421,7 @@ def _drop_classes(
     boxes: NDArray[np.int64],
 ) -> None:
     n = through.size - 1
+    boxes = _cover(boxes, labels.shape[0], labels.shape[1])
     for k in range(boxes.shape[0]):
         for y in range(boxes[k, 1], boxes[k, 3] + 1):
             for x in range(boxes[k, 0], boxes[k, 2] + 1):
