@@ -46,7 +46,7 @@ def coplanar_groups(
     n = normal.shape[0] - 1
     # only pieces big enough for a reliable plane can join: compare those alone (a few),
     # not all pairs of pieces (hundreds of noise specks)
-    big = np.flatnonzero(count[1:] >= min_fit_px) + 1
+    big = np.nonzero(count[1:] >= min_fit_px)[0] + 1
     if big.size < 2:
         return np.arange(n + 1, dtype=np.int32), n
     nb = normal[big]

@@ -191,12 +191,14 @@ def _range_fit(
         # (np.linalg.lstsq costs three times as much around two unknowns); lstsq's minimum-norm
         # answer when every range has one depth
         x = fit[:, 0] * fit[:, 0]
-        dx = x - x.mean()
+        x_mean = x.mean()
+        dx = x - x_mean
         sxx = float(dx @ dx)
         y = fit[:, 1:3]
         if sxx > 0.0:
-            b = dx @ (y - y.mean(axis=0)) / sxx
-            a = y.mean(axis=0) - b * x.mean()
+            y_mean = y.mean(axis=0)
+            b = dx @ (y - y_mean) / sxx
+            a = y_mean - b * x_mean
             sol[:] = a[0], b[0], a[1], b[1]
         else:
             sol[:] = np.linalg.lstsq(np.stack([np.ones_like(x), x], axis=1), y, rcond=None)[0].T.reshape(4)

@@ -130,11 +130,10 @@ def support_class(
     if not n_small:
         through = merge if merge is not None else np.arange(n_pieces + 1, dtype=np.int32)
         return SupportMap(cls, lab, base, size, through, n, sums, boxes)
-    keep = ~small
-    keep[0] = False
+    # row 0 is never small: the kept rows start with it
+    rows = np.nonzero(~small)[0]
     lut = np.zeros(n + 1, dtype=np.int32)
-    lut[keep] = np.arange(1, int(keep.sum()) + 1, dtype=np.int32)
-    rows = np.concatenate(([0], np.flatnonzero(keep)))
+    lut[rows[1:]] = np.arange(1, rows.size, dtype=np.int32)
     # piece -> support -> kept support in one table: the dropped pieces' pixels go back to the
     # facing class now (the next class's steps read it); the map is read through it once, when
     # the supports join the objects' label map
