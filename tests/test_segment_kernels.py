@@ -707,12 +707,14 @@ def test_facing_halves_are_numpys_slices_and_percentile(h: int, w: int) -> None:
     depth = (rng.random((h, w)) * 4000 + 300).astype(np.float32)
     valid = rng.random((h, w)) > 0.2
     include = rng.random((h, w)) > 0.3
-    facing, d2, m2, far = facing_halves(depth, valid, include, 2500.0)
+    facing, d2, m2, far, span = facing_halves(depth, valid, include, 2500.0)
     want_facing = valid & include
     sample = depth[::2, ::2][::2, ::2][want_facing[::2, ::2][::2, ::2]]
     assert np.array_equal(facing, want_facing)
     assert np.array_equal(d2, depth[::2, ::2]) and np.array_equal(m2, want_facing[::2, ::2])
     assert far == (float(np.percentile(sample, 95.0)) if sample.size else 2500.0)
+    # the halves' range, as the histogram's depth_range reads it
+    assert span == depth_range(np.ascontiguousarray(d2), np.ascontiguousarray(m2))
     # no facing reading among the samples: the given depth
     assert facing_halves(depth, valid, np.zeros_like(include), 2500.0)[3] == 2500.0
 

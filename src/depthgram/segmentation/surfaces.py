@@ -46,13 +46,15 @@ __all__ = [
 @njit(cache=True, nogil=True)
 def facing_halves(
     depth: NDArray[np.float32], valid: NDArray[np.bool_], include: NDArray[np.bool_], none_mm: float
-) -> tuple[NDArray[np.bool_], NDArray[np.float32], NDArray[np.bool_], float]:
+) -> tuple[NDArray[np.bool_], NDArray[np.float32], NDArray[np.bool_], float, tuple[float, float, int]]:
     """Return the facing readings and what the depth labels' histogram reads of them, in one call.
 
     ``valid & include``; its every 2nd row and column of depth and of the mask (as
-    ``np.ascontiguousarray(depth[::2, ::2])``); and the 95th percentile (``np.percentile``'s
+    ``np.ascontiguousarray(depth[::2, ::2])``); the 95th percentile (``np.percentile``'s
     value) of the depths of every 4th row and column of the facing readings, or ``none_mm``
-    when there are none. One compiled call for six numpy calls on small frames.
+    when there are none; and the smallest and largest depth and the count of the halves' facing
+    readings (``histogram.log_bin_counts``' ``span``). One compiled call for eight numpy and
+    OpenCV calls on small frames.
     """
     h, w = depth.shape
     facing = np.empty((h, w), np.bool_)
@@ -64,10 +66,19 @@ def facing_halves(
     w2 = (w + 1) // 2
     d2 = np.empty((h2, w2), np.float32)
     m2 = np.empty((h2, w2), np.bool_)
+    lo = np.float32(np.inf)
+    hi = np.float32(-np.inf)
+    n = 0
     for i in range(h2):
         for j in range(w2):
-            d2[i, j] = depth[2 * i, 2 * j]
-            m2[i, j] = facing[2 * i, 2 * j]
+            z = depth[2 * i, 2 * j]
+            f = facing[2 * i, 2 * j]
+            d2[i, j] = z
+            m2[i, j] = f
+            if f:
+                lo = min(lo, z)
+                hi = max(hi, z)
+                n += 1
     sample = np.empty(((h2 + 1) // 2) * ((w2 + 1) // 2), np.float32)
     k = 0
     for i in range(0, h2, 2):
@@ -76,7 +87,7 @@ def facing_halves(
                 sample[k] = d2[i, j]
                 k += 1
     far = percentile32(sample[:k], 95.0, True) if k else none_mm
-    return facing, d2, m2, far
+    return facing, d2, m2, far, (float(lo), float(hi), n)
 
 
 def label_surfaces(
