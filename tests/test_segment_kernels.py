@@ -715,8 +715,9 @@ def test_facing_halves_are_numpys_slices_and_percentile(h: int, w: int) -> None:
     assert far == (float(np.percentile(sample, 95.0)) if sample.size else 2500.0)
     # the halves' range, as the histogram's depth_range reads it
     assert span == depth_range(np.ascontiguousarray(d2), np.ascontiguousarray(m2))
-    # no facing reading among the samples: the given depth
-    assert facing_halves(depth, valid, np.zeros_like(include), 2500.0)[3] == 2500.0
+    # no facing reading among the samples: the given depth, and an empty range
+    none = facing_halves(depth, valid, np.zeros_like(include), 2500.0)
+    assert none[3] == 2500.0 and none[4] == (math.inf, -math.inf, 0)
 
 
 def test_relabel_equals_numpy_fancy_indexing() -> None:

@@ -54,7 +54,8 @@ def facing_halves(
     value) of the depths of every 4th row and column of the facing readings, or ``none_mm``
     when there are none; and the smallest and largest depth and the count of the halves' facing
     readings (``histogram.log_bin_counts``' ``span``). One compiled call for eight numpy and
-    OpenCV calls on small frames.
+    OpenCV calls on small frames. ``depth`` is C-contiguous and positive at every valid pixel
+    (:func:`~depthgram.segmentation.validate.check_depth`'s).
     """
     h, w = depth.shape
     facing = np.empty((h, w), np.bool_)
@@ -66,19 +67,27 @@ def facing_halves(
     w2 = (w + 1) // 2
     d2 = np.empty((h2, w2), np.float32)
     m2 = np.empty((h2, w2), np.bool_)
-    lo = np.float32(np.inf)
-    hi = np.float32(-np.inf)
+    # the range from the readings' bit patterns, which positive floats order as integers do
+    # (integer minima vectorise, float ones do not)
+    bits = depth.view(np.uint32)
+    lo_bits = np.uint32(0xFFFFFFFF)
+    hi_bits = np.uint32(0)
     n = 0
     for i in range(h2):
+        drow, brow, frow, d2r, m2r = depth[2 * i], bits[2 * i], facing[2 * i], d2[i], m2[i]
         for j in range(w2):
-            z = depth[2 * i, 2 * j]
-            f = facing[2 * i, 2 * j]
-            d2[i, j] = z
-            m2[i, j] = f
-            if f:
-                lo = min(lo, z)
-                hi = max(hi, z)
-                n += 1
+            f = frow[2 * j]
+            u = brow[2 * j]
+            d2r[j] = drow[2 * j]
+            m2r[j] = f
+            lo_bits = min(lo_bits, u if f else np.uint32(0xFFFFFFFF))
+            hi_bits = max(hi_bits, u if f else np.uint32(0))
+            n += f
+    pair = np.empty(2, np.uint32)
+    pair[0], pair[1] = lo_bits, hi_bits
+    lo_hi = pair.view(np.float32)
+    lo = lo_hi[0] if n else np.float32(np.inf)
+    hi = lo_hi[1] if n else np.float32(-np.inf)
     sample = np.empty(((h2 + 1) // 2) * ((w2 + 1) // 2), np.float32)
     k = 0
     for i in range(0, h2, 2):
