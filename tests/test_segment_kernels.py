@@ -905,6 +905,47 @@ def test_coplanar_groups_are_the_components_of_the_coplanar_pairs(seed: int) -> 
         assert m == len(order) - 1 and lut.dtype == np.int32
 
 
+def test_coplanar_tables_are_numpys_grouped_reductions() -> None:
+    # the joined pieces' rows: each group's rows added in piece order and its boxes' union, as
+    # np.add.reduceat / np.minimum.reduceat / np.maximum.reduceat give them on the rows sorted
+    # stably by group, to the last bit; the groups are coplanar_groups'
+    from depthgram.segmentation.coplanar import coplanar_groups, coplanar_tables
+
+    rng = np.random.default_rng(15)
+    joined = 0
+    for _ in range(200):
+        n = int(rng.integers(2, 60))
+        base = rng.normal(0, 1, (3, 3))
+        base /= np.linalg.norm(base, axis=1)[:, None]
+        normal = base[rng.integers(0, 3, n + 1)] + rng.normal(0, 0.03, (n + 1, 3))
+        normal /= np.linalg.norm(normal, axis=1)[:, None]
+        off = rng.choice([800.0, 1500.0], n + 1) * (1 + rng.normal(0, 0.02, n + 1))
+        count = rng.integers(0, 200, n + 1).astype(np.float64)
+        sums = rng.normal(0, 1e3, (n + 1, 10)) * rng.choice([1e-9, 1.0, 1e9], (n + 1, 10))
+        planes = rng.normal(0, 1, (n + 1, 9)) * rng.choice([1e-9, 1.0, 1e9], (n + 1, 9))
+        x0, y0 = rng.integers(0, 100, (2, n + 1))
+        boxes = np.stack([x0, y0, x0 + rng.integers(0, 50, n + 1), y0 + rng.integers(0, 50, n + 1)], axis=1)
+        lut, m, tables = coplanar_tables(normal, off, count, (sums, planes, boxes), min_fit_px=50)
+        want_lut, want_m = coplanar_groups(normal, off, count, min_fit_px=50)
+        np.testing.assert_array_equal(lut, want_lut)
+        assert m == want_m
+        if m == n:
+            assert tables is None
+            continue
+        joined += 1
+        assert tables is not None
+        order = np.argsort(lut, kind="stable")
+        starts = np.searchsorted(lut[order], np.arange(m + 1))
+        grouped = boxes[order]
+        want_boxes = np.concatenate(
+            [np.minimum.reduceat(grouped[:, :2], starts), np.maximum.reduceat(grouped[:, 2:], starts)], axis=1
+        )
+        np.testing.assert_array_equal(tables[0], np.add.reduceat(sums[order], starts))
+        np.testing.assert_array_equal(tables[1], np.add.reduceat(planes[order], starts))
+        np.testing.assert_array_equal(tables[2], want_boxes)
+    assert joined > 50
+
+
 def test_join_near_is_near_planes_then_the_class_written() -> None:
     # the supports take the facing pixels on their planes straight into the class map: the
     # classes of near_planes on the facing candidates followed by a masked write

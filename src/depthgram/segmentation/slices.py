@@ -21,7 +21,7 @@ from numpy.typing import NDArray
 
 from depthgram.frame import Intrinsics
 from depthgram.segmentation.attributes import attribute_table
-from depthgram.segmentation.coplanar import coplanar_groups
+from depthgram.segmentation.coplanar import coplanar_tables
 from depthgram.segmentation.label import ACTIVE, BLOCK, HOLE, label_keyed_planes, relabel
 from depthgram.segmentation.label.stats import (
     COUNT,
@@ -537,19 +537,12 @@ def join_pieces(
         return None, n, sums, boxes, planes, None
     fit = planes_from_sums(planes, min_px=min(min_fit_px, min_plane_px))
     normal, off, count = fit
-    lut, m = coplanar_groups(normal, off, count, min_fit_px=min_fit_px)
-    if m == n:
+    # the rows of the joined pieces added (sums, plane sums) and their boxes' union, by the
+    # call that joins them
+    lut, m, joined = coplanar_tables(normal, off, count, (sums, planes, boxes), min_fit_px=min_fit_px)
+    if joined is None:
         return None, n, sums, boxes, planes, fit
-    # the rows of the joined pieces added (sums, plane sums) and their boxes' union: the pieces
-    # grouped by support (every support 0..m has one), each group reduced in piece order
-    # (ufunc.at does the same a row at a time, at several times the cost)
-    order = np.argsort(lut, kind="stable")
-    starts = np.searchsorted(lut[order], np.arange(m + 1))
-    msums = np.add.reduceat(sums[order], starts)
-    mplanes = np.add.reduceat(planes[order], starts)
-    grouped = boxes[order]
-    lows, highs = np.minimum.reduceat(grouped[:, :2], starts), np.maximum.reduceat(grouped[:, 2:], starts)
-    mboxes = np.concatenate([lows, highs], axis=1)
+    msums, mplanes, mboxes = joined
     msums[:, KEY] = 0.0
     return lut, m, msums, mboxes, mplanes, None
 
