@@ -266,7 +266,7 @@ def _faces(
         n_f, n_s = contact.shape
         contact = np.where(mean_depth[None, :n_s] > mean_depth[:n_f, None], contact, 0)
     best = contact.argmax(axis=1)
-    most = contact.max(axis=1)
+    most = contact[np.arange(best.size), best]
     # (a facing row touching nothing has best 0: most is 0 there)
     faces = np.nonzero((most > 0) & (most >= min_contact * size))[0]
     return dict(zip(faces.tolist(), best[faces].tolist(), strict=True))
