@@ -707,14 +707,17 @@ def test_facing_halves_are_numpys_slices_and_percentile(h: int, w: int) -> None:
     depth = (rng.random((h, w)) * 4000 + 300).astype(np.float32)
     valid = rng.random((h, w)) > 0.2
     include = rng.random((h, w)) > 0.3
-    facing, d2, m2, far = facing_halves(depth, valid, include, 2500.0)
+    facing, d2, m2, far, span = facing_halves(depth, valid, include, 2500.0)
     want_facing = valid & include
     sample = depth[::2, ::2][::2, ::2][want_facing[::2, ::2][::2, ::2]]
     assert np.array_equal(facing, want_facing)
     assert np.array_equal(d2, depth[::2, ::2]) and np.array_equal(m2, want_facing[::2, ::2])
     assert far == (float(np.percentile(sample, 95.0)) if sample.size else 2500.0)
-    # no facing reading among the samples: the given depth
-    assert facing_halves(depth, valid, np.zeros_like(include), 2500.0)[3] == 2500.0
+    # the halves' range, as the histogram's depth_range reads it
+    assert span == depth_range(np.ascontiguousarray(d2), np.ascontiguousarray(m2))
+    # no facing reading among the samples: the given depth, and an empty range
+    none = facing_halves(depth, valid, np.zeros_like(include), 2500.0)
+    assert none[3] == 2500.0 and none[4] == (math.inf, -math.inf, 0)
 
 
 def test_relabel_equals_numpy_fancy_indexing() -> None:
@@ -900,6 +903,47 @@ def test_coplanar_groups_are_the_components_of_the_coplanar_pairs(seed: int) -> 
         want = np.array([order.index(first[c]) for c in comp], np.int32)
         np.testing.assert_array_equal(lut, want)
         assert m == len(order) - 1 and lut.dtype == np.int32
+
+
+def test_coplanar_tables_are_numpys_grouped_reductions() -> None:
+    # the joined pieces' rows: each group's rows added in piece order and its boxes' union, as
+    # np.add.reduceat / np.minimum.reduceat / np.maximum.reduceat give them on the rows sorted
+    # stably by group, to the last bit; the groups are coplanar_groups'
+    from depthgram.segmentation.coplanar import coplanar_groups, coplanar_tables
+
+    rng = np.random.default_rng(15)
+    joined = 0
+    for _ in range(200):
+        n = int(rng.integers(2, 60))
+        base = rng.normal(0, 1, (3, 3))
+        base /= np.linalg.norm(base, axis=1)[:, None]
+        normal = base[rng.integers(0, 3, n + 1)] + rng.normal(0, 0.03, (n + 1, 3))
+        normal /= np.linalg.norm(normal, axis=1)[:, None]
+        off = rng.choice([800.0, 1500.0], n + 1) * (1 + rng.normal(0, 0.02, n + 1))
+        count = rng.integers(0, 200, n + 1).astype(np.float64)
+        sums = rng.normal(0, 1e3, (n + 1, 10)) * rng.choice([1e-9, 1.0, 1e9], (n + 1, 10))
+        planes = rng.normal(0, 1, (n + 1, 9)) * rng.choice([1e-9, 1.0, 1e9], (n + 1, 9))
+        x0, y0 = rng.integers(0, 100, (2, n + 1))
+        boxes = np.stack([x0, y0, x0 + rng.integers(0, 50, n + 1), y0 + rng.integers(0, 50, n + 1)], axis=1)
+        lut, m, tables = coplanar_tables(normal, off, count, (sums, planes, boxes), min_fit_px=50)
+        want_lut, want_m = coplanar_groups(normal, off, count, min_fit_px=50)
+        np.testing.assert_array_equal(lut, want_lut)
+        assert m == want_m
+        if m == n:
+            assert tables is None
+            continue
+        joined += 1
+        assert tables is not None
+        order = np.argsort(lut, kind="stable")
+        starts = np.searchsorted(lut[order], np.arange(m + 1))
+        grouped = boxes[order]
+        want_boxes = np.concatenate(
+            [np.minimum.reduceat(grouped[:, :2], starts), np.maximum.reduceat(grouped[:, 2:], starts)], axis=1
+        )
+        np.testing.assert_array_equal(tables[0], np.add.reduceat(sums[order], starts))
+        np.testing.assert_array_equal(tables[1], np.add.reduceat(planes[order], starts))
+        np.testing.assert_array_equal(tables[2], want_boxes)
+    assert joined > 50
 
 
 def test_join_near_is_near_planes_then_the_class_written() -> None:
@@ -1121,6 +1165,27 @@ def test_planes_from_sums_is_the_numpy_route_within_the_conditioning() -> None:
         np.testing.assert_array_equal(count, want_count)  # a copied sum, not computed
         n_rows += planes.shape[0]
     assert n_rows > 100
+
+
+def test_planes_from_sums_leaves_the_small_pieces_unsolved() -> None:
+    # the supports read the planes of pieces of min_px pixels or more alone: those rows are the
+    # full solve's to the last bit, the others NaN, and the counts are every row's
+    rng = np.random.default_rng(13)
+    for t in range(10):
+        depth, ok, cam = _floor_scene()
+        if t % 2:
+            depth = depth + rng.normal(0, 8, depth.shape).astype(np.float32) * ok
+        classes = rng.choice(np.array([0, 1, 2], np.int8), depth.shape, p=[0.3, 0.6, 0.1])
+        _, _, _, _, planes = support_pieces(depth, ok, classes, 1, cam, jump_rel=0.25, bridge=2, min_fit_px=5)
+        normal, offset, count = planes_from_sums(planes)
+        min_px = float(rng.choice([1.0, 5.0, 20.0]))
+        got_normal, got_offset, got_count = planes_from_sums(planes, min_px=min_px)
+        solved = count >= min_px
+        solved[0] = True
+        np.testing.assert_array_equal(got_count, count)
+        np.testing.assert_array_equal(got_normal[solved], normal[solved])
+        np.testing.assert_array_equal(got_offset[solved], offset[solved])
+        assert np.isnan(got_normal[~solved]).all() and np.isnan(got_offset[~solved]).all()
 
 
 def test_small_supports_are_numpys_test() -> None:

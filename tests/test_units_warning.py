@@ -134,3 +134,35 @@ def test_the_command_line_prints_the_warning_as_one_line(shared_data: Path, caps
     assert len(err) == 1 and err[0].startswith("depthgram info: warning: ") and "--scale 0.2" in err[0]
     assert main(["info", tum, "--scale", "0.2"]) == 0
     assert capsys.readouterr().err == ""
+
+
+def test_the_units_tests_read_what_their_definitions_say() -> None:
+    # metres: the finite positive readings all under 20 (an +inf reading is no reading, NaN
+    # and negatives neither); beyond or under the limits: the median of the readings, which a
+    # count of the readings past a limit settles only when fewer than half lie past it
+    from depthgram.frame import _float_metres, implausible_depth
+
+    metres = np.full((30, 40), 2.0, np.float32)
+    assert _float_metres(metres) and _float_metres(metres.astype(np.float16))
+    for odd in (np.inf, np.nan, -50.0, 0.0):
+        m = metres.copy()
+        m[3, 4] = odd
+        assert _float_metres(m)
+    m = metres.copy()
+    m[3, 4] = 20.0
+    assert not _float_metres(m)
+    m = np.full((30, 40), np.inf, np.float32)
+    m[0, 0] = 3.0
+    assert _float_metres(m) and not _float_metres(np.full((3, 3), np.nan))
+    assert not _float_metres(np.zeros((3, 3))) and not _float_metres(np.full((3, 3), 2, np.uint16))
+    # an even count: the median is the mean of the two middle readings
+    d = np.array([[7000.0, 7000.0, 9000.0, 9200.0]], np.float32)
+    assert implausible_depth(d) is None  # median 8000: at the limit, not beyond
+    d[0, 1] = 7100.0
+    d[0, 0] = 8001.0
+    found = implausible_depth(d)
+    assert found is not None and found[1] and "8500 mm" in found[0]
+    near = np.array([[40.0, 40.0, 60.0, np.nan, np.inf, 0.0]], np.float32)
+    found = implausible_depth(near)
+    assert found is not None and not found[1] and "40.0 mm" in found[0]
+    assert implausible_depth(near, np.array([[False, True, True, False, False, False]])) is None

@@ -241,15 +241,17 @@ class Frame:
         )
 
 
-def implausible_depth(depth_mm: NDArray[np.floating], valid: NDArray[np.bool_]) -> tuple[str, bool] | None:
+def implausible_depth(
+    depth_mm: NDArray[np.floating], valid: NDArray[np.bool_] | None = None
+) -> tuple[str, bool] | None:
     """Why the depths cannot come from a depth camera in these units, or None when they can.
 
     Parameters
     ----------
     depth_mm : ndarray, shape (H, W)
         Depth as read (mm).
-    valid : ndarray of bool, shape (H, W)
-        Pixels with a reading.
+    valid : ndarray of bool, shape (H, W), optional
+        Pixels with a reading; by default the finite and positive ones.
 
     Returns
     -------
@@ -259,11 +261,20 @@ def implausible_depth(depth_mm: NDArray[np.floating], valid: NDArray[np.bool_]) 
         median lies in :data:`PLAUSIBLE_MEDIAN_MM` or nothing is valid.
     """
     step = max(1, int(np.sqrt(depth_mm.size / _SAMPLE_PX)))
-    d = depth_mm[::step, ::step][valid[::step, ::step]]
+    sample = depth_mm[::step, ::step]
+    if valid is None:
+        # the sample's readings alone: the rest of the frame is never read
+        d = sample[np.isfinite(sample) & (sample > 0)]
+    else:
+        d = sample[valid[::step, ::step]]
     if d.size == 0:
         return None
-    med = float(np.median(d))
     lo, hi = PLAUSIBLE_MEDIAN_MM
+    # the median lies beyond a limit only when at least half the readings do: counting them
+    # settles a plausible frame without the selection a median takes
+    if 2 * np.count_nonzero(d > hi) < d.size and 2 * np.count_nonzero(d < lo) < d.size:
+        return None
+    med = float(np.median(d))
     if med > hi:
         return f"the median depth {med:.0f} mm is beyond {hi / 1000:.0f} m, farther than depth cameras read", True
     if med < lo:
@@ -283,12 +294,18 @@ def warn_units(where: str, reason: str, hints: Sequence[str]) -> None:
 
 def _float_metres(arr: NDArray[np.generic]) -> bool:
     """Return a float image whose readings all sit under :data:`FLOAT_METRES_BELOW` (metres, not mm)."""
-    if not np.issubdtype(arr.dtype, np.floating):
+    if not np.issubdtype(arr.dtype, np.floating) or arr.size == 0:
         return False
-    a = np.asarray(arr, dtype=np.float64)
-    with np.errstate(invalid="ignore"):
-        d = a[np.isfinite(a) & (a > 0)]
-    return bool(d.size) and float(d.max()) < FLOAT_METRES_BELOW
+    # compared in float64, as before; float16 to float64 values are the same numbers
+    a = np.asarray(arr, dtype=np.float64) if arr.dtype.itemsize > 8 else np.asarray(arr)
+    # the largest reading leaving NaN out: when it is finite it is the largest finite one, and
+    # only an image holding +inf needs its finite readings picked out (a frame-sized copy)
+    top = float(np.fmax.reduce(a, axis=None))
+    if top == math.inf:
+        with np.errstate(invalid="ignore"):
+            d = a[np.isfinite(a) & (a > 0)]
+        return bool(d.size) and float(d.max()) < FLOAT_METRES_BELOW
+    return 0.0 < top < FLOAT_METRES_BELOW
 
 
 def check_array_units(arr: ArrayLike, where: str, valid: NDArray[np.bool_] | None = None) -> None:
@@ -308,8 +325,7 @@ def check_array_units(arr: ArrayLike, where: str, valid: NDArray[np.bool_] | Non
             ["scale_mm=1000 (--scale 1000), or multiply by 1000 before passing"],
         )
         return
-    ok = np.isfinite(a) & (a > 0) if valid is None else valid
-    found = implausible_depth(a, ok)
+    found = implausible_depth(a, valid)
     if found:
         warn_units(where, found[0], _scale_hints(found[1]))
 

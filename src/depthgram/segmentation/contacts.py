@@ -267,8 +267,9 @@ def _faces(
         contact = np.where(mean_depth[None, :n_s] > mean_depth[:n_f, None], contact, 0)
     best = contact.argmax(axis=1)
     most = contact[np.arange(best.size), best]
-    keep = (most > 0) & (most >= min_contact * size)
-    return {f: s for f, s in enumerate(np.where(keep, best, 0).tolist()) if s}
+    # (a facing row touching nothing has best 0: most is 0 there)
+    faces = np.nonzero((most > 0) & (most >= min_contact * size))[0]
+    return dict(zip(faces.tolist(), best[faces].tolist(), strict=True))
 
 
 @njit(cache=True, nogil=True)

@@ -16,7 +16,7 @@ from numpy.typing import NDArray
 from depthgram.frame import Intrinsics
 from depthgram.segmentation._kernels import coplanar as kernels_coplanar
 
-__all__ = ["class_window", "coplanar_groups", "join_near", "near_planes"]
+__all__ = ["class_window", "coplanar_groups", "coplanar_tables", "join_near", "near_planes"]
 
 
 def coplanar_groups(
@@ -43,19 +43,64 @@ def coplanar_groups(
     m : int
         Number of groups.
     """
+    lut, m, _, _, _ = _join(normal, off, count, max_angle_deg, max_offset_rel, min_fit_px, _NO_BOXES)
+    return lut, m
+
+
+def coplanar_tables(
+    normal: NDArray[np.float64],
+    off: NDArray[np.float64],
+    count: NDArray[np.float64],
+    tables: tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.int64]],
+    *,
+    max_angle_deg: float = 10.0,
+    max_offset_rel: float = 0.08,
+    min_fit_px: int = 1,
+) -> tuple[NDArray[np.int32], int, tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.int64]] | None]:
+    """:func:`coplanar_groups` with the groups' tables, from the pieces' ``tables``.
+
+    ``tables`` are the pieces' statistics, plane sums and inclusive boxes (a row per piece, row
+    0 unused). Returns ``lut`` and ``m`` as :func:`coplanar_groups` does, and, when pieces
+    joined, each group's rows: its pieces' rows added (``np.add.reduceat`` of the rows sorted
+    stably by group) and its pieces' boxes' union (None when none joined).
+    """
+    sums, planes, boxes = tables
+    lut, m, order, starts, mboxes = _join(
+        normal, off, count, max_angle_deg, max_offset_rel, min_fit_px, np.ascontiguousarray(boxes, np.int64)
+    )
+    if m == normal.shape[0] - 1:
+        return lut, m, None
+    return lut, m, (np.add.reduceat(sums[order], starts), np.add.reduceat(planes[order], starts), mboxes)
+
+
+#: Boxes for :func:`_join` when the caller wants the groups alone (typed as real ones).
+_NO_BOXES = np.zeros((0, 4), np.int64)
+
+
+def _join(
+    normal: NDArray[np.float64],
+    off: NDArray[np.float64],
+    count: NDArray[np.float64],
+    max_angle_deg: float,
+    max_offset_rel: float,
+    min_fit_px: int,
+    boxes: NDArray[np.int64],
+) -> tuple[NDArray[np.int32], int, NDArray[np.intp], NDArray[np.intp], NDArray[np.int64]]:
+    """Return the groups of :func:`coplanar_groups` and the kernel's order, starts and boxes of them."""
     n = normal.shape[0] - 1
     # only pieces big enough for a reliable plane can join: compare those alone (a few),
     # not all pairs of pieces (hundreds of noise specks)
-    big = np.flatnonzero(count[1:] >= min_fit_px) + 1
+    big = np.nonzero(count[1:] >= min_fit_px)[0] + 1
     if big.size < 2:
-        return np.arange(n + 1, dtype=np.int32), n
+        none = np.zeros(0, np.intp)
+        return np.arange(n + 1, dtype=np.int32), n, none, none, _NO_BOXES
     nb = normal[big]
     # the cosines are numpy's matrix product (its BLAS kernels' rounding, which compiled dot
     # products do not repeat for every size); the tests and the joins after it are compiled
-    lut, m = kernels_coplanar.coplanar_join(
-        nb @ nb.T, off, big, math.cos(math.radians(max_angle_deg)), float(max_offset_rel), n
+    lut, m, order, starts, mboxes = kernels_coplanar.coplanar_join(
+        nb @ nb.T, off, big, math.cos(math.radians(max_angle_deg)), float(max_offset_rel), n, boxes
     )
-    return lut, int(m)
+    return lut, int(m), order, starts, mboxes
 
 
 def near_planes(

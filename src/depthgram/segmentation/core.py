@@ -278,11 +278,11 @@ def _surface_objects(
     # the histogram only names depth labels here: every 2nd row and column give the same bands
     # at a quarter of the cost; its far end is np.percentile's value, compiled (a numpy call
     # costs more than the selection here)
-    facing, d2, m2, far = facing_halves(depth, ok, include, float(cfg.ref_depth_mm))
+    facing, d2, m2, far, span = facing_halves(depth, ok, include, float(cfg.ref_depth_mm))
     bin_far = max(cfg.bin_mm * far / cfg.ref_depth_mm, 3.0 * float(sensor.resolution(far)))
     # within the config's own bounds, so that a frame of absurd depths is binned, not refused here
     ref = min(max(far, 1.0), 1e6)
-    edges, counts = log_bin_counts(d2, m2, min(max(bin_far, 0.01), 10_000.0), ref)
+    edges, counts = log_bin_counts(d2, m2, min(max(bin_far, 0.01), 10_000.0), ref, span)
     bands = depth_bands(counts, edges, cfg)
     r = crease_scale_px(depth.shape[1], cfg.crease_span_fraction)
     # the labeller's state with the concave creases blocking, in one call

@@ -66,16 +66,22 @@ def bin_counts(
 
 
 def log_bin_counts(
-    depth_mm: NDArray[np.float32], valid: NDArray[np.bool_], bin_mm: float, ref_depth_mm: float
+    depth_mm: NDArray[np.float32],
+    valid: NDArray[np.bool_],
+    bin_mm: float,
+    ref_depth_mm: float,
+    span: tuple[float, float, int] | None = None,
 ) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
     """Return the edges and counts of depth-dependent bins ``bin_mm`` wide at ``ref_depth_mm`` (mm).
 
     :func:`bin_counts` of a config with ``depth_dependent_bins``, for a caller whose bin width
     changes with every frame (building and checking a config per frame cost more than this).
+    ``span``: the smallest and largest valid depth and their count
+    (:func:`~depthgram.segmentation.binning.depth_range`), when the caller has them.
     """
     depth = np.ascontiguousarray(depth_mm, np.float32)
     ok = np.ascontiguousarray(valid, np.bool_)
-    lo, hi, n = depth_range(depth, ok)
+    lo, hi, n = depth_range(depth, ok) if span is None else span
     if n == 0:
         return np.zeros(1), np.zeros(0, np.int64)
     step = math.log1p(bin_mm / ref_depth_mm)

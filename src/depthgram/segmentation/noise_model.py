@@ -191,13 +191,17 @@ def _range_fit(
         # (np.linalg.lstsq costs three times as much around two unknowns); lstsq's minimum-norm
         # answer when every range has one depth
         x = fit[:, 0] * fit[:, 0]
-        dx = x - x.mean()
+        m = x.size
+        # np.mean's value (its sum over the count) without its Python wrapper, called per frame
+        x_mean = np.add.reduce(x) / m
+        dx = x - x_mean
         sxx = float(dx @ dx)
         y = fit[:, 1:3]
         if sxx > 0.0:
-            b = dx @ (y - y.mean(axis=0)) / sxx
-            a = y.mean(axis=0) - b * x.mean()
-            sol[:] = a[0], b[0], a[1], b[1]
+            y_mean = np.add.reduce(y, axis=0) / m
+            b = dx @ (y - y_mean) / sxx
+            sol[0::2] = y_mean - b * x_mean
+            sol[1::2] = b
         else:
             sol[:] = np.linalg.lstsq(np.stack([np.ones_like(x), x], axis=1), y, rcond=None)[0].T.reshape(4)
     return fit, sol

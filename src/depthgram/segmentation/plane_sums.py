@@ -118,11 +118,14 @@ def shares_beneath(
     )  # fmt: skip
 
 
-def planes_from_sums(sums: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+def planes_from_sums(
+    sums: NDArray[np.float64], *, min_px: float = 0.0
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
     """Return unit normals, offsets (mm) and pixel counts from the sums of :func:`plane_sums` (row 0 unused).
 
     The sums are additive, so the plane of a union of pieces comes from the sum of their rows
     without another pass over the image. Each row's normal equations (plus 1e-12 on the
-    diagonal) are solved by LAPACK (``np.linalg.solve``, compiled).
+    diagonal) are solved by LAPACK (``np.linalg.solve``, compiled). Rows of fewer than
+    ``min_px`` pixels are not solved: their normals and offsets are NaN.
     """
-    return kernels_sums.planes_from_sums(np.ascontiguousarray(sums, np.float64))
+    return kernels_sums.planes_from_sums(np.ascontiguousarray(sums, np.float64), float(min_px))

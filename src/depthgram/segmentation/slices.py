@@ -21,7 +21,7 @@ from numpy.typing import NDArray
 
 from depthgram.frame import Intrinsics
 from depthgram.segmentation.attributes import attribute_table
-from depthgram.segmentation.coplanar import coplanar_groups
+from depthgram.segmentation.coplanar import coplanar_tables
 from depthgram.segmentation.label import ACTIVE, BLOCK, HOLE, label_keyed_planes, relabel
 from depthgram.segmentation.label.stats import (
     COUNT,
@@ -349,7 +349,7 @@ def add_through(
         labels,
         np.ascontiguousarray(more, np.int32),
         np.ascontiguousarray(lut, np.int32),
-        _cover(np.ascontiguousarray(boxes, np.int64).reshape(-1, 4), *labels.shape),
+        np.ascontiguousarray(boxes, np.int64).reshape(-1, 4),
     )
 
 
@@ -358,6 +358,7 @@ def _add_through(
     labels: NDArray[np.int32], more: NDArray[np.int32], lut: NDArray[np.int32], boxes: NDArray[np.int64]
 ) -> None:
     # boxes may overlap: a pixel read twice is written the same value twice
+    boxes = _cover(boxes, labels.shape[0], labels.shape[1])
     for k in range(boxes.shape[0]):
         for y in range(boxes[k, 1], boxes[k, 3] + 1):
             src = more[y]
@@ -368,10 +369,21 @@ def _add_through(
                 dst[ux] = v if v else dst[ux]
 
 
+@njit(cache=True, inline="always")
 def _cover(boxes: NDArray[np.int64], h: int, w: int) -> NDArray[np.int64]:
-    """Return the boxes (k, 4, inclusive), or the whole frame as one box when they cover more than it."""
-    area = sum(max(x1 - x0 + 1, 0) * max(y1 - y0 + 1, 0) for x0, y0, x1, y1 in boxes.tolist())
-    return boxes if area < h * w else np.array([[0, 0, w - 1, h - 1]], np.int64)
+    """Return the boxes (k, 4, inclusive), or the whole frame as one box when they cover more than it.
+
+    Taken in the compiled loops that read the boxes: a real frame drops hundreds of specks,
+    whose areas a Python loop summed at a visible cost.
+    """
+    area = 0
+    for k in range(boxes.shape[0]):
+        area += max(boxes[k, 2] - boxes[k, 0] + 1, 0) * max(boxes[k, 3] - boxes[k, 1] + 1, 0)
+    if area < h * w:
+        return boxes
+    whole = np.empty((1, 4), np.int64)
+    whole[0, 0], whole[0, 1], whole[0, 2], whole[0, 3] = 0, 0, w - 1, h - 1
+    return whole
 
 
 def drop_classes(
@@ -395,7 +407,7 @@ def drop_classes(
         int(base),
         classes,
         np.int8(to_class),
-        _cover(np.ascontiguousarray(boxes, np.int64).reshape(-1, 4), *labels.shape),
+        np.ascontiguousarray(boxes, np.int64).reshape(-1, 4),
     )
 
 
@@ -409,6 +421,7 @@ def _drop_classes(
     boxes: NDArray[np.int64],
 ) -> None:
     n = through.size - 1
+    boxes = _cover(boxes, labels.shape[0], labels.shape[1])
     for k in range(boxes.shape[0]):
         for y in range(boxes[k, 1], boxes[k, 3] + 1):
             for x in range(boxes[k, 0], boxes[k, 2] + 1):
@@ -463,6 +476,7 @@ def support_pieces_lazy(
     bridge: int,
     min_fit_px: int,
     window: tuple[int, int, int, int] | None = None,
+    min_plane_px: float = 0.0,
 ) -> tuple[
     NDArray[np.int32],
     NDArray[np.int32] | None,
@@ -482,7 +496,8 @@ def support_pieces_lazy(
 
     ``window`` ``(y0, y1, x0, x1)`` (half-open, px), when it holds every pixel of the class
     (:func:`depthgram.segmentation.coplanar.class_window`), gives the same results reading these
-    rows and columns alone; the labels are 0 outside it.
+    rows and columns alone; the labels are 0 outside it. ``min_plane_px``: as for
+    :func:`join_pieces`.
     """
     h, w = valid.shape
     win = window if window is not None else (0, h, 0, w)
@@ -490,7 +505,7 @@ def support_pieces_lazy(
     labels, n, sums, boxes, planes = label_keyed_planes(
         depth_mm, state, depth_mm, cam.fx, cam.fy, cam.cx, cam.cy, rel=jump_rel, bridge=bridge, window=win
     )
-    return (labels, *join_pieces(n, sums, boxes, planes, min_fit_px=min_fit_px))
+    return (labels, *join_pieces(n, sums, boxes, planes, min_fit_px=min_fit_px, min_plane_px=min_plane_px))
 
 
 def join_pieces(
@@ -500,6 +515,7 @@ def join_pieces(
     planes: NDArray[np.float64],
     *,
     min_fit_px: int,
+    min_plane_px: float = 0.0,
 ) -> tuple[
     NDArray[np.int32] | None,
     int,
@@ -514,25 +530,19 @@ def join_pieces(
     :func:`depthgram.segmentation.label.label_keyed_planes` (row 0 unused). Returns what
     :func:`support_pieces_lazy` returns after the labels: the lookup table piece -> support
     (None when none joined), the number of supports, their tables, and the pieces' plane fit
-    when none joined (else None).
+    when none joined (else None), whose pieces under both ``min_fit_px`` and ``min_plane_px``
+    pixels have no plane (NaN: the caller reads the planes of larger pieces alone).
     """
     if n < 2:
         return None, n, sums, boxes, planes, None
-    fit = planes_from_sums(planes)
+    fit = planes_from_sums(planes, min_px=min(min_fit_px, min_plane_px))
     normal, off, count = fit
-    lut, m = coplanar_groups(normal, off, count, min_fit_px=min_fit_px)
-    if m == n:
+    # the rows of the joined pieces added (sums, plane sums) and their boxes' union, by the
+    # call that joins them
+    lut, m, joined = coplanar_tables(normal, off, count, (sums, planes, boxes), min_fit_px=min_fit_px)
+    if joined is None:
         return None, n, sums, boxes, planes, fit
-    # the rows of the joined pieces added (sums, plane sums) and their boxes' union: the pieces
-    # grouped by support (every support 0..m has one), each group reduced in piece order
-    # (ufunc.at does the same a row at a time, at several times the cost)
-    order = np.argsort(lut, kind="stable")
-    starts = np.searchsorted(lut[order], np.arange(m + 1))
-    msums = np.add.reduceat(sums[order], starts)
-    mplanes = np.add.reduceat(planes[order], starts)
-    grouped = boxes[order]
-    lows, highs = np.minimum.reduceat(grouped[:, :2], starts), np.maximum.reduceat(grouped[:, 2:], starts)
-    mboxes = np.concatenate([lows, highs], axis=1)
+    msums, mplanes, mboxes = joined
     msums[:, KEY] = 0.0
     return lut, m, msums, mboxes, mplanes, None
 

@@ -99,17 +99,21 @@ def support_class(
     fit_px = max(min_px // 2, 10)
     if pieces is None:
         lab, merge, n, sums, boxes, planes, fit = support_pieces_lazy(
-            depth, ok, classes, cls, cam, jump_rel=cfg.jump_rel, bridge=cfg.fill_holes_px, min_fit_px=fit_px
-        )
+            depth, ok, classes, cls, cam, jump_rel=cfg.jump_rel, bridge=cfg.fill_holes_px, min_fit_px=fit_px,
+            min_plane_px=min_px,
+        )  # fmt: skip
         n_pieces = merge.size - 1 if merge is not None else n
         base, size = 0, n_pieces + 1
     else:
         lab, base, size, n_pieces, psums, pboxes, pplanes = pieces
-        merge, n, sums, boxes, planes, fit = join_pieces(n_pieces, psums, pboxes, pplanes, min_fit_px=fit_px)
+        merge, n, sums, boxes, planes, fit = join_pieces(
+            n_pieces, psums, pboxes, pplanes, min_fit_px=fit_px, min_plane_px=min_px
+        )
     # noise makes some support pixels look facing; those lying on a big support's plane
-    # go back to it (an upright object meets that plane only along its base row)
+    # go back to it (an upright object meets that plane only along its base row): only the
+    # planes of supports of min_px pixels or more are read
     if n:
-        normal, off, count = fit if fit is not None else planes_from_sums(planes)
+        normal, off, count = fit if fit is not None else planes_from_sums(planes, min_px=min_px)
         near = join_near(
             classes, ok, cls, FACING, normal, off, count, boxes, depth, cam, min_px=min_px, tol_rel=cfg.jump_rel / 2
         )
@@ -118,7 +122,7 @@ def support_class(
             win = class_window(boxes, count, depth.shape, min_px=min_px)
             lab, merge, n, sums, boxes, planes, _ = support_pieces_lazy(
                 depth, ok, classes, cls, cam, jump_rel=cfg.jump_rel, bridge=cfg.fill_holes_px, min_fit_px=fit_px,
-                window=win,
+                window=win, min_plane_px=min_px,
             )  # fmt: skip
             n_pieces = merge.size - 1 if merge is not None else n
             base, size = 0, n_pieces + 1
@@ -126,11 +130,10 @@ def support_class(
     if not n_small:
         through = merge if merge is not None else np.arange(n_pieces + 1, dtype=np.int32)
         return SupportMap(cls, lab, base, size, through, n, sums, boxes)
-    keep = ~small
-    keep[0] = False
+    # row 0 is never small: the kept rows start with it
+    rows = np.nonzero(~small)[0]
     lut = np.zeros(n + 1, dtype=np.int32)
-    lut[keep] = np.arange(1, int(keep.sum()) + 1, dtype=np.int32)
-    rows = np.concatenate(([0], np.flatnonzero(keep)))
+    lut[rows[1:]] = np.arange(1, rows.size, dtype=np.int32)
     # piece -> support -> kept support in one table: the dropped pieces' pixels go back to the
     # facing class now (the next class's steps read it); the map is read through it once, when
     # the supports join the objects' label map

@@ -46,13 +46,16 @@ __all__ = [
 @njit(cache=True, nogil=True)
 def facing_halves(
     depth: NDArray[np.float32], valid: NDArray[np.bool_], include: NDArray[np.bool_], none_mm: float
-) -> tuple[NDArray[np.bool_], NDArray[np.float32], NDArray[np.bool_], float]:
+) -> tuple[NDArray[np.bool_], NDArray[np.float32], NDArray[np.bool_], float, tuple[float, float, int]]:
     """Return the facing readings and what the depth labels' histogram reads of them, in one call.
 
     ``valid & include``; its every 2nd row and column of depth and of the mask (as
-    ``np.ascontiguousarray(depth[::2, ::2])``); and the 95th percentile (``np.percentile``'s
+    ``np.ascontiguousarray(depth[::2, ::2])``); the 95th percentile (``np.percentile``'s
     value) of the depths of every 4th row and column of the facing readings, or ``none_mm``
-    when there are none. One compiled call for six numpy calls on small frames.
+    when there are none; and the smallest and largest depth and the count of the halves' facing
+    readings (``histogram.log_bin_counts``' ``span``). One compiled call for eight numpy and
+    OpenCV calls on small frames. ``depth`` is C-contiguous and positive at every valid pixel
+    (:func:`~depthgram.segmentation.validate.check_depth`'s).
     """
     h, w = depth.shape
     facing = np.empty((h, w), np.bool_)
@@ -64,10 +67,27 @@ def facing_halves(
     w2 = (w + 1) // 2
     d2 = np.empty((h2, w2), np.float32)
     m2 = np.empty((h2, w2), np.bool_)
+    # the range from the readings' bit patterns, which positive floats order as integers do
+    # (integer minima vectorise, float ones do not)
+    bits = depth.view(np.uint32)
+    lo_bits = np.uint32(0xFFFFFFFF)
+    hi_bits = np.uint32(0)
+    n = 0
     for i in range(h2):
+        drow, brow, frow, d2r, m2r = depth[2 * i], bits[2 * i], facing[2 * i], d2[i], m2[i]
         for j in range(w2):
-            d2[i, j] = depth[2 * i, 2 * j]
-            m2[i, j] = facing[2 * i, 2 * j]
+            f = frow[2 * j]
+            u = brow[2 * j]
+            d2r[j] = drow[2 * j]
+            m2r[j] = f
+            lo_bits = min(lo_bits, u if f else np.uint32(0xFFFFFFFF))
+            hi_bits = max(hi_bits, u if f else np.uint32(0))
+            n += f
+    pair = np.empty(2, np.uint32)
+    pair[0], pair[1] = lo_bits, hi_bits
+    lo_hi = pair.view(np.float32)
+    lo = lo_hi[0] if n else np.float32(np.inf)
+    hi = lo_hi[1] if n else np.float32(-np.inf)
     sample = np.empty(((h2 + 1) // 2) * ((w2 + 1) // 2), np.float32)
     k = 0
     for i in range(0, h2, 2):
@@ -76,7 +96,7 @@ def facing_halves(
                 sample[k] = d2[i, j]
                 k += 1
     far = percentile32(sample[:k], 95.0, True) if k else none_mm
-    return facing, d2, m2, far
+    return facing, d2, m2, far, (float(lo), float(hi), n)
 
 
 def label_surfaces(

@@ -121,11 +121,13 @@ def shares_beneath(
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def planes_from_sums(
-    sums: NDArray[np.float64],
+    sums: NDArray[np.float64], min_px: float
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
     # compiled because numpy's batched solve, norm and the table building cost about 60 us of
     # calls per use on a few rows, four uses per frame (over 3 % of the default method at
-    # 176 x 132); the solve is LAPACK's through numba's np.linalg.solve
+    # 176 x 132); the solve is LAPACK's through numba's np.linalg.solve. Rows 1.. of fewer
+    # than min_px pixels are not solved (NaN): most pieces of a real frame are specks whose
+    # planes no caller reads
     m = sums.shape[0]
     normal = np.empty((m, 3), np.float64)
     off = np.empty(m, np.float64)
@@ -134,6 +136,10 @@ def planes_from_sums(
     b = np.empty(3, np.float64)
     eps = 1e-12
     for i in range(m):
+        count[i] = sums[i, 5]
+        if i > 0 and not count[i] >= min_px:
+            normal[i, 0] = normal[i, 1] = normal[i, 2] = off[i] = math.nan
+            continue
         if i == 0:
             a[:] = 0.0
             a[0, 0] = a[1, 1] = a[2, 2] = 1.0 + eps
@@ -151,5 +157,4 @@ def planes_from_sums(
         normal[i, 1] = -x[1] / norm
         normal[i, 2] = -x[2] / norm
         off[i] = 1.0 / norm
-        count[i] = sums[i, 5]
     return normal, off, count
