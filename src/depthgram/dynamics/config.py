@@ -114,7 +114,7 @@ class TrackerConfig:
         afresh each frame and only the object's own part is filtered, so it can be slower
         than ``accel_sigma``: a person starting or stopping a walk accelerates at 1-2 m/s^2.
         Where the readings stop fitting it, the filter's noise grows up to ``accel_sigma``.
-        The own part counts once it is two of its sigmas from standing still and two readings
+        The own part counts once it is three of its sigmas from standing still and two readings
         agree on it (``v_sigma`` covers it until then). Measured
         (``benchmarks/bench_tracking.py``): 7-Scenes within 25 % + 30 mm/s 0.846, 0.849, 0.849
         at 1000, 2000, 3000; the simulator's ``crossing`` (a still camera, but an ICP that

@@ -590,7 +590,7 @@ class Tracker:
             if camera is not None:
                 own_scales[o.id] = _scale(t["z_fit"], t["v"] * dt - still[c])
                 # its own radial velocity, the camera's part taken out, counts (estimate(): two
-                # readings, two of its sigmas from standing still)
+                # readings, three of its sigmas from standing still)
                 own_v = t["own_v"]
                 if t["own_n"] >= 2 and abs(own_v) > self._estimate_params.own_min_sigmas * math.sqrt(t["own_var"]):
                     moving.add(o.id)
