@@ -185,7 +185,7 @@ def estimate(
                     t.own_nis = nis_max
                 t.own_var += qw * qw * min(max(t.own_nis, 1.0), nis_max)
             extra = 0.0  # variance v_sigma adds for an own velocity not yet counted
-            told = t.kf_v  # the velocity reported: the filter's, less an own part not counted
+            reported = t.kf_v  # the filter's velocity, less an own part not counted yet
             if t.missed == 0 and np.isfinite(still_dz[i]):
                 # Entering or leaving, the visible part changes at the image's edge and its
                 # readings with it, for reasons no motion models (the simulator's cart read
@@ -238,12 +238,12 @@ def estimate(
                 t.kf_v = still_dz[i] / dt + t.own_v
                 t.kf_pzv = 0.0
                 t.kf_pvv = t.own_var
-                told = t.kf_v
+                reported = t.kf_v
                 if not counts:
                     extra = t.own_v * t.own_v
-                    told = still_dz[i] / dt
+                    reported = still_dz[i] / dt
             if t.kf_n >= 2:
-                v_out[i] = told
+                v_out[i] = reported
                 sig[i] = np.sqrt(t.kf_pvv + extra)
                 if v_out[i] < -min_speed and t.kf_z > 0:
                     ttc[i] = t.kf_z / -v_out[i]
