@@ -14,6 +14,7 @@ from depthgram.dynamics import FramePixels, Tracker, TrackerConfig
 from depthgram.dynamics.camera_motion import CameraMotion, EgoMotion
 from depthgram.dynamics.core_depth import core_depth_change
 from depthgram.frame import Intrinsics
+from depthgram.segmentation import SensorModel
 from depthgram.sensor.geometry import Camera, cast
 from depthgram.sensor.scenes import build_scene
 
@@ -302,3 +303,38 @@ def test_a_still_camera_at_640_is_still_and_a_slowly_turning_one_is_not(sensor: 
     # the true image motion of a 0.04 degree tilt: fx * 0.04 degrees (px), fx = 879 px
     true = fr.intrinsics.fx * np.radians(0.04)
     assert len(flows) == 5 and np.allclose(flows, true, rtol=0.25)  # measured 0.52-0.69 px for 0.61
+
+
+def _disparity_camera(z: NDArray[np.float32], rng: np.random.Generator) -> NDArray[np.float32]:
+    """``z`` as a Kinect v1 reads it at this width: disparity noise (0.065 px at 640 px) in 1/8 px steps."""
+    fb = 580.0 * W / 640.0 * 75.0  # focal length (px) times baseline (mm)
+    d = fb / np.where(z > 0, z, np.inf) + rng.normal(0.0, 0.065 * W / 640.0, z.shape)
+    d = np.round(d * 8.0) / 8.0
+    return np.where(z > 0, fb / np.maximum(d, 1e-6), 0.0).astype(np.float32)
+
+
+def test_icp_weights_each_reading_by_the_sensors_noise_at_its_depth() -> None:
+    # A camera stepping 8 mm forward over the table, read by a disparity camera: the noise of the
+    # back wall (2.4 m) is ten times that of the near table (0.75 m). Weighted by its inverse
+    # variance, each reading counts for what it says; counted alike, the far wall's noise sets
+    # the motion. Measured over 8 noise draws: the translation's rms error 0.05 / 0.25 / 0.43 mm
+    # (z, y, x) weighted against 0.31 / 0.23 / 0.81 mm alike.
+    pos_a, pos_b, pitch = (0.0, 1000.0, 0.0), (0.0, 1000.0, 8.0), 14.0
+    a, b = _render(pos_a, pitch), _render(pos_b, pitch)
+    rot_a = np.stack(_axes(pitch), axis=1)
+    true_t = rot_a.T @ (np.asarray(pos_b) - np.asarray(pos_a))
+    errors: dict[str, list[NDArray[np.float64]]] = {"weighted": [], "alike": []}
+    for seed in range(8):
+        # by default the sensor's model is estimated from the frames; one with a resolution that
+        # does not change with depth counts every reading alike
+        alike = SensorModel("flat", 1.0, 0.0, 0.0, 0.0)
+        for name, ego in (("weighted", EgoMotion()), ("alike", EgoMotion(alike))):
+            rng = np.random.default_rng(seed)  # the same draws for both
+            ego.update(_disparity_camera(a, rng), K)
+            motion = ego.update(_disparity_camera(b, rng), K)
+            assert motion is not None and not motion.still
+            errors[name].append(motion.translation_mm - true_t)
+    rms = {name: np.sqrt(np.mean(np.square(e), axis=0)) for name, e in errors.items()}
+    assert rms["weighted"][2] < 0.15  # mm along the view (0.31 counted alike)
+    assert rms["weighted"][0] < 0.6 * rms["alike"][0]  # sideways
+    assert np.linalg.norm(rms["weighted"]) < 0.6  # mm (0.9 counted alike)

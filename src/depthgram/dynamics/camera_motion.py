@@ -21,6 +21,7 @@ from numba import njit
 from numpy.typing import NDArray
 
 from depthgram.frame import Intrinsics
+from depthgram.segmentation.noise_model import SensorModel, estimate_sensor
 
 __all__ = ["CameraMotion", "EgoMotion", "FramePixels", "image_shift", "shift_structure", "structure_shift"]
 
@@ -137,6 +138,11 @@ _EGO_MIN_INLIERS = 0.8
 #: (:func:`_held_out_gain`): some 20 x 20 grid pixels each at 160 x 120, wider than the
 #: smoothing that makes neighbouring points' noise alike, and enough of them for their spread.
 _EGO_TILES = (8, 6)
+
+
+#: Frames between two estimates of the sensor's model, whose resolution weighs the ICP's pairs: a
+#: camera's noise does not change from frame to frame, and an estimate costs about 0.1 ms.
+_SENSOR_EVERY = 30
 
 
 #: Standard errors by which the found motion must beat standing still on held-out tiles for
@@ -314,8 +320,11 @@ _ICP_PASSES = ((4, 6), (2, 3), (1, 2))
 #: Weight of the ICP's pull toward standing still, per matched point (m^2 of residual per unit
 #: of motion, rad or m): a motion along which the still scene says little (sliding along a floor
 #: and a wall) stays near none instead of following noise or a moving object; along a direction
-#: the scene does pin down it is a fraction of a percent of the data's weight.
-_ICP_PRIOR = 1e-3
+#: the scene does pin down it is a fraction of a percent of the data's weight. The pairs' weights
+#: (a reading at 1 m counts 1, a far one less) lower the data's say in the direction a view pins
+#: down least, so the same pull would bias it more than when every pair counted 1: a third of the
+#: 1e-3 it was then keeps the simulator's sideways step found as well as before.
+_ICP_PRIOR = 3e-4
 
 
 @njit(cache=True, nogil=True)
@@ -343,14 +352,18 @@ def _icp_steps(
     tile_n: NDArray[np.int64],
     total: NDArray[np.float64],
     tiled: bool,
+    noise: NDArray[np.float64],
 ) -> bool:
     """Run ``iterations`` ICP steps on one pass's points, updating ``rot`` and ``t`` in place.
 
-    Each step sums the normal equations of its matched pairs, solves them pulled toward
-    standing still by ``prior`` per matched pair, and applies the increment by Rodrigues'
-    formula. Compiled with the sums: as numpy calls, the 6 x 6 solve and the 3 x 3 products
-    cost some 50 us a step, eleven steps a frame. False when a step matches fewer than 100
-    pairs.
+    Each step sums the normal equations of its matched pairs, each weighted by the inverse
+    square of the sensor's resolution at its depth relative to its resolution at 1 m
+    (``noise``: the step ``noise[0] + noise[1] z**2`` and the noise deviation ``noise[2] +
+    noise[3] z**2``, z in m, of :meth:`SensorModel.resolution`; all zero: alike at every depth),
+    solves them pulled toward standing still by ``prior`` per matched pair (so that noisier
+    pairs, which say less, are pulled more), and applies the increment by Rodrigues' formula.
+    Compiled with the sums: as numpy calls, the 6 x 6 solve and the 3 x 3 products cost some 50
+    us a step, eleven steps a frame. False when a step matches fewer than 100 pairs.
 
     With ``tiled`` the sums are kept per tile of the previous frame's grid (``tile_ata``
     (T, 6, 6), ``tile_atr`` (T, 6), ``tile_n`` (T,), :data:`_EGO_TILES`; else all in the
@@ -367,6 +380,7 @@ def _icp_steps(
     tx, ty = _EGO_TILES
     # a pixel's tile by a product, not two integer divisions a pair
     tile_x, tile_y = np.float32(tx / w), np.float32(ty / h)
+    res_1m = max(noise[0] + noise[1], 2.0 * (noise[2] + noise[3]))
     for _ in range(iterations):
         # the step's matches and normal equations: how many pairs, J^T J and J^T r. Each point
         # s of this frame, moved by (rot, t), is projected into the previous frame's grid and
@@ -412,11 +426,17 @@ def _icp_steps(
             row[3] = af
             row[4] = bf
             row[5] = cf
-            rk = float(r)
+            # A disparity camera's resolution falls as z**2 (a 3 m wall's readings are ten times
+            # coarser than a 1 m table's): counted alike, the far readings set the motion.
+            wk = 1.0
+            if res_1m > 0.0:
+                z2 = zf * zf
+                wk = (res_1m / max(noise[0] + noise[1] * z2, 2.0 * (noise[2] + noise[3] * z2))) ** 2
+            rk = float(r) * wk
             for p in range(6):
                 tile_atr[tile, p] += row[p] * rk
                 for q in range(p, 6):
-                    tile_ata[tile, p, q] += row[p] * row[q]
+                    tile_ata[tile, p, q] += row[p] * row[q] * wk
         ata[:] = 0.0
         atr[:] = 0.0
         for k in range(tile_n.shape[0]):
@@ -449,12 +469,13 @@ def _icp_steps(
 
 
 def _icp(
-    now: _Surface, before: _Surface, cam: tuple[float, float, float, float]
+    now: _Surface, before: _Surface, cam: tuple[float, float, float, float], noise: NDArray[np.float64]
 ) -> tuple[NDArray[np.float64], float] | None:
     """Point-to-plane ICP with projective matching: the 4x4 motion from ``now``'s camera to ``before``'s (m).
 
     Returned with its held-out gain's significance (:func:`_held_out_gain`, in standard
     errors). None when fewer than 100 points match (too little valid depth, a jump too large).
+    ``noise`` sets the pairs' weights: see :func:`_icp_steps`.
     """
     h, w = before.z.shape
     # one flat array per coordinate: picking rows of an (N, 3) array is several times slower
@@ -477,7 +498,7 @@ def _icp(
         for count, tiled in ((iterations - 1, False), (1, True)) if last else ((iterations, False),):
             found = _icp_steps(
                 sx, sy, sz, rot, t, cam32, px0, py0, pz0, nx0, ny0, nz0, target_ok, w, h, gate, count, _ICP_PRIOR,
-                tile_ata, tile_atr, tile_n, total, tiled,
+                tile_ata, tile_atr, tile_n, total, tiled, noise,
             )  # fmt: skip
             if not found:
                 return None
@@ -498,8 +519,8 @@ def _held_out_gain(
     """How many standard errors a motion found on the rest of the image beats standing still on each tile.
 
     For each tile of the grid the ICP's last step is solved again without the tile's pairs
-    (``tile_ata``, ``tile_atr``: its sums of J^T J and J^T r, ``tile_n`` pairs, at the motion
-    ``total``: rotation vector, rad, and translation, m; ``prior`` as in :func:`_icp_steps`),
+    (``tile_ata``, ``tile_atr``: its weighted sums of J^T J and J^T r, ``tile_n`` pairs, at the
+    motion ``total``: rotation vector, rad, and translation, m; ``prior`` as in :func:`_icp_steps`),
     and the tile's sum of squared point-to-plane residuals under that motion is compared with
     the one under no motion (m^2, both to first order about ``total``): the gain is positive
     where the motion the others see carries the tile's points closer to the previous surface
@@ -582,10 +603,25 @@ class EgoMotion:
     only way to stop that, ``cv2.setNumThreads``, is process-wide and left forked worker
     processes (``depthgram batch``) hanging.
 
+    Each pair of the ICP counts by the inverse square of the sensor's resolution at its depth
+    (:meth:`SensorModel.resolution`): a structured-light or stereo camera reads a 3 m wall ten
+    times coarser than a 1 m table, and counted alike the far readings, the most numerous, set
+    the motion; a time-of-flight camera's resolution changes little with depth, and its readings
+    count nearly alike.
+
     Call :meth:`update` once per frame, in order.
+
+    Parameters
+    ----------
+    sensor : SensorModel, optional
+        The camera's step and noise. By default estimated from the frames
+        (:func:`~depthgram.segmentation.estimate_sensor`, every :data:`_SENSOR_EVERY` frames).
     """
 
-    def __init__(self) -> None:
+    def __init__(self, sensor: SensorModel | None = None) -> None:
+        self._given = sensor
+        self._noise = np.zeros(4) if sensor is None else _noise_terms(sensor)
+        self._since_estimate = -1  # frames since the sensor was last estimated (-1: never)
         self._key: tuple[int, int, Intrinsics] | None = None
         self._prev: _Surface | None = None
         self._cam = (1.0, 1.0, 0.0, 0.0)
@@ -630,6 +666,7 @@ class EgoMotion:
             self._step = step
             self._key = key
             self._prev = None
+        self._update_sensor(depth_mm)
         step = self._step
         o = step // 2
         z = np.asarray(depth_mm, dtype=np.float32)[o::step, o::step] * np.float32(0.001)
@@ -639,7 +676,7 @@ class EgoMotion:
         before, self._prev = self._prev, now
         if before is None:
             return None
-        found = _icp(now, before, self._cam)
+        found = _icp(now, before, self._cam, self._noise)
         if found is None or not np.isfinite(found[0]).all():
             return None
         back, gain = found
@@ -656,6 +693,24 @@ class EgoMotion:
             # frame's shift (none) moves no pixel.
             return CameraMotion(np.eye(3), np.zeros(3), intrinsics)
         return CameraMotion(back[:3, :3].copy(), back[:3, 3] * 1000.0, intrinsics)
+
+    def _update_sensor(self, depth_mm: NDArray[np.floating]) -> None:
+        """Estimate the sensor's model from ``depth_mm`` on the first frame and every :data:`_SENSOR_EVERY`."""
+        if self._given is not None:
+            return
+        self._since_estimate += 1
+        if 0 < self._since_estimate < _SENSOR_EVERY:
+            return
+        self._since_estimate = 0
+        z = np.nan_to_num(np.asarray(depth_mm, dtype=np.float32), nan=0.0, posinf=0.0, neginf=0.0)
+        valid = z > 0
+        if valid.any():
+            self._noise = _noise_terms(estimate_sensor(z, valid))
+
+
+def _noise_terms(sensor: SensorModel) -> NDArray[np.float64]:
+    """Return ``sensor``'s (step_0, step_2, sigma_0, sigma_2) for depths in metres (mm, mm/m^2)."""
+    return np.array([sensor.step_0, sensor.step_2 * 1e6, sensor.sigma_0, sensor.sigma_2 * 1e6])
 
 
 @njit(cache=True, nogil=True)
