@@ -13,6 +13,7 @@ import pytest
 
 from depthgram.frame import Intrinsics
 from depthgram.segmentation import evaluate, segment
+from depthgram.segmentation.creases import crease_scale_px, crease_span_px
 from depthgram.segmentation.noise_model import PROFILES, estimate_sensor
 from depthgram.sensor.geometry import Body, Box, Camera, Cylinder, Ellipsoid, Plane, cast
 
@@ -132,6 +133,48 @@ def test_a_box_lying_on_a_flat_block_comes_out_as_two_objects_with_a_wider_creas
     block_id, block_iou = _best(seg.labels, hits.instances, 2)
     box_id, box_iou = _best(seg.labels, hits.instances, 3)
     assert block_id != box_id and block_iou >= 0.7 and box_iou >= 0.7, (block_iou, box_iou)
+
+
+def _box_on_block(sensor: str) -> tuple[np.ndarray, np.ndarray, Intrinsics]:
+    """The box lying on the block of issue 28 (see the test above), as ``sensor`` reads it."""
+    table = Body(1, "table", "floor", (Plane((0, 700, 0), (0, 1, 0)),))
+    block = Body(2, "block", "object", (Box((-100.0, 700.0, 630.0), (100.0, 785.0, 715.0)),), parent=1)
+    box = Body(3, "box", "object", (Box((-50.0, 785.0, 655.0), (60.0, 820.0, 744.0)),), parent=2)
+    cam = _camera(pitch=50.0, height=1500.0)
+    hits = cast(cam, (table, block, box), 0.0)
+    measure = _correlated if sensor == "structured-light" else _time_of_flight
+    return measure(hits.depth, np.random.default_rng(0)), hits.instances, cam.intrinsics
+
+
+def test_the_crease_span_follows_a_structured_light_cameras_correlation_window_by_default() -> None:
+    # issue 28: the disparity averaged over a 9 x 9 window spreads the box's inside corner over
+    # it; the frame reads as averaged (z**2 steps, noise below a step), so the default span is
+    # one grid pixel past the window (5 on the 320 px grid) and parts the box from the block
+    depth, truth, cam = _box_on_block("structured-light")
+    model = estimate_sensor(depth, depth > 0)
+    assert model.window_fraction > 0.0
+    assert crease_span_px(320, model) == 5
+    seg = segment(depth, valid=depth > 0, intrinsics=cam, crease_span_fraction=0.0)
+    block_id, block_iou = _best(seg.labels, truth, 2)
+    box_id, box_iou = _best(seg.labels, truth, 3)
+    assert block_id != box_id and block_iou >= 0.7 and box_iou >= 0.7, (block_iou, box_iou)
+
+
+def test_a_time_of_flight_frame_keeps_the_crease_span_of_1_128() -> None:
+    # each ToF pixel is measured on its own (noise above its 1 mm unit): no window, so the
+    # default gives the labels of the explicit 1/128 of before, and the named profiles follow
+    # their family
+    depth, _, cam = _box_on_block("tof")
+    model = estimate_sensor(depth, depth > 0)
+    assert model.window_fraction == 0.0
+    assert crease_span_px(320, model) == crease_scale_px(320, 1.0 / 128.0) == 2
+    default = segment(depth, valid=depth > 0, intrinsics=cam, crease_span_fraction=0.0)
+    before = segment(depth, valid=depth > 0, intrinsics=cam, crease_span_fraction=1.0 / 128.0)
+    assert np.array_equal(default.labels, before.labels)
+    assert crease_span_px(320, PROFILES["azure-kinect"]) == crease_span_px(320, PROFILES["tof"]) == 2
+    assert crease_span_px(320, PROFILES["xtion"]) == crease_span_px(320, PROFILES["realsense-d400"]) == 5
+    # an explicit share wins over the sensor
+    assert crease_span_px(320, PROFILES["xtion"], 1.0 / 128.0) == 2
 
 
 def test_a_box_showing_its_top_and_front_is_one_object() -> None:

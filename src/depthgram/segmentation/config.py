@@ -59,7 +59,6 @@ _RANGES = (
     ("join_resolutions", 0.5, 100.0),
     ("max_slope_deg", 0.0, 89.0),
     ("crease_deg", 1.0, 89.0),
-    ("crease_span_fraction", 1e-3, 0.1),
     ("raised_sigmas", 0.0, 1000.0),
     ("far_mm", 100.0, 1e6),
 )
@@ -290,6 +289,9 @@ class SegmentConfig:
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and math.isfinite(value) and lo <= value <= hi):
                 raise bad(name, value, f"a number in [{lo}, {hi}]")
+        v = self.crease_span_fraction
+        if not (isinstance(v, (int, float)) and math.isfinite(v) and (v == 0.0 or 1e-3 <= v <= 0.1)):
+            raise bad("crease_span_fraction", v, "0 (follow the sensor) or a share in [0.001, 0.1]")
         if not 0.0 <= self.fraction <= 0.5:
             raise bad("fraction", self.fraction, "a share in [0, 0.5] (the paper uses 0.10)")
         if not 0.0 <= self.min_prominence < 1.0:
