@@ -11,10 +11,12 @@ import cv2
 import numpy as np
 import pytest
 
+from depthgram.errors import InputError
 from depthgram.frame import Intrinsics
 from depthgram.segmentation import evaluate, segment
+from depthgram.segmentation.config import SegmentConfig
 from depthgram.segmentation.creases import crease_scale_px, crease_span_px
-from depthgram.segmentation.noise_model import PROFILES, estimate_sensor
+from depthgram.segmentation.noise_model import PROFILES, averaged_over_window, estimate_sensor
 from depthgram.sensor.geometry import Body, Box, Camera, Cylinder, Ellipsoid, Plane, cast
 
 W, H = 640, 480
@@ -175,6 +177,36 @@ def test_a_time_of_flight_frame_keeps_the_crease_span_of_1_128() -> None:
     assert crease_span_px(320, PROFILES["xtion"]) == crease_span_px(320, PROFILES["realsense-d400"]) == 5
     # an explicit share wins over the sensor
     assert crease_span_px(320, PROFILES["xtion"], 1.0 / 128.0) == 2
+
+
+@pytest.mark.parametrize(
+    ("model", "z_mm", "averaged"),
+    [
+        # the estimates of real frames (step_0, step_2, sigma_0, sigma_2; mm, 1/mm) at their median
+        # depth: 7-Scenes' Kinect v1 (z**2 steps, no noise left between them), NVlabs' RealSense
+        # (z**2 steps, noise 0.3 of a step), YCB-Video 0002's Xtion (1 mm steps, 0.05 mm of noise)
+        ((0.0, 2.75e-6, 0.0, 0.0), 1878.0, True),
+        ((0.33, 8.3e-7, 0.0, 3.5e-7), 876.0, True),
+        ((1.0, 0.0, 0.0, 4.2e-8), 1087.0, True),
+        # the Azure Kinect's ToF (flat 1.3 mm step, 0.4 of it in noise) and the simulator's ToF
+        # (noise above its step: the step estimate is the noise's)
+        ((1.33, 0.0, 0.07, 2.1e-7), 1491.0, False),
+        ((1.46, 8.2e-7, 3.37, 2.1e-6), 1459.0, False),
+    ],
+)
+def test_a_frame_reads_as_averaged_over_a_window_by_its_steps_and_noise(
+    model: tuple[float, float, float, float], z_mm: float, averaged: bool
+) -> None:
+    assert averaged_over_window(*model, z_mm) is averaged
+
+
+def test_the_crease_span_setting_takes_0_for_the_sensor_or_a_share() -> None:
+    # as TOML's [segment] table gives them (``--config``)
+    assert SegmentConfig.from_dict({"crease_span_fraction": 0.0}).surfaces.crease_span_fraction == 0.0
+    assert SegmentConfig.from_dict({"crease_span_fraction": 0.015625}).surfaces.crease_span_fraction == 1.0 / 64.0
+    for bad in (1e-4, -0.01, 0.2, float("nan")):
+        with pytest.raises(InputError, match="crease_span_fraction"):
+            SegmentConfig(crease_span_fraction=bad)
 
 
 def test_a_box_showing_its_top_and_front_is_one_object() -> None:

@@ -199,7 +199,11 @@ class SegmentConfig:
         right-angled inside corner at that span: 1/64 cuts a box lying on a flat block from it
         (issue 28, YCB-Video 0002), but also a chair's seat from its back and a cup's inside
         from its wall on other recordings, so it is asked for (``[segment]
-        crease_span_fraction = 0.015625``; the figures are in docs/design-notes.md).
+        crease_span_fraction = 0.015625``; the figures are in docs/design-notes.md). 0 follows
+        the sensor (:func:`depthgram.segmentation.creases.crease_span_px`): one pixel past the
+        correlation window of a structured-light or stereo camera (a named profile of that
+        family, or a frame that reads as one: ``SensorModel.window_fraction``), 1/128 for time
+        of flight; asked for too (``crease_span_fraction = 0``), for the same reasons.
     work_width_px : int
         ``surfaces``: a frame wider than this is segmented on every ``step``-th pixel and row
         (``step = ceil(width / work_width_px)``: 2 at 640 px, 4 at 1280 px) and each pixel then

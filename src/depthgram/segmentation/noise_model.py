@@ -27,7 +27,14 @@ from numpy.typing import NDArray
 
 from depthgram.errors import InputError
 
-__all__ = ["CORRELATION_WINDOW_FRACTION", "PROFILES", "SensorModel", "estimate_sensor", "sensor_model"]
+__all__ = [
+    "CORRELATION_WINDOW_FRACTION",
+    "PROFILES",
+    "SensorModel",
+    "averaged_over_window",
+    "estimate_sensor",
+    "sensor_model",
+]
 
 #: Width of a structured-light or active-stereo camera's correlation window as a share of its
 #: frame width: the disparity of a pixel is matched over a window of about 7-9 px at 640 px
