@@ -11,9 +11,12 @@ import cv2
 import numpy as np
 import pytest
 
+from depthgram.errors import InputError
 from depthgram.frame import Intrinsics
 from depthgram.segmentation import evaluate, segment
-from depthgram.segmentation.noise_model import PROFILES, estimate_sensor
+from depthgram.segmentation.config import SegmentConfig
+from depthgram.segmentation.creases import crease_scale_px, crease_span_px
+from depthgram.segmentation.noise_model import PROFILES, averaged_over_window, estimate_sensor
 from depthgram.sensor.geometry import Body, Box, Camera, Cylinder, Ellipsoid, Plane, cast
 
 W, H = 640, 480
@@ -132,6 +135,78 @@ def test_a_box_lying_on_a_flat_block_comes_out_as_two_objects_with_a_wider_creas
     block_id, block_iou = _best(seg.labels, hits.instances, 2)
     box_id, box_iou = _best(seg.labels, hits.instances, 3)
     assert block_id != box_id and block_iou >= 0.7 and box_iou >= 0.7, (block_iou, box_iou)
+
+
+def _box_on_block(sensor: str) -> tuple[np.ndarray, np.ndarray, Intrinsics]:
+    """The box lying on the block of issue 28 (see the test above), as ``sensor`` reads it."""
+    table = Body(1, "table", "floor", (Plane((0, 700, 0), (0, 1, 0)),))
+    block = Body(2, "block", "object", (Box((-100.0, 700.0, 630.0), (100.0, 785.0, 715.0)),), parent=1)
+    box = Body(3, "box", "object", (Box((-50.0, 785.0, 655.0), (60.0, 820.0, 744.0)),), parent=2)
+    cam = _camera(pitch=50.0, height=1500.0)
+    hits = cast(cam, (table, block, box), 0.0)
+    measure = _correlated if sensor == "structured-light" else _time_of_flight
+    return measure(hits.depth, np.random.default_rng(0)), hits.instances, cam.intrinsics
+
+
+def test_the_crease_span_follows_a_structured_light_cameras_correlation_window_by_default() -> None:
+    # issue 28: the disparity averaged over a 9 x 9 window spreads the box's inside corner over
+    # it; the frame reads as averaged (z**2 steps, noise below a step), so the default span is
+    # one grid pixel past the window (5 on the 320 px grid) and parts the box from the block
+    depth, truth, cam = _box_on_block("structured-light")
+    model = estimate_sensor(depth, depth > 0)
+    assert model.window_fraction > 0.0
+    assert crease_span_px(320, model) == 5
+    seg = segment(depth, valid=depth > 0, intrinsics=cam, crease_span_fraction=0.0)
+    block_id, block_iou = _best(seg.labels, truth, 2)
+    box_id, box_iou = _best(seg.labels, truth, 3)
+    assert block_id != box_id and block_iou >= 0.7 and box_iou >= 0.7, (block_iou, box_iou)
+
+
+def test_a_time_of_flight_frame_keeps_the_crease_span_of_1_128() -> None:
+    # each ToF pixel is measured on its own (noise above its 1 mm unit): no window, so the
+    # default gives the labels of the explicit 1/128 of before, and the named profiles follow
+    # their family
+    depth, _, cam = _box_on_block("tof")
+    model = estimate_sensor(depth, depth > 0)
+    assert model.window_fraction == 0.0
+    assert crease_span_px(320, model) == crease_scale_px(320, 1.0 / 128.0) == 2
+    default = segment(depth, valid=depth > 0, intrinsics=cam, crease_span_fraction=0.0)
+    before = segment(depth, valid=depth > 0, intrinsics=cam, crease_span_fraction=1.0 / 128.0)
+    assert np.array_equal(default.labels, before.labels)
+    assert crease_span_px(320, PROFILES["azure-kinect"]) == crease_span_px(320, PROFILES["tof"]) == 2
+    assert crease_span_px(320, PROFILES["xtion"]) == crease_span_px(320, PROFILES["realsense-d400"]) == 5
+    # an explicit share wins over the sensor
+    assert crease_span_px(320, PROFILES["xtion"], 1.0 / 128.0) == 2
+
+
+@pytest.mark.parametrize(
+    ("model", "z_mm", "averaged"),
+    [
+        # the estimates of real frames (step_0, step_2, sigma_0, sigma_2; mm, 1/mm) at their median
+        # depth: 7-Scenes' Kinect v1 (z**2 steps, no noise left between them), NVlabs' RealSense
+        # (z**2 steps, noise 0.3 of a step), YCB-Video 0002's Xtion (1 mm steps, 0.05 mm of noise)
+        ((0.0, 2.75e-6, 0.0, 0.0), 1878.0, True),
+        ((0.33, 8.3e-7, 0.0, 3.5e-7), 876.0, True),
+        ((1.0, 0.0, 0.0, 4.2e-8), 1087.0, True),
+        # the Azure Kinect's ToF (flat 1.3 mm step, 0.4 of it in noise) and the simulator's ToF
+        # (noise above its step: the step estimate is the noise's)
+        ((1.33, 0.0, 0.07, 2.1e-7), 1491.0, False),
+        ((1.46, 8.2e-7, 3.37, 2.1e-6), 1459.0, False),
+    ],
+)
+def test_a_frame_reads_as_averaged_over_a_window_by_its_steps_and_noise(
+    model: tuple[float, float, float, float], z_mm: float, averaged: bool
+) -> None:
+    assert averaged_over_window(*model, z_mm) is averaged
+
+
+def test_the_crease_span_setting_takes_0_for_the_sensor_or_a_share() -> None:
+    # as TOML's [segment] table gives them (``--config``)
+    assert SegmentConfig.from_dict({"crease_span_fraction": 0.0}).surfaces.crease_span_fraction == 0.0
+    assert SegmentConfig.from_dict({"crease_span_fraction": 0.015625}).surfaces.crease_span_fraction == 1.0 / 64.0
+    for bad in (1e-4, -0.01, 0.2, float("nan")):
+        with pytest.raises(InputError, match="crease_span_fraction"):
+            SegmentConfig(crease_span_fraction=bad)
 
 
 def test_a_box_showing_its_top_and_front_is_one_object() -> None:

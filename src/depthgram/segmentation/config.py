@@ -59,7 +59,6 @@ _RANGES = (
     ("join_resolutions", 0.5, 100.0),
     ("max_slope_deg", 0.0, 89.0),
     ("crease_deg", 1.0, 89.0),
-    ("crease_span_fraction", 1e-3, 0.1),
     ("raised_sigmas", 0.0, 1000.0),
     ("far_mm", 100.0, 1e6),
 )
@@ -200,7 +199,11 @@ class SegmentConfig:
         right-angled inside corner at that span: 1/64 cuts a box lying on a flat block from it
         (issue 28, YCB-Video 0002), but also a chair's seat from its back and a cup's inside
         from its wall on other recordings, so it is asked for (``[segment]
-        crease_span_fraction = 0.015625``; the figures are in docs/design-notes.md).
+        crease_span_fraction = 0.015625``; the figures are in docs/design-notes.md). 0 follows
+        the sensor (:func:`depthgram.segmentation.creases.crease_span_px`): one pixel past the
+        correlation window of a structured-light or stereo camera (a named profile of that
+        family, or a frame that reads as one: ``SensorModel.window_fraction``), 1/128 for time
+        of flight; asked for too (``crease_span_fraction = 0``), for the same reasons.
     work_width_px : int
         ``surfaces``: a frame wider than this is segmented on every ``step``-th pixel and row
         (``step = ceil(width / work_width_px)``: 2 at 640 px, 4 at 1280 px) and each pixel then
@@ -290,6 +293,9 @@ class SegmentConfig:
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and math.isfinite(value) and lo <= value <= hi):
                 raise bad(name, value, f"a number in [{lo}, {hi}]")
+        v = self.crease_span_fraction
+        if not (isinstance(v, (int, float)) and math.isfinite(v) and (v == 0.0 or 1e-3 <= v <= 0.1)):
+            raise bad("crease_span_fraction", v, "0 (follow the sensor) or a share in [0.001, 0.1]")
         if not 0.0 <= self.fraction <= 0.5:
             raise bad("fraction", self.fraction, "a share in [0, 0.5] (the paper uses 0.10)")
         if not 0.0 <= self.min_prominence < 1.0:

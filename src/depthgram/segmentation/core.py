@@ -15,7 +15,7 @@ from depthgram.segmentation.coarse import grid_frame, grid_step, to_full_resolut
 from depthgram.segmentation.config import SegmentConfig
 from depthgram.segmentation.contacts import front_faces, planes_in_pixels, side_faces
 from depthgram.segmentation.coplanar import class_window, coplanar_groups
-from depthgram.segmentation.creases import crease_scale_px, crease_state, inverse_depth
+from depthgram.segmentation.creases import crease_span_px, crease_state, inverse_depth
 from depthgram.segmentation.histogram import Bands, bin_index, depth_bands, log_bin_counts
 from depthgram.segmentation.label import label_bands_stats, label_stats_fused, relabel
 from depthgram.segmentation.label.stats import COUNT, KEY, N_SUMS, SUM_X, SUM_XZ, SUM_Y, SUM_YZ, SUM_Z, add_rows
@@ -284,7 +284,8 @@ def _surface_objects(
     ref = min(max(far, 1.0), 1e6)
     edges, counts = log_bin_counts(d2, m2, min(max(bin_far, 0.01), 10_000.0), ref, span)
     bands = depth_bands(counts, edges, cfg)
-    r = crease_scale_px(depth.shape[1], cfg.crease_span_fraction)
+    # the span follows the sensor's correlation window unless the config sets it
+    r = crease_span_px(depth.shape[1], sensor, cfg.crease_span_fraction)
     # the labeller's state with the concave creases blocking, in one call
     state = crease_state(
         depth, ok, facing, sensor, scale_px=r, min_angle_deg=cfg.crease_deg, focal_px=cam.fx, inverse=inverse

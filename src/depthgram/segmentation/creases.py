@@ -21,7 +21,15 @@ from depthgram.segmentation._kernels.creases import inverse_depth
 from depthgram.segmentation.label import ACTIVE, BLOCK, HOLE
 from depthgram.segmentation.noise_model import SensorModel
 
-__all__ = ["concave_creases", "crease_scale_px", "crease_state", "inverse_depth", "surface_state", "warm_up"]
+__all__ = [
+    "concave_creases",
+    "crease_scale_px",
+    "crease_span_px",
+    "crease_state",
+    "inverse_depth",
+    "surface_state",
+    "warm_up",
+]
 
 
 def crease_scale_px(width_px: int, fraction: float = 1.0 / 128.0) -> int:
@@ -29,10 +37,49 @@ def crease_scale_px(width_px: int, fraction: float = 1.0 / 128.0) -> int:
 
     A crease is a change of slope; it must be judged over a span wider than the sensor's
     smoothing (structured light correlates over 7-9 px windows) yet narrower than the objects.
-    The default 1/128 is 2 px on the 320 px sampling grid of a 640 px frame, inside that
-    window: a box lying on a flat block needs 1/64 (``SegmentConfig.crease_span_fraction``).
+    1/128 is 2 px on the 320 px sampling grid of a 640 px frame, inside that window: what a
+    camera without one takes (:func:`crease_span_px`).
     """
     return max(2, round(width_px * fraction))
+
+
+def crease_span_px(width_px: int, sensor: SensorModel, fraction: float = 0.0) -> int:
+    """Half-span (px) of the concave creases' second difference on a frame of this sensor.
+
+    Parameters
+    ----------
+    width_px : int
+        Width (px) of the frame segmented (its sampling grid: 320 px for a 640 px frame).
+    sensor : SensorModel
+        Its ``window_fraction`` (share of the frame width) is the window each reading is a mean
+        over: 0 for time of flight.
+    fraction : float
+        Half-span as a share of ``width_px`` when given (``SegmentConfig.crease_span_fraction``,
+        :func:`crease_scale_px`); 0 follows the sensor.
+
+    Returns
+    -------
+    int
+        Half-span (px on the segmented frame), at least 2.
+
+    Notes
+    -----
+    A structured-light or stereo camera reads each pixel as a mean over its correlation window
+    (7-9 px at 640 px), so a bend of the surface comes out as a curve spread over the window,
+    and a second difference whose half-span lies inside it sees only part of the turn (issue 28:
+    YCB-Video 0002's box lying on a block, 2 px on the 320 px grid of its 640 px frames, 4 frame
+    px, merges with it). The half-span is set one pixel past the window (5 px on that grid, 10
+    frame px for a 9 px window): the two points it compares each lie on a face beyond the
+    window's reach of the crease. A time-of-flight pixel is measured on its own: the span stays
+    ``round(width / 128)``, which finds the creases of objects standing side by side.
+    """
+    if fraction > 0.0:
+        return crease_scale_px(width_px, fraction)
+    r = crease_scale_px(width_px)
+    if sensor.window_fraction > 0.0:
+        # one pixel past the window, so that neither end of the span reads the bend
+        r = max(r, math.floor(sensor.window_fraction * width_px) + 1)
+    return r
 
 
 def concave_creases(

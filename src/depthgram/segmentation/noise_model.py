@@ -27,7 +27,20 @@ from numpy.typing import NDArray
 
 from depthgram.errors import InputError
 
-__all__ = ["PROFILES", "SensorModel", "estimate_sensor", "sensor_model"]
+__all__ = [
+    "CORRELATION_WINDOW_FRACTION",
+    "PROFILES",
+    "SensorModel",
+    "averaged_over_window",
+    "estimate_sensor",
+    "sensor_model",
+]
+
+#: Width of a structured-light or active-stereo camera's correlation window as a share of its
+#: frame width: the disparity of a pixel is matched over a window of about 7-9 px at 640 px
+#: (Kinect v1 / Xtion / PrimeSense's 9 x 9 block; RealSense D400's census window), so each
+#: reading is a mean over it and a bend of the surface is spread over it. The wider, 9 px.
+CORRELATION_WINDOW_FRACTION = 9.0 / 640.0
 
 
 @dataclass(frozen=True)
@@ -42,6 +55,12 @@ class SensorModel:
         Quantisation step ``step(z) = step_0 + step_2 * z**2`` (mm; ``step_2`` in 1/mm).
     sigma_0, sigma_2 : float
         Noise standard deviation ``sigma(z) = sigma_0 + sigma_2 * z**2`` (mm; ``sigma_2`` in 1/mm).
+    window_fraction : float
+        Width of the window each reading is averaged over, as a share of the frame width
+        (dimensionless; :data:`CORRELATION_WINDOW_FRACTION` for a camera that matches a pattern
+        over a window, structured light or active stereo); 0 for a camera that measures each
+        pixel on its own (time of flight). Sets the concave creases' span
+        (:func:`depthgram.segmentation.creases.crease_span_px`).
     """
 
     name: str
@@ -49,8 +68,14 @@ class SensorModel:
     step_2: float
     sigma_0: float
     sigma_2: float
+    window_fraction: float = 0.0
 
     def __post_init__(self) -> None:
+        if not (isinstance(self.window_fraction, (int, float)) and 0.0 <= self.window_fraction <= 1.0):
+            raise InputError(
+                f"sensor model {self.name!r}: window_fraction = {self.window_fraction!r}, expected a share in [0, 1]"
+            )
+        object.__setattr__(self, "window_fraction", float(self.window_fraction))
         for field in ("step_0", "step_2", "sigma_0", "sigma_2"):
             v = getattr(self, field)
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
@@ -95,7 +120,7 @@ class SensorModel:
 def _structured_light(name: str, f_px: float, baseline_mm: float, subpixel: float, noise_px: float) -> SensorModel:
     # a disparity d = f b / z changed by one subpixel step moves depth by z**2 step / (f b)
     fb = f_px * baseline_mm
-    return SensorModel(name, 0.0, subpixel / fb, 0.0, noise_px / fb)
+    return SensorModel(name, 0.0, subpixel / fb, 0.0, noise_px / fb, CORRELATION_WINDOW_FRACTION)
 
 
 #: Named sensor profiles, for users who know their camera. Structured light from the published
@@ -146,7 +171,8 @@ def estimate_sensor(
     Returns
     -------
     SensorModel
-        Named ``auto``.
+        Named ``auto``; its ``window_fraction`` is :data:`CORRELATION_WINDOW_FRACTION` when the
+        frame reads as averaged over a correlation window (:func:`averaged_over_window`), else 0.
 
     Notes
     -----
@@ -170,7 +196,48 @@ def estimate_sensor(
     a1, b1, a2, b2 = sol.tolist()
     s0, s2 = _non_negative(fit[:, 0], fit[:, 1], a1, b1)
     n0, n2 = _non_negative(fit[:, 0], fit[:, 2], a2, b2)
-    return SensorModel("auto", s0, s2, n0, n2)
+    # the depth ranges have equal counts: their middle one's depth is about the frame's median
+    z_mid = float(fit[fit.shape[0] // 2, 0])
+    window = CORRELATION_WINDOW_FRACTION if averaged_over_window(s0, s2, n0, n2, z_mid) else 0.0
+    return SensorModel("auto", s0, s2, n0, n2, window)
+
+
+def averaged_over_window(step_0: float, step_2: float, sigma_0: float, sigma_2: float, z_mm: float) -> bool:
+    """Whether a frame's estimated model reads as a camera that matches over a correlation window.
+
+    Parameters
+    ----------
+    step_0, step_2, sigma_0, sigma_2 : float
+        The estimated step ``step_0 + step_2 z**2`` and noise ``sigma_0 + sigma_2 z**2`` (mm;
+        ``step_2``, ``sigma_2`` in 1/mm), as :class:`SensorModel` holds them.
+    z_mm : float
+        Depth (mm) at which they are compared: about the frame's median.
+
+    Returns
+    -------
+    bool
+        True for structured light or active stereo, False for time of flight.
+
+    Notes
+    -----
+    A structured-light or stereo camera measures a disparity, matched over a window of pixels:
+    its depth comes in disparity steps that grow as ``z**2``, and each reading is a mean over
+    the window, so the per-pixel noise left between two readings is a fraction of a step. A
+    time-of-flight pixel measures its own phase: its step is the output unit (flat in depth)
+    and its noise is its own, a sizeable share of a unit or more (the Azure Kinect frame: 0.4 of
+    its 1.3 mm step at 1.5 m; the simulator's ToF: 2.5 steps). So the frame reads as averaged
+    when its noise is below a step and either its step grows as ``z**2`` (the larger part at
+    ``z_mm``: the Kinect v1 of 7-Scenes and TUM, the RealSense of NVlabs, the simulator's
+    structured light) or its noise is below a quarter of a step (a disparity resampled to whole
+    millimetres, as YCB-Video's Xtion frames: a 1 mm step and 0.05-0.1 mm of noise). With the
+    noise at or above a step, the estimated step is the noise's, not a quantisation's, and says
+    nothing of the family: no window.
+    """
+    step = step_0 + step_2 * z_mm * z_mm
+    sigma = sigma_0 + sigma_2 * z_mm * z_mm
+    if not step > 0.0 or sigma >= step:
+        return False
+    return step_2 * z_mm * z_mm >= step_0 or sigma < 0.25 * step
 
 
 def _range_fit(
