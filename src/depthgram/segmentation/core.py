@@ -54,6 +54,15 @@ __all__ = ["load_rare_kernels", "segment", "warm_up"]
 
 #: The defaults, built once: validating a config on every call is a visible share of a small frame.
 _DEFAULTS = SegmentConfig()
+#: How far below the plane (a share of a piece's height) a horizontal support may lie just beyond
+#: a piece cut from it (``raised_pieces``' ``ring_trough``): 0.4-0.9 beside three of NVlabs' stereo
+#: streaks, at most 0.24 beside 275 of 7-Scenes' 276 magazines (design notes, 2 December 2026,
+#: issue 28 item 5). Facing supports (the default's) are held to neither this nor ``_OUTLINE``.
+_TROUGH = 0.3
+#: Most a piece cut from a horizontal support may have of outline over the root of its area
+#: (``raised_pieces``' ``ring_outline``): NVlabs' stereo mosaics 17.8 and 22.5, 7-Scenes'
+#: magazines 10.7 at most, the simulator's things 7.1.
+_OUTLINE = 14.0
 
 
 def segment(
@@ -500,8 +509,10 @@ def _cut_raised(
     for ids, cls in ((tops, HORIZONTAL), (broad, FACING)):
         if ids:
             got = raised_pieces(
-                labels, depth, ok, classes, cls, ids, stack.boxes[ids], sensor, min_px=min_px, k_sigma=cfg.raised_sigmas
-            )
+                labels, depth, ok, classes, cls, ids, stack.boxes[ids], sensor, min_px=min_px,
+                k_sigma=cfg.raised_sigmas, ring_trough=_TROUGH if cls == HORIZONTAL else math.inf,
+                ring_outline=_OUTLINE if cls == HORIZONTAL else math.inf,
+            )  # fmt: skip
             if got[1]:
                 found.append(got)  # most supports: nothing cut, no frame-sized work
     if not found:

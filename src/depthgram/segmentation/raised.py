@@ -47,7 +47,13 @@ The steps, for each support (:func:`raised_pieces`):
 
 4. **A kept piece's pixels** are then the support's readings of its samples' cells and one cell
    around (the samples' edge is a cell off the readings') standing above half its median height
-   (the window's mean reaches past its edge), when they are still ``min_px``.
+   (the window's mean reaches past its edge), when they are still ``min_px`` and the support's
+   readings 4-6 px beyond them (within a sample's cell of the piece) do not lie below the plane
+   by more than ``ring_trough`` of the piece's height (a stereo streak's trough beside its
+   crest), and their outline, smoothed of single readings, is at most ``ring_outline`` times
+   the root of their area (a stereo camera's error on a weakly textured surface is a lacy
+   mosaic; a thing lying there is a solid body). The caller holds only horizontal supports'
+   pieces (a table seen at an angle) to these two.
 
 Steps 2-4 run compiled (:mod:`depthgram.segmentation._kernels.raised`: numpy's and OpenCV's
 calls on a support's few thousand samples cost more than their arithmetic).
@@ -57,6 +63,7 @@ from __future__ import annotations
 
 import math
 
+import cv2
 import numpy as np
 from numpy.typing import NDArray
 
@@ -81,6 +88,9 @@ _WINDOW, _RING, _PAD_PX = 3, 1, 9
 #: step at which the cut's window of 3 x 3 samples (3t px a side) still fits inside a piece of
 #: ``min_px`` pixels
 _PIECE_SAMPLES = 9
+#: the band of the support's readings beyond a piece's pixels that ``ring_trough`` reads (px, a
+#: square's distance): past the edge's mixed readings, within a stereo streak's trough
+_TROUGH_BAND = (4, 6)
 
 
 def raised_pieces(
@@ -100,6 +110,8 @@ def raised_pieces(
     outer_resolutions: float = 1.0,
     ring_missing: float = 0.15,
     ring_rise: float = 0.1,
+    ring_trough: float = 0.3,
+    ring_outline: float = 14.0,
 ) -> tuple[NDArray[np.int32], list[int], tuple[int, int, int, int]]:
     """Find the pieces of each horizontal support that stand above its plane by more than the noise.
 
@@ -146,6 +158,17 @@ def raised_pieces(
         step, when larger): a thing lying on a support steps up from the plane at its edge;
         the cap of a rounded surface taken for a support (a hand, a ball near the camera) has
         its ring rising with it.
+    ring_trough : float
+        Most the support's readings 4 to 6 px beyond a piece's pixels (and within one sample's
+        cell of its samples) may lie below the plane (their median), as a share of the piece's
+        median height (``inf``: not read): a stereo camera's depth error is zero-mean over its
+        matching, so a streak's crest has a trough beside it; a thing lying on a support has
+        the support's plane there.
+    ring_outline : float
+        Most a piece's outline (its pixels opened and closed by 3 x 3, against single readings'
+        noise) may be over the root of its area (``inf``: not read): a thing lying on a support
+        is a solid body (a disc 3.5, a book 4-5, a screwdriver 6-7); a stereo camera's error
+        on a weakly textured table or carpet is a lacy mosaic of its matching's patches.
 
     Returns
     -------
@@ -187,8 +210,10 @@ def raised_pieces(
             out = np.zeros((h, w), np.int32)
         n, placed = paint(
             out, labels, int(sid), valid, classes, int(cls), depth_mm, bx0, by0, bx1, by1, t, coef, comp, pieces,
-            kept, halves, on, height, int(min_px), len(of_support) + 1,
+            kept, halves, on, height, int(min_px), len(of_support) + 1, float(ring_trough), *_TROUGH_BAND,
         )  # fmt: skip
+        if n and math.isfinite(ring_outline):
+            n, placed = _drop_lacy(out, len(of_support) + 1, placed, ring_outline)
         of_support += [sid] * n
         if n:
             x_lo, y_lo = min(x_lo, int(placed[:, 0].min())), min(y_lo, int(placed[:, 1].min()))
@@ -197,6 +222,36 @@ def raised_pieces(
         # read-only zeros without a frame's memory
         return np.broadcast_to(np.int32(0), (h, w)), of_support, (0, 0, 0, 0)
     return out, of_support, (x_lo, y_lo, x_hi, y_hi)
+
+
+def _drop_lacy(
+    out: NDArray[np.int32], first: int, placed: NDArray[np.int64], outline: float
+) -> tuple[int, NDArray[np.int64]]:
+    """Erase from ``out`` the pieces ``first``, ``first + 1``, ... whose outline is lacy; renumber the rest.
+
+    ``placed``: each piece's box (x0, y0, x1, y1, exclusive). A piece's pixels are opened and
+    closed by a 3 x 3 square (single readings' noise at its half-height edge), and it is erased
+    when the outline of what remains exceeds ``outline`` times the root of its area. Returns
+    the pieces kept and their boxes, numbered ``first``, ``first + 1``, ... in their order.
+    """
+    square = np.ones((3, 3), np.uint8)
+    keep: list[int] = []
+    for k, (x0, y0, x1, y1) in enumerate(placed.tolist()):
+        here = out[y0:y1, x0:x1]
+        mine = here == first + k
+        smooth = cv2.morphologyEx(
+            cv2.morphologyEx(mine.view(np.uint8), cv2.MORPH_OPEN, square), cv2.MORPH_CLOSE, square
+        )
+        edges, _ = cv2.findContours(smooth, cv2.RETR_LIST, cv2.CHAIN_APPROX_NONE)
+        length = sum(cv2.arcLength(e, True) for e in edges)
+        area = int(np.count_nonzero(smooth))
+        if area == 0 or length > outline * math.sqrt(area):
+            here[mine] = 0
+        else:
+            if len(keep) != k:
+                here[mine] = first + len(keep)
+            keep.append(k)
+    return len(keep), placed[keep]
 
 
 def _block_plane(

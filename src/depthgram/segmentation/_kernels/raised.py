@@ -496,6 +496,88 @@ def cut(
 
 
 @njit(cache=True, nogil=True)
+def _grown(m: NDArray[np.bool_], r: int) -> NDArray[np.bool_]:
+    # m grown by r px each way (a square window: Chebyshev distance), rows then columns
+    hh, ww = m.shape
+    rows = np.zeros((hh, ww), np.bool_)
+    for y in range(hh):
+        for x in range(ww):
+            if m[y, x]:
+                for b in range(max(x - r, 0), min(x + r + 1, ww)):
+                    rows[y, b] = True
+    out = np.zeros((hh, ww), np.bool_)
+    for y in range(hh):
+        for x in range(ww):
+            if rows[y, x]:
+                for a in range(max(y - r, 0), min(y + r + 1, hh)):
+                    out[a, x] = True
+    return out
+
+
+@njit(cache=True, nogil=True)
+def _in_trough(
+    mine: NDArray[np.bool_],
+    labels: NDArray[np.int32],
+    sid: int,
+    valid: NDArray[np.bool_],
+    classes: NDArray[np.int8],
+    cls: int,
+    depth: NDArray[np.float32],
+    x0: int,
+    y0: int,
+    w: int,
+    h: int,
+    xa: int,
+    ya: int,
+    coef: NDArray[np.float64],
+    cu: float,
+    cv: float,
+    half: float,
+    trough: float,
+    band_in: int,
+    band_out: int,
+    comp: NDArray[np.int32],
+    j: int,
+    t: int,
+) -> bool:
+    # whether the support's readings band_in..band_out px (a square's distance) beyond the
+    # piece's pixels mine (its box from xa, ya in the support's box x0, y0, w x h) have their
+    # median height below the plane by more than trough of the piece's median height (2 half);
+    # only those within one sample's cell of the piece's samples (comp == j, every t-th pixel)
+    mh, mw = mine.shape
+    ea, fa = max(ya - band_out, 0), max(xa - band_out, 0)
+    eb, fb = min(ya + mh + band_out, h), min(xa + mw + band_out, w)
+    m = np.zeros((eb - ea, fb - fa), np.bool_)
+    m[ya - ea : ya - ea + mh, xa - fa : xa - fa + mw] = mine
+    inner, outer = _grown(m, band_in - 1), _grown(m, band_out)
+    got = np.empty(m.size, np.float32)
+    n = 0
+    for y in range(ea, eb):
+        for x in range(fa, fb):
+            if not outer[y - ea, x - fa] or inner[y - ea, x - fa]:
+                continue
+            yy, xx = y0 + y, x0 + x
+            if labels[yy, xx] != sid or not valid[yy, xx] or classes[yy, xx] != cls:
+                continue
+            i, k = y // t, x // t
+            beside = False
+            for r in range(max(i - 1, 0), min(i + 2, comp.shape[0])):
+                for q in range(max(k - 1, 0), min(k + 2, comp.shape[1])):
+                    if comp[r, q] == j:
+                        beside = True
+                        break
+                if beside:
+                    break
+            if not beside:
+                continue
+            plane = coef[0] * (x - cu) + coef[1] * (y - cv) + coef[2]
+            if plane > 0:
+                got[n] = np.float32(1000.0 / plane) - depth[yy, xx]
+                n += 1
+    return n > 0 and bool(np.median(got[:n]) < -trough * 2.0 * half)
+
+
+@njit(cache=True, nogil=True)
 def paint(
     out: NDArray[np.int32],
     labels: NDArray[np.int32],
@@ -518,6 +600,9 @@ def paint(
     height: NDArray[np.float32],
     min_px: int,
     first: int,
+    trough: float,
+    band_in: int,
+    band_out: int,
 ) -> tuple[int, NDArray[np.int64]]:
     # the kept pieces' pixels, as raised's step 4 says, written into out as first,
     # first + 1, ... (a later piece over an earlier one); how many had min_px pixels and their
@@ -560,6 +645,11 @@ def paint(
                     mine[y - ya, x - xa] = True
                     count += 1
         if count < min_px:
+            continue
+        if trough < np.inf and _in_trough(
+            mine, labels, sid, valid, classes, cls, depth, x0, y0, w, h, xa, ya, coef, float(cu), float(cv), half,
+            trough, band_in, band_out, comp, j, t,
+        ):  # fmt: skip
             continue
         for y in range(ya, yb):
             for x in range(xa, xb):
