@@ -86,7 +86,9 @@ def test_core_depth_change_follows_the_posed_truth_better_than_the_mean(shared_d
     # core does not; and the core moved by the camera's motion (ICP, each pixel its own image
     # motion) lines up walls and floors that one shift per frame does not. Measured over 60
     # frames: within 25 % + 30 mm/s 0.77 of the readings with the camera's motion (walls 0.63,
-    # floors 0.67), 0.69 with one shift (walls 0.47, floors 0.56), 0.50 from the mean.
+    # floors 0.67), 0.69 with one shift (walls 0.47, floors 0.56), 0.50 from the mean. The 95th
+    # percentile of the error with one shift is 0.73 of the mean's since the objects' feet came
+    # back from the supports (0.67 before: the mean of an object with its foot moves less).
     from benchmarks.bench_tracking import truth_rows
 
     if not (shared_data / "7scenes_redkitchen_seq" / "pose").is_dir():
@@ -96,7 +98,7 @@ def test_core_depth_change_follows_the_posed_truth_better_than_the_mean(shared_d
     assert rows is not None and plain_rows is not None
     shift, camera, plain = rows["core/shift"], rows["core/camera"], plain_rows["plain"]
     assert shift["within"] >= 0.6 and plain["within"] <= 0.55
-    assert shift["err_p95"] < 0.7 * plain["err_p95"]
+    assert shift["err_p95"] < 0.8 * plain["err_p95"]
     assert camera["within"] >= 0.75 and camera["within"] >= shift["within"] + 0.06
     assert camera["err_p95"] < 0.9 * shift["err_p95"]
     kinds, kinds_shift = camera["by_kind"], shift["by_kind"]

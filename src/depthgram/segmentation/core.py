@@ -16,6 +16,7 @@ from depthgram.segmentation.config import SegmentConfig
 from depthgram.segmentation.contacts import front_faces, planes_in_pixels, side_faces
 from depthgram.segmentation.coplanar import class_window, coplanar_groups
 from depthgram.segmentation.creases import crease_span_px, crease_state, inverse_depth
+from depthgram.segmentation.feet import feet_reach, give_feet
 from depthgram.segmentation.histogram import Bands, bin_index, depth_bands, log_bin_counts
 from depthgram.segmentation.label import label_bands_stats, label_stats_fused, relabel
 from depthgram.segmentation.label.stats import COUNT, KEY, N_SUMS, SUM_X, SUM_XZ, SUM_Y, SUM_YZ, SUM_Z, add_rows
@@ -392,6 +393,8 @@ def _slices(
     stack = _stack_supports(labels, fsums, fboxes, support_maps, cam)
     if cfg.method == "surfaces" and cfg.raised_sigmas > 0 and sensor is not None:
         stack = _cut_raised(labels, depth, ok, classes, stack, sensor, bands, cam, cfg, min_px)
+    if cfg.method == "surfaces" and sensor is not None:
+        stack = _give_feet(labels, depth, ok, stack, sensor, cam, cfg, min_px)
     below, beneath, planes = _below_camera(labels, depth, cam, stack)
     fronts = _fold_faces(labels, depth, stack, below, planes, cfg)
     labels, specs, rows, boxes = _compound_objects(
@@ -553,6 +556,25 @@ def _cut_raised(
         attrs=attribute_rows(total, cam),
         raised=new.tolist(),
     )
+
+
+def _give_feet(
+    labels: NDArray[np.int32],
+    depth: NDArray[np.float32],
+    ok: NDArray[np.bool_],
+    stack: _Stack,
+    sensor: SensorModel,
+    cam: Intrinsics,
+    cfg: SegmentConfig,
+    min_px: int,
+) -> _Stack:
+    """Give the facing objects the feet the horizontal supports took (:mod:`~depthgram.segmentation.feet`)."""
+    tops = [i for c, i in stack.supports if c == HORIZONTAL]
+    moved = give_feet(
+        labels, depth, ok, tops, stack.first_support - 1, sensor, stack.sums, stack.boxes,
+        reach=feet_reach(cfg.normal_window_px), min_px=min_px,
+    )  # fmt: skip
+    return replace(stack, attrs=attribute_rows(stack.sums, cam)) if moved else stack
 
 
 def _fold_faces(
