@@ -372,7 +372,9 @@ def _slices(
     2. :func:`_support_class` per wanted direction: the supports (floor, table tops, walls).
     3. The objects among the facing pixels: :func:`_surface_objects` or :func:`_facing_objects`.
     4. :func:`_stack_supports` and :func:`_fold_faces`: supports join the label map after the
-       objects, and a box's front or side face joins the support it belongs to.
+       objects (flat things lying on them cut out, :func:`_cut_raised`, and each object's foot
+       given back, :func:`_give_feet`), and a box's front or side face joins the support it
+       belongs to.
     5. :func:`_compound_objects`: ids 1..n again, each support's kind and its slice parts.
 
     The objects are described, not built: the caller builds them from these statistics or,
