@@ -26,11 +26,24 @@ _MIN_FACE = 6
 
 
 @njit(cache=True, nogil=True)
-def _solve3(
-    s_uu: float, s_uv: float, s_u: float, s_vv: float, s_v: float, s_1: float, s_uq: float, s_vq: float, s_q: float
-) -> tuple[bool, float, float, float]:
-    # q = a u + b v + c by least squares from its normal equations' sums (Cramer's rule: a 3 x 3
-    # per reading, where LAPACK's call costs more than the solve)
+def _add(sums: NDArray[np.float64], u: float, v: float, q: float) -> None:
+    # the normal equations' sums of q = a u + b v + c: uu, uv, u, vv, v, 1, uq, vq, q
+    sums[0] += u * u
+    sums[1] += u * v
+    sums[2] += u
+    sums[3] += v * v
+    sums[4] += v
+    sums[5] += 1.0
+    sums[6] += u * q
+    sums[7] += v * q
+    sums[8] += q
+
+
+@njit(cache=True, nogil=True)
+def _solve3(sums: NDArray[np.float64]) -> tuple[bool, float, float, float]:
+    # q = a u + b v + c by least squares from the sums :func:`_add` gathers (Cramer's rule: a
+    # 3 x 3 per fit, where LAPACK's call costs more than the solve)
+    s_uu, s_uv, s_u, s_vv, s_v, s_1, s_uq, s_vq, s_q = sums
     det = s_uu * (s_vv * s_1 - s_v * s_v) - s_uv * (s_uv * s_1 - s_v * s_u) + s_u * (s_uv * s_v - s_vv * s_u)
     scale = s_uu * s_vv * s_1
     if scale <= 0.0 or abs(det) <= 1e-9 * scale:
@@ -72,23 +85,15 @@ def _ring_plane(
     xs, ys, qs = xs[:n], ys[:n], qs[:n]
     keep = np.ones(n, np.bool_)
     found, a, b, c = False, 0.0, 0.0, 0.0
+    sums = np.empty(9)
     for r in range(_ROUNDS):
-        s_uu = s_uv = s_u = s_vv = s_v = s_1 = s_uq = s_vq = s_q = 0.0
+        sums[:] = 0.0
         for k in range(n):
             if keep[k]:
-                u, v, q = xs[k], ys[k], qs[k]
-                s_uu += u * u
-                s_uv += u * v
-                s_u += u
-                s_vv += v * v
-                s_v += v
-                s_1 += 1.0
-                s_uq += u * q
-                s_vq += v * q
-                s_q += q
-        if s_1 < _MIN_RING:
+                _add(sums, xs[k], ys[k], qs[k])
+        if sums[5] < _MIN_RING:
             break
-        found, a, b, c = _solve3(s_uu, s_uv, s_u, s_vv, s_v, s_1, s_uq, s_vq, s_q)
+        found, a, b, c = _solve3(sums)
         if not found or r == _ROUNDS - 1:
             break
         # robust rounds: what lies on the ring but not on the table (another object's edge, a
@@ -140,6 +145,7 @@ def _chunk_planes(
                     hi_across[k] = max(hi_across[k], across)
                     break
     out = np.zeros((n, 4))
+    sums = np.empty(9)
     for k in range(n):
         if hi_across[k] < 0:
             continue
@@ -150,25 +156,14 @@ def _chunk_planes(
         else:
             x0, x1 = max(lo_across[k] - radius, 0), min(hi_across[k] + radius, wid - 1)
             y0, y1 = max(lo, 0), min(hi, hgt - 1)
-        s_uu = s_uv = s_u = s_vv = s_v = s_1 = s_uq = s_vq = s_q = 0.0
+        sums[:] = 0.0
         for y in range(y0, y1 + 1):
-            v = float(y - y0)
             for x in range(x0, x1 + 1):
                 if labels[y, x] == oid:
-                    u = float(x - x0)
-                    q = 1000.0 / depth[y, x]
-                    s_uu += u * u
-                    s_uv += u * v
-                    s_u += u
-                    s_vv += v * v
-                    s_v += v
-                    s_1 += 1.0
-                    s_uq += u * q
-                    s_vq += v * q
-                    s_q += q
-        if s_1 < _MIN_FACE:
+                    _add(sums, float(x - x0), float(y - y0), 1000.0 / depth[y, x])
+        if sums[5] < _MIN_FACE:
             continue
-        found, a, b, c = _solve3(s_uu, s_uv, s_u, s_vv, s_v, s_1, s_uq, s_vq, s_q)
+        found, a, b, c = _solve3(sums)
         if found:
             out[k, 0], out[k, 1], out[k, 2], out[k, 3] = 1.0, a, b, c - a * x0 - b * y0
     return along_x, out
