@@ -55,6 +55,20 @@ def _solve3(sums: NDArray[np.float64]) -> tuple[bool, float, float, float]:
 
 
 @njit(cache=True, nogil=True)
+def _beside(labels: NDArray[np.int32], ok: NDArray[np.bool_], y: int, x: int, sid: int, oid: int) -> bool:
+    # a reading of the support with one of the object's beside it (4-neighbours)
+    if labels[y, x] != sid or not ok[y, x]:
+        return False
+    hgt, wid = labels.shape
+    return bool(
+        (y > 0 and labels[y - 1, x] == oid)
+        or (y + 1 < hgt and labels[y + 1, x] == oid)
+        or (x > 0 and labels[y, x - 1] == oid)
+        or (x + 1 < wid and labels[y, x + 1] == oid)
+    )
+
+
+@njit(cache=True, nogil=True)
 def _ring_plane(
     labels: NDArray[np.int32],
     depth: NDArray[np.float32],
@@ -135,15 +149,10 @@ def _chunk_planes(
     hi_across = np.full(n, -1, np.int64)
     for y in range(by0, by1 + 1):
         for x in range(bx0, bx1 + 1):
-            if labels[y, x] != sid or not ok[y, x]:
-                continue
-            for dy, dx in ((-1, 0), (1, 0), (0, -1), (0, 1)):
-                yy, xx = y + dy, x + dx
-                if 0 <= yy < hgt and 0 <= xx < wid and labels[yy, xx] == oid:
-                    k, across = ((x - start) // chunk, y) if along_x else ((y - start) // chunk, x)
-                    lo_across[k] = min(lo_across[k], across)
-                    hi_across[k] = max(hi_across[k], across)
-                    break
+            if _beside(labels, ok, y, x, sid, oid):
+                k, across = ((x - start) // chunk, y) if along_x else ((y - start) // chunk, x)
+                lo_across[k] = min(lo_across[k], across)
+                hi_across[k] = max(hi_across[k], across)
     out = np.zeros((n, 4))
     sums = np.empty(9)
     for k in range(n):
@@ -219,16 +228,11 @@ def _seed_boxes(
             b = out[o, j]
             for y in range(y0, y1 + 1):
                 for x in range(x0, x1 + 1):
-                    if labels[y, x] != sid or not ok[y, x]:
-                        continue
-                    for dy, dx in ((-1, 0), (1, 0), (0, -1), (0, 1)):
-                        yy, xx = y + dy, x + dx
-                        if 0 <= yy < hgt and 0 <= xx < wid and labels[yy, xx] == o:
-                            b[0] = min(b[0], x)
-                            b[1] = min(b[1], y)
-                            b[2] = max(b[2], x)
-                            b[3] = max(b[3], y)
-                            break
+                    if _beside(labels, ok, y, x, sid, o):
+                        b[0] = min(b[0], x)
+                        b[1] = min(b[1], y)
+                        b[2] = max(b[2], x)
+                        b[3] = max(b[3], y)
     return out
 
 
@@ -288,15 +292,10 @@ def feet(
             head = tail = 0
             for y in range(by0, by1 + 1):
                 for x in range(bx0, bx1 + 1):
-                    if labels[y, x] != sid or not ok[y, x]:
-                        continue
-                    for dy, dx in ((-1, 0), (1, 0), (0, -1), (0, 1)):
-                        yy, xx = y + dy, x + dx
-                        if 0 <= yy < hgt and 0 <= xx < wid and labels[yy, xx] == oid:
-                            seen[y - ry0, x - rx0] = True
-                            queue[tail, 0], queue[tail, 1], queue[tail, 2] = y, x, 1
-                            tail += 1
-                            break
+                    if _beside(labels, ok, y, x, sid, oid):
+                        seen[y - ry0, x - rx0] = True
+                        queue[tail, 0], queue[tail, 1], queue[tail, 2] = y, x, 1
+                        tail += 1
             while head < tail:
                 y, x, d = queue[head, 0], queue[head, 1], queue[head, 2]
                 head += 1
