@@ -26,24 +26,11 @@ _MIN_FACE = 6
 
 
 @njit(cache=True, nogil=True)
-def _add(sums: NDArray[np.float64], u: float, v: float, q: float) -> None:
-    # the normal equations' sums of q = a u + b v + c: uu, uv, u, vv, v, 1, uq, vq, q
-    sums[0] += u * u
-    sums[1] += u * v
-    sums[2] += u
-    sums[3] += v * v
-    sums[4] += v
-    sums[5] += 1.0
-    sums[6] += u * q
-    sums[7] += v * q
-    sums[8] += q
-
-
-@njit(cache=True, nogil=True)
-def _solve3(sums: NDArray[np.float64]) -> tuple[bool, float, float, float]:
-    # q = a u + b v + c by least squares from the sums :func:`_add` gathers (Cramer's rule: a
-    # 3 x 3 per fit, where LAPACK's call costs more than the solve)
-    s_uu, s_uv, s_u, s_vv, s_v, s_1, s_uq, s_vq, s_q = sums
+def _solve3(
+    s_uu: float, s_uv: float, s_u: float, s_vv: float, s_v: float, s_1: float, s_uq: float, s_vq: float, s_q: float
+) -> tuple[bool, float, float, float]:
+    # q = a u + b v + c by least squares from its normal equations' sums (Cramer's rule: a 3 x 3
+    # per reading, where LAPACK's call costs more than the solve)
     det = s_uu * (s_vv * s_1 - s_v * s_v) - s_uv * (s_uv * s_1 - s_v * s_u) + s_u * (s_uv * s_v - s_vv * s_u)
     scale = s_uu * s_vv * s_1
     if scale <= 0.0 or abs(det) <= 1e-9 * scale:
@@ -52,20 +39,6 @@ def _solve3(sums: NDArray[np.float64]) -> tuple[bool, float, float, float]:
     b = (s_uu * (s_vq * s_1 - s_q * s_v) - s_uq * (s_uv * s_1 - s_v * s_u) + s_u * (s_uv * s_q - s_vq * s_u)) / det
     c = (s_uu * (s_vv * s_q - s_v * s_vq) - s_uv * (s_uv * s_q - s_vq * s_u) + s_uq * (s_uv * s_v - s_vv * s_u)) / det
     return True, a, b, c
-
-
-@njit(cache=True, nogil=True)
-def _beside(labels: NDArray[np.int32], ok: NDArray[np.bool_], y: int, x: int, sid: int, oid: int) -> bool:
-    # a reading of the support with one of the object's beside it (4-neighbours)
-    if labels[y, x] != sid or not ok[y, x]:
-        return False
-    hgt, wid = labels.shape
-    return bool(
-        (y > 0 and labels[y - 1, x] == oid)
-        or (y + 1 < hgt and labels[y + 1, x] == oid)
-        or (x > 0 and labels[y, x - 1] == oid)
-        or (x + 1 < wid and labels[y, x + 1] == oid)
-    )
 
 
 @njit(cache=True, nogil=True)
@@ -99,15 +72,23 @@ def _ring_plane(
     xs, ys, qs = xs[:n], ys[:n], qs[:n]
     keep = np.ones(n, np.bool_)
     found, a, b, c = False, 0.0, 0.0, 0.0
-    sums = np.empty(9)
     for r in range(_ROUNDS):
-        sums[:] = 0.0
+        s_uu = s_uv = s_u = s_vv = s_v = s_1 = s_uq = s_vq = s_q = 0.0
         for k in range(n):
             if keep[k]:
-                _add(sums, xs[k], ys[k], qs[k])
-        if sums[5] < _MIN_RING:
+                u, v, q = xs[k], ys[k], qs[k]
+                s_uu += u * u
+                s_uv += u * v
+                s_u += u
+                s_vv += v * v
+                s_v += v
+                s_1 += 1.0
+                s_uq += u * q
+                s_vq += v * q
+                s_q += q
+        if s_1 < _MIN_RING:
             break
-        found, a, b, c = _solve3(sums)
+        found, a, b, c = _solve3(s_uu, s_uv, s_u, s_vv, s_v, s_1, s_uq, s_vq, s_q)
         if not found or r == _ROUNDS - 1:
             break
         # robust rounds: what lies on the ring but not on the table (another object's edge, a
@@ -124,37 +105,34 @@ def _ring_plane(
 def _chunk_planes(
     labels: NDArray[np.int32],
     depth: NDArray[np.float32],
-    ok: NDArray[np.bool_],
     oid: int,
-    sid: int,
-    seeds: tuple[int, int, int, int],
+    seeds: NDArray[np.int64],
+    box: tuple[int, int, int, int],
     chunk: int,
     radius: int,
 ) -> tuple[bool, NDArray[np.float64]]:
     """Fit the object's surface ``1000 / Z = a x + b y + c`` per chunk of its outline beside the support.
 
-    The seeds' box (inclusive: the support's readings beside the object) is cut into chunks of
-    ``chunk`` px along its longer side; each chunk's plane is fitted over the object's readings
-    within ``radius`` of the chunk's own seeds' box (an outline running diagonally keeps its
-    fits near it). Returns whether the chunks run along x, and per chunk ``(found, a, b, c)``
-    in the frame's columns and rows.
+    ``seeds`` (N, 2): the support's readings beside the object (row, column), ``box`` their
+    inclusive box, cut into chunks of ``chunk`` px along its longer side; each chunk's plane is
+    fitted over the object's readings within ``radius`` of the chunk's own seeds' box (an
+    outline running diagonally keeps its fits near it). Returns whether the chunks run along
+    x, and per chunk ``(found, a, b, c)`` in the frame's columns and rows.
     """
     hgt, wid = labels.shape
-    bx0, by0, bx1, by1 = seeds
+    bx0, by0, bx1, by1 = box
     along_x = bx1 - bx0 >= by1 - by0
     start, stop = (bx0, bx1) if along_x else (by0, by1)
     n = (stop - start) // chunk + 1
     # each chunk's seeds across the chunks' direction
     lo_across = np.full(n, 1 << 30, np.int64)
     hi_across = np.full(n, -1, np.int64)
-    for y in range(by0, by1 + 1):
-        for x in range(bx0, bx1 + 1):
-            if _beside(labels, ok, y, x, sid, oid):
-                k, across = ((x - start) // chunk, y) if along_x else ((y - start) // chunk, x)
-                lo_across[k] = min(lo_across[k], across)
-                hi_across[k] = max(hi_across[k], across)
+    for i in range(seeds.shape[0]):
+        y, x = seeds[i, 0], seeds[i, 1]
+        k, across = ((x - start) // chunk, y) if along_x else ((y - start) // chunk, x)
+        lo_across[k] = min(lo_across[k], across)
+        hi_across[k] = max(hi_across[k], across)
     out = np.zeros((n, 4))
-    sums = np.empty(9)
     for k in range(n):
         if hi_across[k] < 0:
             continue
@@ -165,14 +143,25 @@ def _chunk_planes(
         else:
             x0, x1 = max(lo_across[k] - radius, 0), min(hi_across[k] + radius, wid - 1)
             y0, y1 = max(lo, 0), min(hi, hgt - 1)
-        sums[:] = 0.0
+        s_uu = s_uv = s_u = s_vv = s_v = s_1 = s_uq = s_vq = s_q = 0.0
         for y in range(y0, y1 + 1):
+            v = float(y - y0)
             for x in range(x0, x1 + 1):
                 if labels[y, x] == oid:
-                    _add(sums, float(x - x0), float(y - y0), 1000.0 / depth[y, x])
-        if sums[5] < _MIN_FACE:
+                    u = float(x - x0)
+                    q = 1000.0 / depth[y, x]
+                    s_uu += u * u
+                    s_uv += u * v
+                    s_u += u
+                    s_vv += v * v
+                    s_v += v
+                    s_1 += 1.0
+                    s_uq += u * q
+                    s_vq += v * q
+                    s_q += q
+        if s_1 < _MIN_FACE:
             continue
-        found, a, b, c = _solve3(sums)
+        found, a, b, c = _solve3(s_uu, s_uv, s_u, s_vv, s_v, s_1, s_uq, s_vq, s_q)
         if found:
             out[k, 0], out[k, 1], out[k, 2], out[k, 3] = 1.0, a, b, c - a * x0 - b * y0
     return along_x, out
@@ -198,42 +187,54 @@ def _move(sums: NDArray[np.float64], src: int, dst: int, x: float, y: float, z: 
 
 
 @njit(cache=True, nogil=True)
-def _seed_boxes(
+def _seeds(
     labels: NDArray[np.int32],
     ok: NDArray[np.bool_],
     supports: NDArray[np.int32],
     n_objects: int,
     objects: NDArray[np.bool_],
     boxes: NDArray[np.int64],
-) -> NDArray[np.int64]:
-    """Return per (object, support) the inclusive box of the support's readings beside the object (x0 > x1: none).
+) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+    """Return the supports' readings beside the objects (N, 2: row, column) and where each pair's run is.
 
-    A reading of a support with an object's reading beside it, looked for where the two boxes meet.
+    ``runs[o, j]`` is ``(first, stop)`` of object ``o`` beside support ``supports[j]``. A
+    reading of the support with one of the object's beside it (4-neighbours) lies where the
+    support's box and the object's, grown by one, meet: only there is it looked for.
     """
     hgt, wid = labels.shape
     k = supports.size
-    out = np.empty((n_objects + 1, k, 4), np.int64)
-    out[:, :, 0] = wid
-    out[:, :, 1] = hgt
-    out[:, :, 2] = -1
-    out[:, :, 3] = -1
+    runs = np.zeros((n_objects + 1, k, 2), np.int64)
+    meets = np.zeros((n_objects + 1, k, 4), np.int64)
+    size = 0
     for j in range(k):
         sid = supports[j]
         for o in range(1, n_objects + 1):
-            if not objects[o]:
-                continue
-            # a support's reading beside the object lies in both boxes, the object's grown by one
             x0, y0 = max(boxes[o, 0] - 1, boxes[sid, 0]), max(boxes[o, 1] - 1, boxes[sid, 1])
             x1, y1 = min(boxes[o, 2] + 1, boxes[sid, 2]), min(boxes[o, 3] + 1, boxes[sid, 3])
-            b = out[o, j]
-            for y in range(y0, y1 + 1):
-                for x in range(x0, x1 + 1):
-                    if _beside(labels, ok, y, x, sid, o):
-                        b[0] = min(b[0], x)
-                        b[1] = min(b[1], y)
-                        b[2] = max(b[2], x)
-                        b[3] = max(b[3], y)
-    return out
+            if objects[o] and x0 <= x1 and y0 <= y1:
+                meets[o, j, 0], meets[o, j, 1], meets[o, j, 2], meets[o, j, 3] = x0, y0, x1, y1
+                size += (x1 - x0 + 1) * (y1 - y0 + 1)
+            else:
+                meets[o, j, 0] = 1
+                meets[o, j, 2] = 0
+    pix = np.empty((size, 2), np.int64)
+    n = 0
+    for j in range(k):
+        sid = supports[j]
+        for o in range(1, n_objects + 1):
+            runs[o, j, 0] = n
+            for y in range(meets[o, j, 1], meets[o, j, 3] + 1):
+                for x in range(meets[o, j, 0], meets[o, j, 2] + 1):
+                    if labels[y, x] != sid or not ok[y, x]:
+                        continue
+                    for dy, dx in ((-1, 0), (1, 0), (0, -1), (0, 1)):
+                        yy, xx = y + dy, x + dx
+                        if 0 <= yy < hgt and 0 <= xx < wid and labels[yy, xx] == o:
+                            pix[n, 0], pix[n, 1] = y, x
+                            n += 1
+                            break
+            runs[o, j, 1] = n
+    return pix[:n], runs
 
 
 @njit(cache=True, nogil=True)
@@ -261,15 +262,18 @@ def feet(
     objects = np.zeros(n_objects + 1, np.bool_)
     for o in range(1, n_objects + 1):
         objects[o] = sums[o, COUNT] >= min_px
-    seeds = _seed_boxes(labels, ok, supports, n_objects, objects, boxes)
+    pix, runs = _seeds(labels, ok, supports, n_objects, objects, boxes)
     moved = 0
     queue = np.empty((0, 3), np.int64)
     for j in range(supports.size):
         sid = supports[j]
         for oid in range(1, n_objects + 1):
-            bx0, by0, bx1, by1 = seeds[oid, j, 0], seeds[oid, j, 1], seeds[oid, j, 2], seeds[oid, j, 3]
-            if bx0 > bx1:
+            first, stop = runs[oid, j, 0], runs[oid, j, 1]
+            if first == stop:
                 continue
+            seeds = pix[first:stop]
+            bx0, bx1 = seeds[:, 1].min(), seeds[:, 1].max()
+            by0, by1 = seeds[:, 0].min(), seeds[:, 0].max()
             # the region read: the reach around the readings beside the object
             rx0, ry0 = max(bx0 - reach, 0), max(by0 - reach, 0)
             rx1, ry1 = min(bx1 + reach, wid - 1), min(by1 + reach, hgt - 1)
@@ -285,17 +289,18 @@ def feet(
             if not found:
                 continue
             chunk = reach
-            along_x, planes = _chunk_planes(labels, depth, ok, oid, sid, (bx0, by0, bx1, by1), chunk, fit_radius)
+            along_x, planes = _chunk_planes(labels, depth, oid, seeds, (bx0, by0, bx1, by1), chunk, fit_radius)
             seen = np.zeros((ry1 - ry0 + 1, rx1 - rx0 + 1), np.bool_)
             if queue.shape[0] < seen.size:
                 queue = np.empty((seen.size, 3), np.int64)
             head = tail = 0
-            for y in range(by0, by1 + 1):
-                for x in range(bx0, bx1 + 1):
-                    if _beside(labels, ok, y, x, sid, oid):
-                        seen[y - ry0, x - rx0] = True
-                        queue[tail, 0], queue[tail, 1], queue[tail, 2] = y, x, 1
-                        tail += 1
+            for i in range(seeds.shape[0]):
+                y, x = seeds[i, 0], seeds[i, 1]
+                # a reading moved to an object before this one is no longer the support's
+                if labels[y, x] == sid:
+                    seen[y - ry0, x - rx0] = True
+                    queue[tail, 0], queue[tail, 1], queue[tail, 2] = y, x, 1
+                    tail += 1
             while head < tail:
                 y, x, d = queue[head, 0], queue[head, 1], queue[head, 2]
                 head += 1
