@@ -526,13 +526,15 @@ def _cut_raised(
     x0, y0 = min(b[0] for _, _, b in found), min(b[1] for _, _, b in found)
     x1, y1 = max(b[2] for _, _, b in found), max(b[3] for _, _, b in found)
     here = (slice(y0, y1), slice(x0, x1))
-    pieces = np.zeros((y1 - y0, x1 - x0), np.int32)
-    of_support: list[int] = []
-    for map_, of, _ in found:
-        part = map_[here]
-        got_px = part > 0
-        pieces[got_px] = part[got_px] + np.int32(len(of_support))
-        of_support += of
+    of_support: list[int] = list(found[0][1])
+    # one class cut (most frames): its map already numbers the pieces 1..k
+    pieces = found[0][0][here]
+    if len(found) > 1:
+        pieces = pieces.copy()
+        for map_, of, _ in found[1:]:
+            part = map_[here]
+            np.add(part, np.int32(len(of_support)), out=pieces, where=part > 0)
+            of_support += of
     k = len(of_support)
     sums, boxes = label_stats_fused(pieces, k, depth[here], np.zeros(pieces.shape, np.float32))
     # the box's sums and boxes in the frame's columns and rows
@@ -542,8 +544,8 @@ def _cut_raised(
     sums[:, SUM_YZ] += y0 * sums[:, SUM_Z]
     boxes[1:] += np.array([x0, y0, x0, y0], np.int64)
     new = np.arange(stack.next_id, stack.next_id + k)
-    cut = pieces > 0
-    labels[here][cut] = pieces[cut] + np.int32(stack.next_id - 1)
+    # written through the box's view where a piece is: no frame-sized index arrays
+    np.add(pieces, np.int32(stack.next_id - 1), out=labels[here], where=pieces > 0)
     total = np.concatenate([stack.sums, sums[1:, :N_SUMS]])
     for j, sid in enumerate(of_support, start=1):
         total[sid] -= sums[j, :N_SUMS]

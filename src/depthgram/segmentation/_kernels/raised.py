@@ -497,20 +497,35 @@ def cut(
 
 @njit(cache=True, nogil=True)
 def _grown(m: NDArray[np.bool_], r: int) -> NDArray[np.bool_]:
-    # m grown by r px each way (a square window: Chebyshev distance), rows then columns
+    # m grown by r px each way (a square window: Chebyshev distance), rows then columns; each
+    # pass keeps a running count of the set pixels in its window, so the cost is the box's
+    # pixels whatever r
     hh, ww = m.shape
     rows = np.zeros((hh, ww), np.bool_)
     for y in range(hh):
+        n = 0
+        for x in range(min(r, ww)):
+            n += m[y, x]
         for x in range(ww):
-            if m[y, x]:
-                for b in range(max(x - r, 0), min(x + r + 1, ww)):
-                    rows[y, b] = True
+            if x + r < ww:
+                n += m[y, x + r]
+            if x - r - 1 >= 0:
+                n -= m[y, x - r - 1]
+            rows[y, x] = n > 0
     out = np.zeros((hh, ww), np.bool_)
-    for y in range(hh):
+    count = np.zeros(ww, np.int64)
+    for y in range(min(r, hh)):
         for x in range(ww):
-            if rows[y, x]:
-                for a in range(max(y - r, 0), min(y + r + 1, hh)):
-                    out[a, x] = True
+            count[x] += rows[y, x]
+    for y in range(hh):
+        if y + r < hh:
+            for x in range(ww):
+                count[x] += rows[y + r, x]
+        if y - r - 1 >= 0:
+            for x in range(ww):
+                count[x] -= rows[y - r - 1, x]
+        for x in range(ww):
+            out[y, x] = count[x] > 0
     return out
 
 
@@ -550,31 +565,56 @@ def _in_trough(
     m = np.zeros((eb - ea, fb - fa), np.bool_)
     m[ya - ea : ya - ea + mh, xa - fa : xa - fa + mw] = mine
     inner, outer = _grown(m, band_in - 1), _grown(m, band_out)
+    # the band's samples within one sample's cell of the piece's: one look-up a pixel below
+    ia, ib, ka, kb = ea // t, (eb - 1) // t, fa // t, (fb - 1) // t
+    beside = np.zeros((ib - ia + 1, kb - ka + 1), np.bool_)
+    for r in range(max(ia - 1, 0), min(ib + 2, comp.shape[0])):
+        for q in range(max(ka - 1, 0), min(kb + 2, comp.shape[1])):
+            if comp[r, q] == j:
+                for a in range(max(r - 1, ia), min(r + 1, ib) + 1):
+                    for b in range(max(q - 1, ka), min(q + 1, kb) + 1):
+                        beside[a - ia, b - ka] = True
     got = np.empty(m.size, np.float32)
     n = 0
     for y in range(ea, eb):
         for x in range(fa, fb):
             if not outer[y - ea, x - fa] or inner[y - ea, x - fa]:
                 continue
+            if not beside[y // t - ia, x // t - ka]:
+                continue
             yy, xx = y0 + y, x0 + x
             if labels[yy, xx] != sid or not valid[yy, xx] or classes[yy, xx] != cls:
-                continue
-            i, k = y // t, x // t
-            beside = False
-            for r in range(max(i - 1, 0), min(i + 2, comp.shape[0])):
-                for q in range(max(k - 1, 0), min(k + 2, comp.shape[1])):
-                    if comp[r, q] == j:
-                        beside = True
-                        break
-                if beside:
-                    break
-            if not beside:
                 continue
             plane = coef[0] * (x - cu) + coef[1] * (y - cv) + coef[2]
             if plane > 0:
                 got[n] = np.float32(1000.0 / plane) - depth[yy, xx]
                 n += 1
     return n > 0 and bool(np.median(got[:n]) < -trough * 2.0 * half)
+
+
+@njit(cache=True, nogil=True)
+def _near_samples(
+    comp: NDArray[np.int32],
+    j: int,
+    on: NDArray[np.bool_],
+    height: NDArray[np.float32],
+    half: float,
+    gx0: int,
+    gy0: int,
+    gx1: int,
+    gy1: int,
+) -> NDArray[np.bool_]:
+    # the samples gy0 - 1 .. gy1 + 1 by gx0 - 1 .. gx1 + 1 within one sample (a 3 x 3 square) of
+    # piece j's samples standing above half its height (its samples lie in its box gx0..gx1,
+    # gy0..gy1): a pixel's test in paint is then one look-up, not nine of comp, on and height
+    near = np.zeros((gy1 - gy0 + 3, gx1 - gx0 + 3), np.bool_)
+    for r in range(gy0, gy1 + 1):
+        for s in range(gx0, gx1 + 1):
+            if comp[r, s] == j and on[r, s] and height[r, s] > half:
+                for a in range(r - gy0, r - gy0 + 3):
+                    for b in range(s - gx0, s - gx0 + 3):
+                        near[a, b] = True
+    return near
 
 
 @njit(cache=True, nogil=True)
@@ -619,26 +659,19 @@ def paint(
         gx0, gy0, gx1, gy1 = boxes[j, 0], boxes[j, 1], boxes[j, 2], boxes[j, 3]
         ya, yb = max(gy0 * t - t, 0), min(gy1 * t + 2 * t, h)
         xa, xb = max(gx0 * t - t, 0), min(gx1 * t + 2 * t, w)
+        near = _near_samples(comp, j, on, height, half, gx0, gy0, gx1, gy1)
         mine = np.zeros((yb - ya, xb - xa), np.bool_)
         count = 0
         for y in range(ya, yb):
             i = y // t
             v = np.float32(y) - cv
             for x in range(xa, xb):
+                # within one sample of the piece's samples standing above half its height: a
+                # look-up on the samples before the frame's three maps are read
+                if not near[i - gy0 + 1, x // t - gx0 + 1]:
+                    continue
                 yy, xx = y0 + y, x0 + x
                 if labels[yy, xx] != sid or not valid[yy, xx] or classes[yy, xx] != cls:
-                    continue
-                # within one sample of the piece's samples standing above half its height
-                jj = x // t
-                near = False
-                for r in range(max(i - 1, gy0), min(i + 1, gy1) + 1):
-                    for s in range(max(jj - 1, gx0), min(jj + 1, gx1) + 1):
-                        if comp[r, s] == j and on[r, s] and height[r, s] > half:
-                            near = True
-                            break
-                    if near:
-                        break
-                if not near:
                     continue
                 plane = a * (np.float32(x) - cu) + b * v + c
                 if plane > 0 and np.float32(1000.0) / plane - depth[yy, xx] > half:
