@@ -1060,6 +1060,7 @@ def test_load_rare_kernels_loads_the_kernels_of_the_rare_branches() -> None:
     # takes the branches afterwards compiles no new signature
     from depthgram.segmentation import segment
     from depthgram.segmentation._kernels.coplanar import coplanar_join
+    from depthgram.segmentation._kernels.feet import feet
     from depthgram.segmentation._kernels.plane_sums import planes_from_sums as planes_from_sums_kernel
     from depthgram.segmentation._kernels.ransac import assign_planes, search_planes
     from depthgram.segmentation.core import load_rare_kernels
@@ -1078,6 +1079,7 @@ def test_load_rare_kernels_loads_the_kernels_of_the_rare_branches() -> None:
         planes_from_sums_kernel,
         coplanar_join,
         assign_planes,
+        feet,
     )
     before = [len(k.signatures) for k in kernels]
     assert all(before)

@@ -173,6 +173,11 @@ def warm_up() -> None:
         boxes=np.array([[0, 0, 1, 0]], np.int64), n_ids=3,
     )  # fmt: skip
     add_rows(np.zeros((3, N_SUMS)), np.zeros((3, 4), np.int64), np.array([1], np.intp), np.array([2], np.intp))
+    # an object's foot given back by a horizontal support (a frame without one never calls it)
+    give_feet(
+        np.array([[1, 2], [2, 2]], np.int32), z, ok, [2], 1, sensor_model("tof"), np.ones((3, N_SUMS)),
+        np.array([[0, 0, 1, 1], [0, 0, 0, 0], [0, 0, 1, 1]], np.int64), reach=1, min_px=1,
+    )  # fmt: skip
     # ids renumbered after a fold; the slice parts of supports (a frame without any has none)
     relabel(np.zeros((2, 2), np.int32), np.zeros(1, np.int32))
     compound_parts(
