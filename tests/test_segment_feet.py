@@ -97,3 +97,21 @@ def test_the_things_standing_on_the_simulated_table_keep_their_feet(kind: str) -
     coverage = [ev.score(i).coverage for i in standing]
     assert np.mean(coverage) >= 0.978
     assert min(ev.score(i).precision for i in standing) >= 0.99
+
+
+def test_holes_in_the_box_and_the_table_are_read_around() -> None:
+    # a structured-light camera's dropouts: readings without depth inside both surfaces, even
+    # where a label still names them, are neither fitted nor given
+    depth, labels, truth = _box_on_a_table(1.0)
+    ok = np.ones(depth.shape, bool)
+    ok[::5, ::3] = False
+    depth[~ok] = 0.0
+    sums, boxes = _stats(labels, depth)
+    model = SensorModel("test", step_0=1.0, step_2=0.0, sigma_0=1.0, sigma_2=0.0)
+    before = labels.copy()
+    give_feet(labels, depth, ok, [2], 1, model, sums, boxes, reach=7, min_px=50)
+    clear = np.zeros(depth.shape, bool)
+    clear[CONTACT - BAND : CONTACT - 3, 40:80] = True
+    assert np.all(labels[clear & ok] == 1)
+    assert not np.any(labels[(truth == 2) & ok] == 1)
+    assert np.array_equal(labels[~ok], before[~ok])

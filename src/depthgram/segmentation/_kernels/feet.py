@@ -147,7 +147,7 @@ def _chunk_planes(
         for y in range(y0, y1 + 1):
             v = float(y - y0)
             for x in range(x0, x1 + 1):
-                if labels[y, x] == oid:
+                if labels[y, x] == oid and depth[y, x] > 0:
                     u = float(x - x0)
                     q = 1000.0 / depth[y, x]
                     s_uu += u * u
