@@ -12,7 +12,7 @@ the sensor's noise and the object's own surface, continued to it, explains its d
 the support's plane does. Both are fitted in inverse depth over pixel coordinates (``1/Z = a u +
 b v + c`` holds for any plane whatever the intrinsics): the support's plane over its readings
 around the object (a real table bends by a few millimetres over its width), the object's surface
-over its readings within a few pixels of the reading. Where the two surfaces meet (the contact
+per short run of its outline, over its readings within the reach of that run. Where the two surfaces meet (the contact
 line) both explain a reading equally well, so the band is cut there, whichever way the camera's
 correlation window has smoothed the corner.
 
