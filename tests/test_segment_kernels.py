@@ -1060,9 +1060,10 @@ def test_load_rare_kernels_loads_the_kernels_of_the_rare_branches() -> None:
     # takes the branches afterwards compiles no new signature
     from depthgram.segmentation import segment
     from depthgram.segmentation._kernels.coplanar import coplanar_join
-    from depthgram.segmentation._kernels.feet import feet
+    from depthgram.segmentation._kernels.feet import feet, take_back
     from depthgram.segmentation._kernels.plane_sums import planes_from_sums as planes_from_sums_kernel
     from depthgram.segmentation._kernels.ransac import assign_planes, search_planes
+    from depthgram.segmentation._kernels.surfaces import restore_unclaimed
     from depthgram.segmentation.core import load_rare_kernels
     from depthgram.segmentation.label import keyed, stats
     from depthgram.segmentation.slices import _class_state, _drop_classes
@@ -1080,6 +1081,8 @@ def test_load_rare_kernels_loads_the_kernels_of_the_rare_branches() -> None:
         coplanar_join,
         assign_planes,
         feet,
+        restore_unclaimed,
+        take_back,
     )
     before = [len(k.signatures) for k in kernels]
     assert all(before)

@@ -28,6 +28,9 @@ from depthgram.segmentation.label.unionfind import resolve as _resolve
 from depthgram.segmentation.openings import merge_openings
 from depthgram.segmentation.order_stats import percentile32
 
+#: ``loosen_grow``'s table of loosened surfaces when nothing is counted down (reattach)
+_NOT_COUNTED = np.zeros(1, np.int32)
+
 __all__ = [
     "concave_creases",
     "crease_scale_px",
@@ -154,6 +157,7 @@ def surfaces_kept(
     bridge_px: int,
     min_px: int,
     max_px: int,
+    seed_px: int | None = None,
 ) -> tuple[NDArray[np.int32], int, NDArray[np.float64], NDArray[np.int64]]:
     """Return the surfaces of ``min_px`` pixels or more once loose pixels are reattached, with statistics.
 
@@ -164,6 +168,11 @@ def surfaces_kept(
     ids; one pass relabels with the statistics. No pass counts labels again: the surfaces
     left after loosening all have ``min_px`` pixels or more and growth only adds to them, so
     ``keep_large`` keeps exactly those.
+
+    With ``seed_px`` below ``min_px``, a loosened surface of ``seed_px`` pixels or more that
+    no surface grew back into (a thing lying on a support, whose readings around it the
+    orientation field gave to the support) is kept too, with the pixels left to it, for the
+    caller to judge once it has its foot (:func:`depthgram.segmentation.core._give_feet`).
 
     Returns
     -------
@@ -178,7 +187,8 @@ def surfaces_kept(
     lab, parent, nxt, pcount = kernels_surfaces.label_surfaces(
         z, np.ascontiguousarray(state, np.int8), float(tol_0), float(tol_2), float(slope_per_px), int(bridge_px)
     )
-    table, count = kernels_surfaces.kept_table(lab, parent, nxt, pcount, int(min_px))
+    seed = min_px if seed_px is None else min(seed_px, min_px)
+    table, count, loosened, left = kernels_surfaces.kept_table(lab, parent, nxt, pcount, int(min_px), int(seed))
     kernels_surfaces.loosen_grow(
         lab,
         table,
@@ -188,8 +198,16 @@ def surfaces_kept(
         float(tol_2),
         float(slope_per_px),
         int(max_px),
+        loosened,
+        left,
     )
-    labels, n, sums, boxes = kernels_surfaces.keep_through(lab, table, count, int(min_px), z)
+    keep_px = min_px
+    if loosened.size > 1:
+        # a piece under min_px that no surface took back (a thing lying on a support, cut from
+        # it by the orientation field) is kept for the caller to judge with its foot
+        kernels_surfaces.restore_unclaimed(table, loosened, count, left, int(seed))
+        keep_px = 1
+    labels, n, sums, boxes = kernels_surfaces.keep_through(lab, table, count, int(keep_px), z)
     return labels, int(n), sums, boxes
 
 
@@ -222,6 +240,8 @@ def reattach(
             float(tol_2),
             float(slope_per_px),
             int(max_px),
+            _NOT_COUNTED,
+            np.zeros(1, np.int64),
         )
     return out
 

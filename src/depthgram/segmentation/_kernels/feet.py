@@ -332,3 +332,42 @@ def feet(
                         queue[tail, 0], queue[tail, 1], queue[tail, 2] = yy, xx, d + 1
                         tail += 1
     return moved
+
+
+@njit(cache=True, nogil=True)
+def take_back(
+    labels: NDArray[np.int32],
+    before: NDArray[np.int32],
+    origin: tuple[int, int],
+    dropped: NDArray[np.bool_],
+    depth: NDArray[np.float32],
+    sums: NDArray[np.float64],
+) -> int:
+    """Undo the objects in ``dropped``: their feet go back to their supports, their own readings to 0.
+
+    ``before`` is the label map's box at ``origin`` (row, column) as it was before the feet
+    were given, holding every reading of those objects. ``sums`` follows (in place); the rows
+    of the dropped objects end at 0. Returns the readings moved.
+    """
+    y0, x0 = origin
+    hgt, wid = before.shape
+    moved = 0
+    for i in range(hgt):
+        y = y0 + i
+        row, old = labels[y], before[i]
+        for j in range(wid):
+            o = row[x0 + j]
+            if o >= dropped.size or not dropped[o]:
+                continue
+            s = old[j]
+            if s != o:
+                x = x0 + j
+                row[x] = s
+                _move(sums, o, s, float(x), float(y), float(depth[y, x]))
+            else:
+                row[x0 + j] = 0
+            moved += 1
+    for o in range(dropped.size):
+        if dropped[o]:
+            sums[o, :] = 0.0
+    return moved

@@ -18,11 +18,13 @@ NO_BOXES = np.zeros((1, 4), np.int32)
 
 @njit(cache=True, nogil=True)
 def kept_table(
-    lab: NDArray[np.int32], parent: NDArray[np.int32], nxt: int, pcount: NDArray[np.int64], min_px: int
-) -> tuple[NDArray[np.int32], NDArray[np.int64]]:
+    lab: NDArray[np.int32], parent: NDArray[np.int32], nxt: int, pcount: NDArray[np.int64], min_px: int, seed_px: int
+) -> tuple[NDArray[np.int32], NDArray[np.int64], NDArray[np.int32], NDArray[np.int64]]:
     # provisional label -> the final one resolve gives it (raster order of first pixels), or 0
-    # for surfaces under min_px pixels (loosen_small); and the pixels per final label (0 for
-    # the loosened ones)
+    # for surfaces under min_px pixels (loosen_small); the pixels per final label (0 for the
+    # loosened ones); provisional label -> final label of the loosened surfaces of seed_px
+    # pixels or more, 0 elsewhere; and the pixels of those per final label (loosen_grow counts
+    # down the ones it gives to other surfaces). The last two are one 0 when seed_px >= min_px.
     final, n, _, _ = resolve_tables(lab, parent, nxt, NO_SUMS, NO_BOXES, 0, False)
     count = np.zeros(n + 1, np.int64)
     for i in range(1, nxt):
@@ -30,12 +32,20 @@ def kept_table(
     small = count < min_px
     small[0] = True
     table = np.zeros(nxt, np.int32)
+    loosened = np.zeros(nxt if seed_px < min_px else 1, np.int32)
     for i in range(1, nxt):
-        table[i] = 0 if small[final[i]] else final[i]
+        f = final[i]
+        if not small[f]:
+            table[i] = f
+        elif seed_px < min_px and count[f] >= seed_px:
+            loosened[i] = f
+    left = np.zeros(n + 1 if seed_px < min_px else 1, np.int64)
     for i in range(n + 1):
         if small[i]:
+            if seed_px < min_px and count[i] >= seed_px:
+                left[i] = count[i]
             count[i] = 0
-    return table, count
+    return table, count, loosened, left
 
 
 @njit(cache=True, nogil=True)
@@ -48,6 +58,8 @@ def loosen_grow(
     t2: float,
     sl: float,
     max_steps: int,
+    loosened: NDArray[np.int32],
+    left: NDArray[np.int64],
 ) -> None:
     # Hand-written: a breadth-first growth with a per-step depth test has no library kernel
     # (a distance transform finds the nearest label but cannot follow the surface).
@@ -55,7 +67,10 @@ def loosen_grow(
     # table[lab]; reattach passes final labels and the identity table): one pass marks the
     # loose pixels (facing, label 0) and queues the seeds (loose, beside a labelled pixel) in
     # raster order, then the breadth-first growth; a grown pixel takes its neighbour's label
-    # in `lab`, which is the same label through the table. `lab` is written in place.
+    # in `lab`, which is the same label through the table. `lab` is written in place. With a
+    # `loosened` table of more than one entry (kept_table's), a grown pixel of a loosened
+    # surface counts down that surface's `left`.
+    counting = loosened.size > 1
     h, w = lab.shape
     loose = np.zeros((h, w), np.bool_)
     pending = np.zeros((h, w), np.bool_)
@@ -97,6 +112,8 @@ def loosen_grow(
                 break
         if best == 0:
             continue
+        if counting:
+            left[loosened[lab[y, x]]] -= 1
         lab[y, x] = best
         if k >= max_steps:
             continue
@@ -108,6 +125,24 @@ def loosen_grow(
                 queue[tail] = yy * w + xx
                 steps[tail] = k + 1
                 tail += 1
+
+
+@njit(cache=True, nogil=True)
+def restore_unclaimed(
+    table: NDArray[np.int32],
+    loosened: NDArray[np.int32],
+    count: NDArray[np.int64],
+    left: NDArray[np.int64],
+    seed_px: int,
+) -> None:
+    # after the growth: the pixels of a loosened surface that no surface took back (`left`)
+    # are that surface again when there are seed_px of them; table and count in place
+    left[0] = 0
+    for i in range(loosened.size):
+        f = loosened[i]
+        if f > 0 and left[f] >= seed_px:
+            table[i] = f
+            count[f] = left[f]
 
 
 @njit(cache=True, nogil=True)
