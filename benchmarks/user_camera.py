@@ -20,7 +20,7 @@ found when its IoU >= 0.5. Pictures of the first frame of each run (depth, truth
 
 Run: ``PYTHONPATH=src .venv/bin/python benchmarks/user_camera.py`` (``--only NAME``: folders whose
 name holds NAME; ``--config TOML``: settings given to every run, e.g. ``[segment]
-crease_span_fraction = 0.015625``).
+crease_span_fraction = 0.015625``; ``--run NAME``: only that way of giving the camera, repeatable).
 """
 
 from __future__ import annotations
@@ -109,13 +109,18 @@ def _picture(
     cv2.imwrite(str(path), np.hstack([d, colour(truth), colour(labels)]))
 
 
-def score_folder(folder: Path, name: str, out: Path | None, extra: list[str] | None = None) -> list[Score]:
-    """Every run of one labelled folder (``extra``: options added to every run, e.g. ``--config``)."""
+def score_folder(
+    folder: Path, name: str, out: Path | None, extra: list[str] | None = None, runs: tuple[str, ...] = ()
+) -> list[Score]:
+    """The runs of one labelled folder (``extra``: options added to every run, e.g. ``--config``;
+    ``runs``: the names of :data:`RUNS` to do, all when empty)."""
     depths = sorted(folder.glob("*-depth.png"))
     truths = [cv2.imread(str(p).replace("-depth.png", "-label.png"), cv2.IMREAD_UNCHANGED) for p in depths]
     raw = [cv2.imread(str(p), cv2.IMREAD_UNCHANGED).astype(np.float32) / 10.0 for p in depths]
     scores = []
     for run, options in RUNS.items():
+        if runs and run not in runs:
+            continue
         with tempfile.TemporaryDirectory() as tmp:
             seconds, stderr = describe(folder, [*options, *(extra or [])], Path(tmp))
             maps = _label_maps(Path(tmp), len(depths))
@@ -161,6 +166,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--only", default="", help="folders whose name holds this text")
     p.add_argument("--out", type=Path, default=OUT, help="folder for the pictures")
     p.add_argument("--config", type=Path, help="pipeline settings (TOML) given to every run")
+    p.add_argument("--run", action="append", default=[], choices=list(RUNS), help="only this way (repeatable)")
     args = p.parse_args(argv)
     extra = ["--config", str(args.config)] if args.config else []
     scores: list[Score] = []
@@ -171,7 +177,7 @@ def main(argv: list[str] | None = None) -> int:
         if not folder.is_dir():
             print(f"skipped {name}: not found at {folder}")
             continue
-        scores += score_folder(folder, name, args.out, extra)
+        scores += score_folder(folder, name, args.out, extra, tuple(args.run))
     if not scores:
         print(f"no labelled YCB-Video folder found under {SHARED}")
         return 0
