@@ -17,7 +17,7 @@ from depthgram.segmentation.coarse import grid_frame, grid_step, to_full_resolut
 from depthgram.segmentation.config import SegmentConfig
 from depthgram.segmentation.contacts import front_faces, planes_in_pixels, side_faces
 from depthgram.segmentation.coplanar import class_window, coplanar_groups
-from depthgram.segmentation.creases import crease_span_px, crease_state, inverse_depth
+from depthgram.segmentation.creases import crease_scale_px, crease_span_px, crease_state, inverse_depth
 from depthgram.segmentation.feet import feet_reach, give_feet
 from depthgram.segmentation.histogram import Bands, bin_index, depth_bands, log_bin_counts
 from depthgram.segmentation.label import label_bands_stats, label_stats_fused, relabel
@@ -326,6 +326,9 @@ def _surface_objects(
         min_px=cfg.min_pixels(depth.size),
         max_px=4 * r + 1,
         seed_px=_seed_px(cfg.min_pixels(depth.size)),
+        # min_area was set with the base span's crease bands: a wider span's extra width is
+        # given back to a small piece before it is judged
+        band_px=r - crease_scale_px(depth.shape[1]),
     )
     mean = sums[:, SUM_Z] / np.maximum(sums[:, COUNT], 1.0)
     # np.median's value, compiled (the numpy call cost more than the selection here)

@@ -28,8 +28,9 @@ from depthgram.segmentation.label.unionfind import resolve as _resolve
 from depthgram.segmentation.openings import merge_openings
 from depthgram.segmentation.order_stats import percentile32
 
-#: ``loosen_grow``'s table of loosened surfaces when nothing is counted down (reattach)
+#: ``loosen_grow``'s table of loosened surfaces and their pixels left when nothing is counted down
 _NOT_COUNTED = np.zeros(1, np.int32)
+_NOT_LEFT = np.zeros(1, np.int64)
 
 __all__ = [
     "concave_creases",
@@ -158,6 +159,7 @@ def surfaces_kept(
     min_px: int,
     max_px: int,
     seed_px: int | None = None,
+    band_px: int = 0,
 ) -> tuple[NDArray[np.int32], int, NDArray[np.float64], NDArray[np.int64]]:
     """Return the surfaces of ``min_px`` pixels or more once loose pixels are reattached, with statistics.
 
@@ -173,6 +175,10 @@ def surfaces_kept(
     no surface grew back into (a thing lying on a support, whose readings around it the
     orientation field gave to the support) is kept too, with the pixels left to it, for the
     caller to judge once it has its foot (:func:`depthgram.segmentation.core._give_feet`).
+    Such a piece then takes back up to ``band_px`` steps of the loose pixels around it: the
+    part of its crease band that a wider crease span than the one ``min_px`` was set with
+    (a structured-light camera's, :func:`depthgram.segmentation.creases.crease_span_px`) took
+    from it, so that it is judged at the size it would have had.
 
     Returns
     -------
@@ -189,23 +195,17 @@ def surfaces_kept(
     )
     seed = min_px if seed_px is None else min(seed_px, min_px)
     table, count, loosened, left = kernels_surfaces.kept_table(lab, parent, nxt, pcount, int(min_px), int(seed))
-    kernels_surfaces.loosen_grow(
-        lab,
-        table,
-        np.ascontiguousarray(facing, np.bool_),
-        z,
-        float(tol_0),
-        float(tol_2),
-        float(slope_per_px),
-        int(max_px),
-        loosened,
-        left,
-    )
+    facing = np.ascontiguousarray(facing, np.bool_)
+    grow = (float(tol_0), float(tol_2), float(slope_per_px), int(max_px))
+    kernels_surfaces.loosen_grow(lab, table, facing, z, *grow, loosened, left, table)
     keep_px = min_px
     if loosened.size > 1:
         # a piece under min_px that no surface took back (a thing lying on a support, cut from
         # it by the orientation field) is kept for the caller to judge with its foot
-        kernels_surfaces.restore_unclaimed(table, loosened, count, left, int(seed))
+        restored = kernels_surfaces.restore_unclaimed(table, loosened, count, left, int(seed))
+        if band_px > 0:
+            band = (*grow[:3], int(band_px))
+            kernels_surfaces.loosen_grow(lab, table, facing, z, *band, _NOT_COUNTED, _NOT_LEFT, restored)
         keep_px = 1
     labels, n, sums, boxes = kernels_surfaces.keep_through(lab, table, count, int(keep_px), z)
     return labels, int(n), sums, boxes
@@ -231,9 +231,10 @@ def reattach(
     out = np.array(labels, dtype=np.int32, copy=True)
     if loose.any():
         # the default's growth on provisional labels, here through the identity table
+        identity = np.arange(int(out.max(initial=0)) + 1, dtype=np.int32)
         kernels_surfaces.loosen_grow(
             out,
-            np.arange(int(out.max(initial=0)) + 1, dtype=np.int32),
+            identity,
             np.ascontiguousarray(loose, np.bool_),
             np.ascontiguousarray(depth_mm, np.float32),
             float(tol_0),
@@ -241,7 +242,8 @@ def reattach(
             float(slope_per_px),
             int(max_px),
             _NOT_COUNTED,
-            np.zeros(1, np.int64),
+            _NOT_LEFT,
+            identity,
         )
     return out
 

@@ -60,6 +60,7 @@ def loosen_grow(
     max_steps: int,
     loosened: NDArray[np.int32],
     left: NDArray[np.int64],
+    grower: NDArray[np.int32],
 ) -> None:
     # Hand-written: a breadth-first growth with a per-step depth test has no library kernel
     # (a distance transform finds the nearest label but cannot follow the surface).
@@ -69,7 +70,8 @@ def loosen_grow(
     # raster order, then the breadth-first growth; a grown pixel takes its neighbour's label
     # in `lab`, which is the same label through the table. `lab` is written in place. With a
     # `loosened` table of more than one entry (kept_table's), a grown pixel of a loosened
-    # surface counts down that surface's `left`.
+    # surface counts down that surface's `left`. Only the surfaces with a label in `grower`
+    # (the same table as `table`, or the part of it restore_unclaimed restored) grow.
     counting = loosened.size > 1
     h, w = lab.shape
     loose = np.zeros((h, w), np.bool_)
@@ -82,10 +84,10 @@ def loosen_grow(
             if facing[y, x] and table[lab[y, x]] == 0:
                 loose[y, x] = True
                 if (
-                    (x > 0 and table[lab[y, x - 1]] > 0)
-                    or (x < w - 1 and table[lab[y, x + 1]] > 0)
-                    or (y > 0 and table[lab[y - 1, x]] > 0)
-                    or (y < h - 1 and table[lab[y + 1, x]] > 0)
+                    (x > 0 and grower[lab[y, x - 1]] > 0)
+                    or (x < w - 1 and grower[lab[y, x + 1]] > 0)
+                    or (y > 0 and grower[lab[y - 1, x]] > 0)
+                    or (y < h - 1 and grower[lab[y + 1, x]] > 0)
                 ):
                     queue[tail] = y * w + x
                     steps[tail] = 1
@@ -103,7 +105,7 @@ def loosen_grow(
         for d in range(4):
             yy = y + (1 if d == 0 else -1 if d == 1 else 0)
             xx = x + (1 if d == 2 else -1 if d == 3 else 0)
-            if yy < 0 or yy >= h or xx < 0 or xx >= w or table[lab[yy, xx]] == 0:
+            if yy < 0 or yy >= h or xx < 0 or xx >= w or grower[lab[yy, xx]] == 0:
                 continue
             zz = depth[yy, xx]
             zm = min(z, zz)
@@ -134,15 +136,20 @@ def restore_unclaimed(
     count: NDArray[np.int64],
     left: NDArray[np.int64],
     seed_px: int,
-) -> None:
+) -> NDArray[np.int32]:
     # after the growth: the pixels of a loosened surface that no surface took back (`left`)
-    # are that surface again when there are seed_px of them; table and count in place
+    # are that surface again when there are seed_px of them; table and count in place. Returns
+    # the table of those restored surfaces alone (0 elsewhere), for them to take back their
+    # crease pixels.
     left[0] = 0
+    only = np.zeros(table.size, np.int32)
     for i in range(loosened.size):
         f = loosened[i]
         if f > 0 and left[f] >= seed_px:
             table[i] = f
+            only[i] = f
             count[f] = left[f]
+    return only
 
 
 @njit(cache=True, nogil=True)
