@@ -205,7 +205,8 @@ class SegmentConfig:
         family, or a frame that reads as one: ``SensorModel.window_fraction``), 1/128 for time
         of flight; asked for too (``crease_span_fraction = 0``): it also gives a small piece
         that the wider band left under ``min_area`` the band's extra width back before judging
-        it, but on 7-Scenes small pieces by the counter flicker and one track reads 4.4 m/s.
+        it, but on 7-Scenes it makes small pieces by the far counter come and go, which the
+        tracker then mistakes for motion (docs/design-notes.md).
     work_width_px : int
         ``surfaces``: a frame wider than this is segmented on every ``step``-th pixel and row
         (``step = ceil(width / work_width_px)``: 2 at 640 px, 4 at 1280 px) and each pixel then
