@@ -242,6 +242,13 @@ def estimate(
                 if not counts:
                     extra = t.own_v * t.own_v
                     reported = still_dz[i] / dt
+            elif np.isfinite(t.own_v) and t.own_n < 2:
+                # the camera's part not read this frame (a repeated frame, a view it cannot
+                # follow, a missed detection): the depth filter's velocity holds an own part
+                # that one reading alone gave, left out as on the frame it was read (7-Scenes
+                # frame 222, a repeat of 221: one core read across two surfaces, -4.4 m/s)
+                extra = t.own_v * t.own_v
+                reported = t.kf_v - t.own_v
             if t.kf_n >= 2:
                 v_out[i] = reported
                 sig[i] = np.sqrt(t.kf_pvv + extra)
