@@ -246,3 +246,32 @@ def test_a_helper_thread_reading_half_of_the_cores_changes_nothing() -> None:
             runs.append(got)
     assert runs[0] == runs[1]
     assert sum(m.v_radial is not None for got in runs[0] for m in got.values()) >= 20
+
+
+def test_a_core_read_once_across_two_surfaces_is_no_motion_on_a_frame_without_the_cameras_part() -> None:
+    # 7-Scenes frames 220-222 (issue 28), as the tracker handed them to the filter: a new small
+    # segment at 2680 mm (the camera's part known: 2.4 mm), on its second frame over a surface
+    # 192 mm nearer, its core reading -150 mm once (-4.6 m/s of its own), and a third frame
+    # repeating the second with no camera part (still_dz NaN). The own part one reading gave
+    # does not count, on that frame either: the kitchen stands still.
+    from depthgram.dynamics.estimate import estimate
+    from depthgram.dynamics.kernels import new_tracks
+    from depthgram.dynamics.tracker import estimate_params
+
+    p = estimate_params(TrackerConfig())
+    dt = 1.0 / FPS
+    tracks = new_tracks(1)
+    qt = np.full((1, 4), np.nan)
+    qz = np.full((1, 4), np.nan)
+    nan = np.full(1, np.nan)
+    speeds = []
+    for k, (z, n, core, still) in enumerate(
+        [(2680.4, 0, np.nan, 2.38), (2488.1, 1, -149.7, 3.06), (2488.1, 1, 0.0, np.nan)]
+    ):
+        qt[0, -1], qz[0, -1] = k * dt, z
+        v, _, _ = estimate(
+            tracks, qt, qz, n, np.array([n == 0]), nan, nan, dt, p, np.zeros(1), np.array([core]), np.array([still])
+        )
+        speeds.append(float(v[0]))
+    assert np.isnan(speeds[0])
+    assert all(abs(s) < 1000.0 for s in speeds[1:]), speeds

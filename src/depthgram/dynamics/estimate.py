@@ -198,7 +198,9 @@ def estimate(
                         # now (a camera found moving after standing still)
                         t.own_v = t.kf_v - still_dz[i] / dt
                         t.own_var = t.kf_pvv
-                        t.own_n = 2
+                        # as many readings of it as the filter had depth differences: one
+                        # difference alone (a core read across two surfaces) does not count yet
+                        t.own_n = min(t.kf_n - 1, 2)
                     else:
                         # most of what a camera sees stands still: no own motion until read
                         t.own_v = 0.0
