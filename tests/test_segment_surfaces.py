@@ -156,7 +156,8 @@ def test_the_crease_span_follows_a_structured_light_cameras_correlation_window_b
     model = estimate_sensor(depth, depth > 0)
     assert model.window_fraction > 0.0
     assert crease_span_px(320, model) == 5
-    seg = segment(depth, valid=depth > 0, intrinsics=cam, crease_span_fraction=0.0)
+    assert SegmentConfig().crease_span_fraction == 0.0
+    seg = segment(depth, valid=depth > 0, intrinsics=cam)
     block_id, block_iou = _best(seg.labels, truth, 2)
     box_id, box_iou = _best(seg.labels, truth, 3)
     assert block_id != box_id and block_iou >= 0.7 and box_iou >= 0.7, (block_iou, box_iou)
@@ -170,7 +171,7 @@ def test_a_time_of_flight_frame_keeps_the_crease_span_of_1_128() -> None:
     model = estimate_sensor(depth, depth > 0)
     assert model.window_fraction == 0.0
     assert crease_span_px(320, model) == crease_scale_px(320, 1.0 / 128.0) == 2
-    default = segment(depth, valid=depth > 0, intrinsics=cam, crease_span_fraction=0.0)
+    default = segment(depth, valid=depth > 0, intrinsics=cam)
     before = segment(depth, valid=depth > 0, intrinsics=cam, crease_span_fraction=1.0 / 128.0)
     assert np.array_equal(default.labels, before.labels)
     assert crease_span_px(320, PROFILES["azure-kinect"]) == crease_span_px(320, PROFILES["tof"]) == 2

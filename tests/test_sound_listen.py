@@ -268,7 +268,9 @@ def test_warning_stops_the_frame_the_object_turns_back() -> None:
 
 def test_a_hand_held_recording_sounds_like_a_few_steady_things(shared_data: Path, tmp_path: Path) -> None:
     # 7-Scenes red kitchen, 10 s hand-held at 30 frames/s: some 9 objects a frame and 159
-    # track ids in all. Heard: at most 4 beeping at once, at most 15 voices over the 10 s.
+    # track ids in all. Heard: at most 4 beeping at once, at most 16 voices over the 10 s
+    # (14 with the former crease span; the sensor's span finds the cup on the table, a voice
+    # from frame 16, and one track's voice ends and comes back: design notes, 4 December 2026).
     seq = shared_data / "7scenes_redkitchen_seq"
     if not seq.is_dir():
         pytest.skip(f"{seq} not found")
@@ -283,7 +285,7 @@ def test_a_hand_held_recording_sounds_like_a_few_steady_things(shared_data: Path
     summary = out.stderr.decode()
     m = re.search(r"up to (\d+) object\(s\) beeping .* (\d+) distinct object voice\(s\)", summary)
     assert m, summary
-    assert int(m.group(1)) <= 4 and int(m.group(2)) <= 15, summary
+    assert int(m.group(1)) <= 4 and int(m.group(2)) <= 16, summary
 
 
 @pytest.mark.parametrize(

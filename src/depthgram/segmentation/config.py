@@ -193,20 +193,17 @@ class SegmentConfig:
     crease_span_fraction : float
         ``surfaces``: half-span of the concave creases' second difference, as a share of the
         width of the frame segmented (its sampling grid: 320 px for a 640 px frame), at least
-        2 px (:func:`depthgram.segmentation.creases.crease_scale_px`). The default 1/128 finds
-        the creases of objects standing side by side. A structured-light camera spreads each
-        bend over its correlation window, and a time-of-flight camera's noise hides a
-        right-angled inside corner at that span: 1/64 cuts a box lying on a flat block from it
-        (issue 28, YCB-Video 0002), but also a chair's seat from its back and a cup's inside
-        from its wall on other recordings, so it is asked for (``[segment]
-        crease_span_fraction = 0.015625``; the figures are in docs/design-notes.md). 0 follows
-        the sensor (:func:`depthgram.segmentation.creases.crease_span_px`): one pixel past the
+        2 px (:func:`depthgram.segmentation.creases.crease_scale_px`). The default 0 follows the
+        sensor (:func:`depthgram.segmentation.creases.crease_span_px`): 1/128 for time of
+        flight, which finds the creases of objects standing side by side; one pixel past the
         correlation window of a structured-light or stereo camera (a named profile of that
-        family, or a frame that reads as one: ``SensorModel.window_fraction``), 1/128 for time
-        of flight; asked for too (``crease_span_fraction = 0``): it also gives a small piece
-        that the wider band left under ``min_area`` the band's extra width back before judging
-        it, but on 7-Scenes it makes small pieces by the far counter come and go, which the
-        tracker then mistakes for motion (docs/design-notes.md).
+        family, or a frame that reads as one: ``SensorModel.window_fraction``), which spreads
+        each bend over that window, so that a box lying on a flat block is cut from it (issue
+        28, YCB-Video 0002), and a small piece the wider band left under ``min_area`` is given
+        the band's extra width back before it is judged. A share sets the span whatever the
+        camera (``[segment] crease_span_fraction = 0.0078125``, the former default, keeps a
+        wall's strip apart from a counter on 7-Scenes that the sensor's span joins to it; the
+        figures are in docs/design-notes.md).
     work_width_px : int
         ``surfaces``: a frame wider than this is segmented on every ``step``-th pixel and row
         (``step = ceil(width / work_width_px)``: 2 at 640 px, 4 at 1280 px) and each pixel then
@@ -260,7 +257,7 @@ class SegmentConfig:
     join_resolutions: float = 2.5
     max_slope_deg: float = 70.0
     crease_deg: float = 40.0
-    crease_span_fraction: float = 1.0 / 128.0
+    crease_span_fraction: float = 0.0
     work_width_px: int = 320
     far_mm: float = 20_000.0
 
