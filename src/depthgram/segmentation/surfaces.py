@@ -202,8 +202,10 @@ def surfaces_kept(
     if loosened.size > 1:
         # a piece under min_px that no surface took back (a thing lying on a support, cut from
         # it by the orientation field) is kept for the caller to judge with its foot
-        restored = kernels_surfaces.restore_unclaimed(table, loosened, count, left, int(seed))
+        kernels_surfaces.restore_unclaimed(table, loosened, count, left, int(seed))
         if band_px > 0:
+            # the restored pieces alone: loosened labels (same size as table here) now kept
+            restored = np.where(loosened > 0, table, 0).astype(np.int32)
             band = (*grow[:3], int(band_px))
             kernels_surfaces.loosen_grow(lab, table, facing, z, *band, _NOT_COUNTED, _NOT_LEFT, restored)
         keep_px = 1

@@ -71,7 +71,7 @@ def loosen_grow(
     # in `lab`, which is the same label through the table. `lab` is written in place. With a
     # `loosened` table of more than one entry (kept_table's), a grown pixel of a loosened
     # surface counts down that surface's `left`. Only the surfaces with a label in `grower`
-    # (the same table as `table`, or the part of it restore_unclaimed restored) grow.
+    # grow: `table` itself, or the part of it that restore_unclaimed restored.
     counting = loosened.size > 1
     h, w = lab.shape
     loose = np.zeros((h, w), np.bool_)
@@ -136,20 +136,15 @@ def restore_unclaimed(
     count: NDArray[np.int64],
     left: NDArray[np.int64],
     seed_px: int,
-) -> NDArray[np.int32]:
+) -> None:
     # after the growth: the pixels of a loosened surface that no surface took back (`left`)
-    # are that surface again when there are seed_px of them; table and count in place. Returns
-    # the table of those restored surfaces alone (0 elsewhere), for them to take back their
-    # crease pixels.
+    # are that surface again when there are seed_px of them; table and count in place
     left[0] = 0
-    only = np.zeros(table.size, np.int32)
     for i in range(loosened.size):
         f = loosened[i]
         if f > 0 and left[f] >= seed_px:
             table[i] = f
-            only[i] = f
             count[f] = left[f]
-    return only
 
 
 @njit(cache=True, nogil=True)
