@@ -18,6 +18,7 @@ would otherwise be confused with a more important one.
 from __future__ import annotations
 
 import math
+from collections import OrderedDict
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, replace
 from typing import Any
@@ -34,6 +35,9 @@ __all__ = ["MATCH_DEPTH", "MATCH_VIEW", "Chooser", "distinguishable", "pan_posit
 MATCH_VIEW = 0.15
 #: ... and this share of its depth.
 MATCH_DEPTH = 0.35
+#: How many of the tracks voiced last are remembered, so that one coming back is not counted
+#: as a new thing (:attr:`Chooser.distinct`).
+VOICED_MEMORY = 256
 
 
 def pan_position(v: Voice) -> float:
@@ -93,7 +97,17 @@ class Chooser:
         self._next_voice = 1
         self._entered: list[int] = []  # voices that entered with the last frame
         self._frames = 0  # frames chosen so far
-        self.distinct = 0  # voices started so far
+        self.distinct = 0  # objects voiced so far, each counted once however often it comes back
+        # the tracks voiced most recently (track id -> None, oldest first): a track whose voice
+        # ended and comes back is the same thing to the listener, so it is counted once;
+        # bounded, so that a live stream's memory stays flat
+        self._voiced: OrderedDict[int, None] = OrderedDict()
+
+    def _remember(self, track: int) -> None:
+        self._voiced[track] = None
+        self._voiced.move_to_end(track)
+        if len(self._voiced) > VOICED_MEMORY:
+            self._voiced.popitem(last=False)
 
     def _urgent(self, n: Node) -> bool:
         return n.ttc is not None and 0 < n.ttc < self.mapping.ttc_alert
@@ -129,6 +143,7 @@ class Chooser:
                 n = min(near, key=lambda n: abs(n.depth - slot.node.depth))
                 slot.track, slot.node, slot.missing, slot.prev_depth = n.id, n, 0, None
                 taken.add(n.id)
+                self._remember(n.id)
                 continue
             slot.missing += 1
             if slot.missing > m.hold_frames:
@@ -153,7 +168,9 @@ class Chooser:
             self._slots[self._next_voice] = _Slot(n.id, n)
             self._entered.append(self._next_voice)
             self._next_voice += 1
-            self.distinct += 1
+            if n.id not in self._voiced:
+                self.distinct += 1
+            self._remember(n.id)
         order = list(self._slots)  # the order the voices entered
         beeps = sorted(
             ((v, s.node) for v, s in self._slots.items()), key=lambda t: (not self._urgent(t[1]), order.index(t[0]))
