@@ -190,6 +190,13 @@ class SegmentConfig:
         a real camera's floors and tables seen at an angle bend and streak by a few resolutions
         over their depths, which it cuts as it would a book, and it costs more (the figures
         are in docs/design-notes.md).
+    crease_deg : float
+        ``surfaces``: smallest bend (degrees) between two surfaces that makes a concave crease
+        (:func:`depthgram.segmentation.creases.concave_creases`), where it stands above the
+        sensor's noise. Read through the focal length, so it is set with the margin of the
+        scene's own focal estimate (about 10 %): 38 cuts a box lying on a block with the true
+        intrinsics as with the estimate (40 cut it only with the estimate; the figures are in
+        docs/design-notes.md).
     crease_span_fraction : float
         ``surfaces``: half-span of the concave creases' second difference, as a share of the
         width of the frame segmented (its sampling grid: 320 px for a 640 px frame), at least
@@ -256,7 +263,7 @@ class SegmentConfig:
     sensor: str = "auto"
     join_resolutions: float = 2.5
     max_slope_deg: float = 70.0
-    crease_deg: float = 40.0
+    crease_deg: float = 38.0
     crease_span_fraction: float = 0.0
     work_width_px: int = 320
     far_mm: float = 20_000.0
