@@ -210,7 +210,8 @@ def add_config_arguments(p: argparse.ArgumentParser) -> None:
         metavar="SIGMAS",
         help="cut what stands above any table or floor by more than SIGMAS of the sensor's noise into objects "
         "(flat things lying on a table seen at an angle; [segment] raised_sigmas = SIGMAS, raised_supports = "
-        "'all'; by default only a table seen from straight above is cut, at 4; 0: none)",
+        "'all'; by default a table seen from straight above and a table or floor filling a third of the view "
+        "are cut, at 4; 0: none)",
     )
 
 

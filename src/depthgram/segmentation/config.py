@@ -183,13 +183,16 @@ class SegmentConfig:
         :mod:`depthgram.segmentation.raised`); 0 leaves every support whole. Which supports are
         cut: ``raised_supports``.
     raised_supports : str
-        ``facing`` (the default): only a support facing the camera as large as a dominant plane
+        ``facing`` (the default): a support facing the camera as large as a dominant plane
         (``plane_min_area``), a table seen from straight above (an arm camera), where its
-        readings lie at nearly one depth and a thing's rise is read along the view. ``all``: the
-        horizontal supports too (a table seen at an angle), asked for (``--raised SIGMAS``):
-        a real camera's floors and tables seen at an angle bend and streak by a few resolutions
-        over their depths, which it cuts as it would a book, and it costs more (the figures
-        are in docs/design-notes.md).
+        readings lie at nearly one depth and a thing's rise is read along the view; and a
+        horizontal support holding a third of the frame, the scene itself (a table an arm
+        camera looks at from 45 degrees, the floor before a chest camera). ``all``: every
+        horizontal support (a kitchen's counters seen in passing), asked for (``--raised
+        SIGMAS``): a real camera's floors and tables seen at an angle bend and streak by a few
+        resolutions over their depths, which it cuts as it would a book, and it costs more
+        (the figures are in docs/design-notes.md). A piece of a horizontal support along the
+        frame's edge, with no ring seen there, is never cut.
     crease_deg : float
         ``surfaces``: smallest bend (degrees) between two surfaces that makes a concave crease
         (:func:`depthgram.segmentation.creases.concave_creases`), where it stands above the

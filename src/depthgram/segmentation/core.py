@@ -66,6 +66,10 @@ _TROUGH = 0.3
 #: (``raised_pieces``' ``ring_outline``): NVlabs' stereo mosaics 17.8 and 22.5, 7-Scenes'
 #: magazines 10.7 at most, the simulator's things 7.1.
 _OUTLINE = 14.0
+#: Share of the frame a horizontal support must hold for the default to cut it: the largest one's
+#: share is 0.20 on 7-Scenes' median frame and 0.28 at its 90th percentile, 0.35-0.69 on
+#: NVlabs' and OSD's tabletops, 0.80 on the simulator's arm_45 (design notes, 3 December 2026).
+_SCENE_SHARE = 1.0 / 3.0
 
 
 def segment(
@@ -520,7 +524,13 @@ def _cut_raised(
     The pieces (:func:`depthgram.segmentation.raised.raised_pieces`) take ids after the last
     support's; their statistics come out of their support's row, which stays additive.
     """
-    tops = [i for c, i in stack.supports if c == HORIZONTAL] if cfg.raised_supports == "all" else []
+    if cfg.raised_supports == "all":
+        tops = [i for c, i in stack.supports if c == HORIZONTAL]
+    else:
+        # a horizontal support holding a third of the view is the scene itself (the table an
+        # arm camera looks at 45 degrees down, the floor before a chest camera): what lies
+        # there is what the user came for; a kitchen's counters seen in passing are not cut
+        tops = [i for c, i in stack.supports if c == HORIZONTAL and stack.attrs[i - 1, 0] >= _SCENE_SHARE * depth.size]
     # a plane facing the camera and as large as a dominant plane is a support too: a table seen
     # from above (an arm camera), where flat things lying on it are the whole scene
     broad = (np.flatnonzero(stack.attrs[: stack.first_support - 1, 0] >= cfg.plane_min_area * depth.size) + 1).tolist()
@@ -533,6 +543,10 @@ def _cut_raised(
                 labels, depth, ok, classes, cls, ids, stack.boxes[ids], sensor, min_px=min_px,
                 k_sigma=cfg.raised_sigmas, ring_trough=_TROUGH if cls == HORIZONTAL else math.inf,
                 ring_outline=_OUTLINE if cls == HORIZONTAL else math.inf,
+                # a structured-light camera's depth bends most toward the frame's corners: a
+                # piece of a table seen at an angle along the frame's edge, with no ring seen
+                # there, is not told from that bend
+                edge_missing=cls == HORIZONTAL,
             )  # fmt: skip
             if got[1]:
                 found.append(got)  # most supports: nothing cut, no frame-sized work

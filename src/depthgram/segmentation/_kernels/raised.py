@@ -245,6 +245,42 @@ def _window_test(
 
 
 @njit(cache=True, nogil=True)
+def _edge_ring(
+    comp: NDArray[np.int32],
+    k: int,
+    boxes: NDArray[np.int64],
+    ring_px: int,
+    shape: tuple[int, int],
+    x0: int,
+    y0: int,
+    t: int,
+    n_ring: int,
+    n_missing: int,
+) -> tuple[int, int]:
+    # the ring samples of piece k that fall outside the frame, counted as ring without a
+    # reading: a piece along the frame's edge has no ring seen there
+    hh, ww = comp.shape
+    h, w = shape
+    for i in range(boxes[k, 1] - ring_px, boxes[k, 3] + ring_px + 1):
+        for j in range(boxes[k, 0] - ring_px, boxes[k, 2] + ring_px + 1):
+            py, px = y0 + i * t, x0 + j * t
+            if 0 <= py < h and 0 <= px < w:
+                continue
+            near = False
+            for a in range(max(i - ring_px, 0), min(i + ring_px + 1, hh)):
+                for b in range(max(j - ring_px, 0), min(j + ring_px + 1, ww)):
+                    if comp[a, b] == k:
+                        near = True
+                        break
+                if near:
+                    break
+            if near:
+                n_ring += 1
+                n_missing += 1
+    return n_ring, n_missing
+
+
+@njit(cache=True, nogil=True)
 def _component_test(
     comp: NDArray[np.int32],
     n_comp: int,
@@ -269,6 +305,7 @@ def _component_test(
     sigma_2: float,
     step_0: float,
     step_2: float,
+    edge_missing: bool,
 ) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
     # raised's tests of each connected piece (its step 3) of the high windows (comp, n_comp,
     # and their inclusive boxes and sample counts, as components gives them): its ring flat and
@@ -332,6 +369,8 @@ def _component_test(
                     if beyond:
                         outer[n_outer] = height[i, j]
                         n_outer += 1
+        if edge_missing:
+            n_ring, n_missing = _edge_ring(comp, k, boxes, ring_px, valid.shape, x0, y0, t, n_ring, n_missing)
         if n_flat < ring_share * max(n_ring, 1) or n_in == 0 or n_missing > ring_missing * n_ring:
             continue
         half = 0.5 * np.median(inside[:n_in])
@@ -440,6 +479,7 @@ def cut(
     outer_resolutions: float,
     ring_missing: float,
     ring_rise: float,
+    edge_missing: bool,
 ) -> tuple[
     NDArray[np.int32], NDArray[np.int64], NDArray[np.int64], NDArray[np.float64], NDArray[np.bool_], NDArray[np.float32]
 ]:
@@ -491,6 +531,7 @@ def cut(
         sigma_2,
         step_0,
         step_2,
+        edge_missing,
     )
     return comp, boxes, kept, halves, on, height
 
