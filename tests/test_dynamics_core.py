@@ -249,12 +249,12 @@ def test_a_helper_thread_reading_half_of_the_cores_changes_nothing() -> None:
     assert sum(m.v_radial is not None for got in runs[0] for m in got.values()) >= 20
 
 
-def test_a_core_read_once_across_two_surfaces_is_no_motion_on_a_frame_without_the_cameras_part() -> None:
-    # 7-Scenes frames 220-222 (issue 28), as the tracker handed them to the filter: a new small
-    # segment at 2680 mm (the camera's part known: 2.4 mm), on its second frame over a surface
-    # 192 mm nearer, its core reading -150 mm once (-4.6 m/s of its own), and a third frame
-    # repeating the second with no camera part (still_dz NaN). The own part one reading gave
-    # does not count, on that frame either: the kitchen stands still.
+def _replay_one_track(frames: list[tuple[float, float, float]]) -> tuple[list[float], list[float]]:
+    """Radial velocity and time to collision ``estimate`` gives one new track, frame by frame.
+
+    ``frames``: (depth, core depth change, the camera's part) of each frame (mm; NaN where the
+    tracker had none), at 30 frames/s.
+    """
     from depthgram.dynamics.estimate import estimate
     from depthgram.dynamics.kernels import new_tracks
     from depthgram.dynamics.tracker import estimate_params
@@ -265,15 +265,26 @@ def test_a_core_read_once_across_two_surfaces_is_no_motion_on_a_frame_without_th
     qt = np.full((1, 4), np.nan)
     qz = np.full((1, 4), np.nan)
     nan = np.full(1, np.nan)
-    speeds = []
-    for k, (z, n, core, still) in enumerate(
-        [(2680.4, 0, np.nan, 2.38), (2488.1, 1, -149.7, 3.06), (2488.1, 1, 0.0, np.nan)]
-    ):
+    speeds, ttcs = [], []
+    for k, (z, core, still) in enumerate(frames):
+        qt[0, :-1], qz[0, :-1] = qt[0, 1:].copy(), qz[0, 1:].copy()
         qt[0, -1], qz[0, -1] = k * dt, z
-        v, _, _ = estimate(
-            tracks, qt, qz, n, np.array([n == 0]), nan, nan, dt, p, np.zeros(1), np.array([core]), np.array([still])
+        new = np.array([k == 0])
+        v, ttc, _ = estimate(
+            tracks, qt, qz, 0 if k == 0 else 1, new, nan, nan, dt, p, np.zeros(1), np.array([core]), np.array([still])
         )
         speeds.append(float(v[0]))
+        ttcs.append(float(ttc[0]))
+    return speeds, ttcs
+
+
+def test_a_core_read_once_across_two_surfaces_is_no_motion_on_a_frame_without_the_cameras_part() -> None:
+    # 7-Scenes frames 220-222 (issue 28), as the tracker handed them to the filter: a new small
+    # segment at 2680 mm (the camera's part known: 2.4 mm), on its second frame over a surface
+    # 192 mm nearer, its core reading -150 mm once (-4.6 m/s of its own), and a third frame
+    # repeating the second with no camera part (still_dz NaN). The own part one reading gave
+    # does not count, on that frame either: the kitchen stands still.
+    speeds, _ = _replay_one_track([(2680.4, np.nan, 2.38), (2488.1, -149.7, 3.06), (2488.1, 0.0, np.nan)])
     assert np.isnan(speeds[0])
     # not a motion the kitchen does not have: slow, or not known yet (NaN) on the repeat, where
     # the depth filter restarts at a reading its one depth difference does not predict
@@ -296,24 +307,7 @@ def test_a_still_cameras_new_track_reports_a_speed_once_two_depth_differences_ag
 ) -> None:
     # A still camera: the camera's part is never read (still_dz NaN), the velocity is the depth
     # filter's. Before, the jump read -5.7 m/s, a collision 0.4 s away, for three frames.
-    from depthgram.dynamics.estimate import estimate
-    from depthgram.dynamics.kernels import new_tracks
-    from depthgram.dynamics.tracker import estimate_params
-
-    p = estimate_params(TrackerConfig())
-    dt = 1.0 / FPS
-    tracks = new_tracks(1)
-    qt = np.full((1, 4), np.nan)
-    qz = np.full((1, 4), np.nan)
-    nan = np.full(1, np.nan)
-    speeds, ttcs = [], []
-    for k, z in enumerate(depths):
-        qt[0, :-1], qz[0, :-1] = qt[0, 1:].copy(), qz[0, 1:].copy()
-        qt[0, -1], qz[0, -1] = k * dt, z
-        n = 0 if k == 0 else 1
-        v, ttc, _ = estimate(tracks, qt, qz, n, np.array([k == 0]), nan, nan, dt, p, np.zeros(1), nan, nan)
-        speeds.append(float(v[0]))
-        ttcs.append(float(ttc[0]))
+    speeds, ttcs = _replay_one_track([(z, np.nan, np.nan) for z in depths])
     for got, expected in zip(speeds, want, strict=True):
         if expected is None:
             assert np.isnan(got), speeds
