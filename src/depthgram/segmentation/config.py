@@ -191,8 +191,8 @@ class SegmentConfig:
         horizontal support (a kitchen's counters seen in passing), asked for (``--raised
         SIGMAS``): a real camera's floors and tables seen at an angle bend and streak by a few
         resolutions over their depths, which it cuts as it would a book, and it costs more
-        (the figures are in docs/design-notes.md). A piece of a horizontal support along the
-        frame's edge, with no ring seen there, is never cut.
+        (the figures are in docs/design-notes.md). A piece of a horizontal support with a third
+        of its ring beyond the frame's edge (in a corner) is never cut.
     crease_deg : float
         ``surfaces``: smallest bend (degrees) between two surfaces that makes a concave crease
         (:func:`depthgram.segmentation.creases.concave_creases`), where it stands above the

@@ -544,8 +544,8 @@ def _cut_raised(
                 k_sigma=cfg.raised_sigmas, ring_trough=_TROUGH if cls == HORIZONTAL else math.inf,
                 ring_outline=_OUTLINE if cls == HORIZONTAL else math.inf,
                 # a structured-light camera's depth bends most toward the frame's corners: a
-                # piece of a table seen at an angle along the frame's edge, with no ring seen
-                # there, is not told from that bend
+                # piece of a table seen at an angle with a third of its ring beyond the frame,
+                # not seen, is not told from that bend
                 edge_missing=cls == HORIZONTAL,
             )  # fmt: skip
             if got[1]:

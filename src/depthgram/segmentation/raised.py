@@ -171,9 +171,10 @@ def raised_pieces(
         is a solid body (a disc 3.5, a book 4-5, a screwdriver 6-7); a stereo camera's error
         on a weakly textured table or carpet is a lacy mosaic of its matching's patches.
     edge_missing : bool
-        Count the ring samples beyond the frame's edge as ring without a reading (held to
-        ``ring_missing``): a piece along the edge of a table seen at an angle is where a
-        structured-light camera's depth bends most, and nothing of its ring is seen there.
+        Refuse a piece with more than a third of its ring beyond the frame's edge: a piece in a
+        corner of a table seen at an angle (half its ring beyond) is where a structured-light
+        camera's depth bends most, and nothing of its ring is seen there; a thing partly out of
+        view along one edge (a quarter of its ring beyond) is kept.
 
     Returns
     -------

@@ -254,13 +254,12 @@ def _edge_ring(
     x0: int,
     y0: int,
     t: int,
-    n_ring: int,
-    n_missing: int,
-) -> tuple[int, int]:
-    # the ring samples of piece k that fall outside the frame, counted as ring without a
-    # reading: a piece along the frame's edge has no ring seen there
+) -> int:
+    # the ring samples of piece k that fall outside the frame: a piece in a corner has half
+    # its ring there, a thing partly out of view along one edge a quarter
     hh, ww = comp.shape
     h, w = shape
+    n_out = 0
     for i in range(boxes[k, 1] - ring_px, boxes[k, 3] + ring_px + 1):
         for j in range(boxes[k, 0] - ring_px, boxes[k, 2] + ring_px + 1):
             py, px = y0 + i * t, x0 + j * t
@@ -275,9 +274,8 @@ def _edge_ring(
                 if near:
                     break
             if near:
-                n_ring += 1
-                n_missing += 1
-    return n_ring, n_missing
+                n_out += 1
+    return n_out
 
 
 @njit(cache=True, nogil=True)
@@ -370,7 +368,10 @@ def _component_test(
                         outer[n_outer] = height[i, j]
                         n_outer += 1
         if edge_missing:
-            n_ring, n_missing = _edge_ring(comp, k, boxes, ring_px, valid.shape, x0, y0, t, n_ring, n_missing)
+            n_out = _edge_ring(comp, k, boxes, ring_px, valid.shape, x0, y0, t)
+            # more than a third of its ring beyond the frame: not told from a bend there
+            if 3 * n_out > n_ring + n_out:
+                continue
         if n_flat < ring_share * max(n_ring, 1) or n_in == 0 or n_missing > ring_missing * n_ring:
             continue
         half = 0.5 * np.median(inside[:n_in])
