@@ -114,7 +114,7 @@ def test_a_piece_with_a_third_of_its_ring_beyond_the_frame_is_not_cut(x0: int, y
     labels = np.ones((h, w), np.int32)
     args = (labels, depth, ok, ok.view(np.int8), 1, [1], BOX, sensor)
     assert raised_pieces(*args, min_px=200)[1] == [1]  # without the rule: cut wherever it lies
-    got = raised_pieces(*args, min_px=200, edge_missing=True)[1]
+    got = raised_pieces(*args, min_px=200, refuse_corners=True)[1]
     assert got == ([1] if cut else []), got
 
 

@@ -546,7 +546,7 @@ def _cut_raised(
                 # a structured-light camera's depth bends most toward the frame's corners: a
                 # piece of a table seen at an angle with a third of its ring beyond the frame,
                 # not seen, is not told from that bend
-                edge_missing=cls == HORIZONTAL,
+                refuse_corners=cls == HORIZONTAL,
             )  # fmt: skip
             if got[1]:
                 found.append(got)  # most supports: nothing cut, no frame-sized work

@@ -112,7 +112,7 @@ def raised_pieces(
     ring_rise: float = 0.1,
     ring_trough: float = 0.3,
     ring_outline: float = 14.0,
-    edge_missing: bool = False,
+    refuse_corners: bool = False,
 ) -> tuple[NDArray[np.int32], list[int], tuple[int, int, int, int]]:
     """Find the pieces of each horizontal support that stand above its plane by more than the noise.
 
@@ -170,7 +170,7 @@ def raised_pieces(
         noise) may be over the root of its area (``inf``: not read): a thing lying on a support
         is a solid body (a disc 3.5, a book 4-5, a screwdriver 6-7); a stereo camera's error
         on a weakly textured table or carpet is a lacy mosaic of its matching's patches.
-    edge_missing : bool
+    refuse_corners : bool
         Refuse a piece with more than a third of its ring beyond the frame's edge: a piece in a
         corner of a table seen at an angle (half its ring beyond) is where a structured-light
         camera's depth bends most, and nothing of its ring is seen there; a thing partly out of
@@ -209,7 +209,7 @@ def raised_pieces(
             labels, int(sid), valid, classes, int(cls), depth_mm, bx0, by0, bx1, by1, t, coef, _WINDOW, _RING,
             float(m.sigma_0), float(m.sigma_2), float(m.step_0), float(m.step_2), float(k_sigma), min_samples,
             float(ring_share), float(rise_steps), float(outer_resolutions), float(ring_missing), float(ring_rise),
-            bool(edge_missing),
+            bool(refuse_corners),
         )  # fmt: skip
         if not kept.size:
             continue

@@ -303,7 +303,7 @@ def _component_test(
     sigma_2: float,
     step_0: float,
     step_2: float,
-    edge_missing: bool,
+    refuse_corners: bool,
 ) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
     # raised's tests of each connected piece (its step 3) of the high windows (comp, n_comp,
     # and their inclusive boxes and sample counts, as components gives them): its ring flat and
@@ -367,7 +367,7 @@ def _component_test(
                     if beyond:
                         outer[n_outer] = height[i, j]
                         n_outer += 1
-        if edge_missing:
+        if refuse_corners:
             n_out = _edge_ring(comp, k, boxes, ring_px, valid.shape, x0, y0, t)
             # more than a third of its ring beyond the frame: not told from a bend there
             if 3 * n_out > n_ring + n_out:
@@ -480,7 +480,7 @@ def cut(
     outer_resolutions: float,
     ring_missing: float,
     ring_rise: float,
-    edge_missing: bool,
+    refuse_corners: bool,
 ) -> tuple[
     NDArray[np.int32], NDArray[np.int64], NDArray[np.int64], NDArray[np.float64], NDArray[np.bool_], NDArray[np.float32]
 ]:
@@ -532,7 +532,7 @@ def cut(
         sigma_2,
         step_0,
         step_2,
-        edge_missing,
+        refuse_corners,
     )
     return comp, boxes, kept, halves, on, height
 
